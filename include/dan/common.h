@@ -1,0 +1,121 @@
+/*
+ * libdan common definitions: error codes, crc8_dvb_s2, uvarint, and the
+ * bounds-checked payload writer and reader.
+ *
+ * All functions are reentrant; none allocates or keeps global state.
+ */
+#ifndef DAN_COMMON_H
+#define DAN_COMMON_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "dan/config.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Error codes. Functions return a negative code on failure. */
+#define DAN_OK              0
+#define DAN_ERR_ARG        (-1)  /* invalid argument (NULL, out of range) */
+#define DAN_ERR_OVERFLOW   (-2)  /* output buffer too small */
+#define DAN_ERR_MALFORMED  (-3)  /* input does not follow the format */
+#define DAN_ERR_TIMEOUT    (-4)  /* no response in time */
+#define DAN_ERR_BUSY       (-5)  /* an operation is already in progress */
+#define DAN_ERR_REMOTE     (-6)  /* the peer answered with an error frame */
+#define DAN_ERR_COLLISION  (-7)  /* echo mismatch: another talker on the wire */
+#define DAN_ERR_UNSUPPORTED (-8) /* no common baud, unknown type, ... */
+#define DAN_ERR_NOTFOUND   (-9)  /* peripheral / entry not present */
+#define DAN_ERR_IO         (-10) /* the port's write or set_baud failed */
+#define DAN_ERR_NACK       (-11) /* the peer answered with ACK-FAIL */
+
+/* Short English name of an error code ("timeout", ...); never NULL. */
+const char *dan_strerror(int err);
+
+/* ---- crc8_dvb_s2: poly 0xD5, init 0, no reflection, no xorout ---- */
+
+/* CRC of len bytes continuing from crc (start with 0). */
+uint8_t dan_crc8(uint8_t crc, const uint8_t *data, size_t len);
+/* One byte step, for byte-at-a-time callers. */
+uint8_t dan_crc8_byte(uint8_t crc, uint8_t byte);
+
+/* ---- uvarint: 7 bits a byte, low group first, 0x80 = more follows ---- */
+
+/* Writes v at out (cap bytes). Returns bytes written (1..5), or
+ * DAN_ERR_OVERFLOW. With out == NULL, returns the size only. */
+int dan_uvarint_encode(uint32_t v, uint8_t *out, size_t cap);
+
+/* Bytes v takes on the wire (1..5). */
+size_t dan_uvarint_size(uint32_t v);
+
+/* Decodes one uvarint from in (len bytes available). Returns bytes used
+ * (1..5); 0 if the input ends before the uvarint does (truncated: feed more);
+ * DAN_ERR_MALFORMED for an encoding longer than 5 bytes or a value that does
+ * not fit 32 bits. Non-minimal encodings (e.g. 0x80 0x00) are accepted. */
+int dan_uvarint_decode(const uint8_t *in, size_t len, uint32_t *v);
+
+/* ---- payload writer ---- */
+
+/* Appends fields into a caller buffer. The first failure sets a sticky
+ * error and later puts do nothing, so a caller checks once at the end with
+ * dan_writer_finish(). With buf == NULL (cap ignored) the writer only
+ * counts: a size-only pass. */
+typedef struct {
+    uint8_t *buf;
+    size_t cap;
+    size_t len;   /* bytes written (or counted) so far */
+    bool error;
+} dan_writer_t;
+
+void dan_writer_init(dan_writer_t *w, uint8_t *buf, size_t cap);
+void dan_put_u8(dan_writer_t *w, uint8_t v);
+void dan_put_u16(dan_writer_t *w, uint16_t v);            /* little endian */
+void dan_put_u32(dan_writer_t *w, uint32_t v);            /* little endian */
+void dan_put_uvarint(dan_writer_t *w, uint32_t v);
+void dan_put_raw(dan_writer_t *w, const void *data, size_t len); /* no length */
+void dan_put_array(dan_writer_t *w, const void *data, size_t len); /* uvarint len + bytes */
+void dan_put_string(dan_writer_t *w, const char *s);      /* NULL == "" */
+/* Returns the length written, or DAN_ERR_OVERFLOW. */
+int dan_writer_finish(const dan_writer_t *w);
+
+/* ---- payload reader ---- */
+
+/* Reads fields from a received payload. Reading past the end, a bad
+ * uvarint or an array longer than what remains sets the sticky error and
+ * returns zeros; nothing is ever read outside [data, data+len). */
+typedef struct {
+    const uint8_t *data;
+    size_t len;
+    size_t pos;
+    bool error;
+} dan_reader_t;
+
+void dan_reader_init(dan_reader_t *r, const uint8_t *data, size_t len);
+uint8_t dan_get_u8(dan_reader_t *r);
+uint16_t dan_get_u16(dan_reader_t *r);
+uint32_t dan_get_u32(dan_reader_t *r);
+uint32_t dan_get_uvarint(dan_reader_t *r);
+/* Exactly len raw bytes into out (out may be NULL to skip them). */
+void dan_get_raw(dan_reader_t *r, void *out, size_t len);
+/* An array[uint8] as a view into the payload (no copy). *len is its length;
+ * on error *p is NULL and *len 0. */
+void dan_get_array_view(dan_reader_t *r, const uint8_t **p, size_t *len);
+/* An array[uint8] copied into out (cap bytes); longer arrays set the error. */
+size_t dan_get_array(dan_reader_t *r, uint8_t *out, size_t cap);
+/* A string copied into out as a NUL-terminated C string. Longer strings are
+ * consumed whole and truncated to cap-1 bytes; returns true if truncated.
+ * Embedded NUL bytes are kept in the payload but end the C string. */
+bool dan_get_string(dan_reader_t *r, char *out, size_t cap);
+/* Bytes not read yet. */
+size_t dan_reader_remaining(const dan_reader_t *r);
+/* DAN_OK if every read succeeded, else DAN_ERR_MALFORMED. Trailing bytes
+ * are allowed (later protocol versions may append fields). */
+int dan_reader_finish(const dan_reader_t *r);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_COMMON_H */

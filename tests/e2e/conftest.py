@@ -1,0 +1,77 @@
+"""Shared fixtures for the end-to-end tests.
+
+Every process a test starts goes through the `spawn` fixture, which puts it
+in its own process group and kills the group at teardown, so no test leaves
+a process behind whatever happens.
+"""
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+BIN = ROOT / "build" / "bin"
+VECTORS = ROOT / "tests" / "vectors"
+
+
+def wait_for(pred, timeout=10.0, interval=0.02, what="condition"):
+    """Polls pred() until it returns a truthy value; fails after timeout.
+    Deadlines are generous: they catch hangs, they do not measure speed."""
+    end = time.monotonic() + timeout
+    while True:
+        v = pred()
+        if v:
+            return v
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out after {timeout}s waiting for {what}")
+        time.sleep(interval)
+
+
+class Procs:
+    def __init__(self, tmp_path):
+        self.tmp = tmp_path
+        self.procs = []
+
+    def start(self, args, name=None, **kw):
+        """Starts a program in its own session; stderr goes to a log file
+        in the test's tmp dir (shown on failure)."""
+        name = name or Path(str(args[0])).name
+        log = open(self.tmp / f"{name}.{len(self.procs)}.log", "wb")
+        kw.setdefault("stdout", subprocess.PIPE)
+        p = subprocess.Popen([str(a) for a in args], stdin=subprocess.DEVNULL,
+                             stderr=log, start_new_session=True, **kw)
+        p.log_path = Path(log.name)
+        p.log_file = log
+        self.procs.append(p)
+        return p
+
+    def stop(self, p, sig=signal.SIGTERM, timeout=10.0):
+        """Signals a process (group) and waits; returns its exit code."""
+        if p.poll() is None:
+            try:
+                os.killpg(p.pid, sig)
+            except ProcessLookupError:
+                pass
+            try:
+                p.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(5)
+        return p.returncode
+
+    def close(self):
+        for p in reversed(self.procs):
+            self.stop(p)
+            if p.stdout:
+                p.stdout.close()
+            p.log_file.close()
+
+
+@pytest.fixture
+def procs(tmp_path):
+    ps = Procs(tmp_path)
+    yield ps
+    ps.close()
