@@ -24,7 +24,7 @@ ifeq ($(SAN),1)
 OPT      := -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 LDSAN    := -fsanitize=address,undefined
 endif
-CFLAGS_ALL  = $(WARN) $(OPT) -Iinclude $(EXTRA_CFLAGS)
+CFLAGS_ALL  = $(WARN) $(OPT) -Iinclude -MMD -MP $(EXTRA_CFLAGS)
 # POSIX code (ports, tools, daemons) may use POSIX and Linux interfaces.
 CFLAGS_POSIX = $(CFLAGS_ALL) -D_GNU_SOURCE
 
@@ -38,7 +38,8 @@ endif
 LIB_SRC   := $(wildcard src/*.c)
 PORT_SRC  := $(wildcard src/port/*.c)
 GW_SRC    := $(wildcard peripherals/can_gateway/*.c)
-GWD_SRC   := $(wildcard peripherals/can_gateway/linux/*.c)
+GWD_MAIN  := $(wildcard peripherals/can_gateway/linux/dan-gatewayd.c)
+GWL_SRC   := $(filter-out $(GWD_MAIN),$(wildcard peripherals/can_gateway/linux/*.c))
 TOOL_SRC  := $(wildcard host_tools/c/*.c)
 TTOOL_SRC := $(wildcard tests/tools/*.c)
 UNIT_SRC  := $(wildcard tests/unit/test_*.c)
@@ -49,15 +50,17 @@ obj = $(patsubst %.c,$(BUILD)/obj/%.o,$(1))
 LIB      := $(BUILD)/libdan.a
 LIBPOSIX := $(BUILD)/libdan_posix.a
 LIBGW    := $(BUILD)/libdan_gateway.a
+LIBGWL   := $(BUILD)/libdan_gwlinux.a
 BINS     := $(patsubst host_tools/c/%.c,$(BUILD)/bin/%,$(TOOL_SRC)) \
             $(patsubst tests/tools/%.c,$(BUILD)/bin/%,$(TTOOL_SRC)) \
-            $(if $(GWD_SRC),$(BUILD)/bin/dan-gatewayd)
+            $(if $(GWD_MAIN),$(BUILD)/bin/dan-gatewayd)
 UNITS    := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(UNIT_SRC))
+ALL_LIBS  = $(if $(GWL_SRC),$(LIBGWL)) $(if $(GW_SRC),$(LIBGW)) $(if $(PORT_SRC),$(LIBPOSIX)) $(LIB)
 
-.PHONY: all test unit unit-run pytest cross install clean deps-build deps-test deps-cross venv
+.PHONY: objects all test unit unit-run pytest cross install clean deps-build deps-test deps-cross venv
 .DELETE_ON_ERROR:
 
-all: deps-build $(LIB) $(LIBPOSIX) $(if $(GW_SRC),$(LIBGW)) $(BINS)
+all: deps-build $(ALL_LIBS) $(BINS)
 
 # ---- dependencies -------------------------------------------------------
 
@@ -125,10 +128,14 @@ $(BUILD)/obj/tests/%.o: tests/%.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_POSIX) -Iperipherals/can_gateway -Itests/unit -c $< -o $@
 
-# Keep object files: the sanitizer build reuses the same rules under build/asan.
-.SECONDARY:
+# Naming every object here keeps them from being treated as intermediate
+# files (deleted after linking, and not rebuilt when a header changes).
+objects: $(call obj,$(LIB_SRC) $(PORT_SRC) $(GW_SRC) $(GWD_MAIN) $(GWL_SRC) $(TOOL_SRC) $(TTOOL_SRC) $(UNIT_SRC) $(UNIT_HELP))
 
 $(LIB): $(call obj,$(LIB_SRC))
+	@mkdir -p $(@D)
+	rm -f $@ && $(AR) rcs $@ $^
+$(LIBGWL): $(call obj,$(GWL_SRC))
 	@mkdir -p $(@D)
 	rm -f $@ && $(AR) rcs $@ $^
 $(LIBPOSIX): $(call obj,$(PORT_SRC))
@@ -138,7 +145,6 @@ $(LIBGW): $(call obj,$(GW_SRC))
 	@mkdir -p $(@D)
 	rm -f $@ && $(AR) rcs $@ $^
 
-ALL_LIBS = $(if $(GW_SRC),$(LIBGW)) $(LIBPOSIX) $(LIB)
 
 $(BUILD)/bin/%: $(BUILD)/obj/host_tools/c/%.o $(ALL_LIBS)
 	@mkdir -p $(@D)
@@ -146,9 +152,11 @@ $(BUILD)/bin/%: $(BUILD)/obj/host_tools/c/%.o $(ALL_LIBS)
 $(BUILD)/bin/%: $(BUILD)/obj/tests/tools/%.o $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(GPIOD_LIBS) -lutil
-$(BUILD)/bin/dan-gatewayd: $(call obj,$(GWD_SRC)) $(ALL_LIBS)
+$(BUILD)/bin/dan-gatewayd: $(call obj,$(GWD_MAIN)) $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(GPIOD_LIBS) -lutil -lm
+
+-include $(shell find $(BUILD)/obj -name '*.d' 2>/dev/null)
 
 # ---- tests ----------------------------------------------------------------
 

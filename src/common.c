@@ -204,7 +204,10 @@ uint8_t dan_get_u8(dan_reader_t *r)
 uint16_t dan_get_u16(dan_reader_t *r)
 {
     const uint8_t *p = reader_take(r, 2);
-    return (p == NULL) ? 0u : (uint16_t)(p[0] | (p[1] << 8));
+    if (p == NULL) {
+        return 0;
+    }
+    return (uint16_t)((unsigned)p[0] | ((unsigned)p[1] << 8));
 }
 
 uint32_t dan_get_u32(dan_reader_t *r)

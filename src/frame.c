@@ -39,7 +39,8 @@ int dan_frame_encode(uint32_t code, const uint8_t *payload, size_t len,
  * candidate frame examined so far (buf[0] is its sync byte); bytes in
  * buf[scanned..len) are left over from a rejected candidate and are fed
  * again before new input. need is the candidate's total length once its
- * header has been read, else 0.
+ * header has been read, else 0. buf[0..guard) are bytes of rejected
+ * candidates (see examine()).
  */
 
 void dan_decoder_init(dan_decoder_t *d)
@@ -64,6 +65,7 @@ static size_t drop_front(dan_decoder_t *d, size_t n)
     if (d->len > 0u) {
         memmove(d->buf, d->buf + k, d->len);
     }
+    d->guard = (d->guard > k) ? d->guard - k : 0u;
     d->scanned = 0;
     d->need = 0;
     return k - n;
@@ -73,6 +75,9 @@ static size_t drop_front(dan_decoder_t *d, size_t n)
 static void reject(dan_decoder_t *d, uint32_t *counter)
 {
     (*counter)++;
+    if (d->guard < d->scanned) {
+        d->guard = d->scanned;
+    }
     (void)drop_front(d, 1);
 }
 
@@ -116,6 +121,13 @@ static int examine(dan_decoder_t *d, dan_frame_t *f)
         return 0;
     }
     if (dan_crc8(0, d->buf + 1, n - 2u) != d->buf[n - 1u]) {
+        reject(d, &d->stats.crc_errors);
+        return -1;
+    }
+    /* A candidate found inside the bytes of a rejected one, and ending
+     * inside them, passed an 8-bit CRC by chance as often as not: accept it
+     * only if another frame starts right after it (buf[n] is buffered). */
+    if (n < d->guard && d->buf[n] != DAN_SYNC) {
         reject(d, &d->stats.crc_errors);
         return -1;
     }
@@ -176,13 +188,50 @@ int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len,
     }
 }
 
+/* True if buf[k..len) is exactly one complete, valid frame. */
+static bool whole_frame_at(const dan_decoder_t *d, size_t k)
+{
+    const uint8_t *p = d->buf + k;
+    size_t n = d->len - k;
+    uint32_t code, plen;
+    int nc, nl;
+    if (n < 4u || p[0] != DAN_SYNC) {
+        return false;
+    }
+    nc = dan_uvarint_decode(p + 1, n - 1u, &code);
+    if (nc <= 0) {
+        return false;
+    }
+    nl = dan_uvarint_decode(p + 1 + nc, n - 1u - (size_t)nc, &plen);
+    if (nl <= 0 || plen > DAN_MAX_PAYLOAD ||
+        1u + (size_t)nc + (size_t)nl + (size_t)plen + 1u != n) {
+        return false;
+    }
+    return dan_crc8(0, p + 1, n - 2u) == p[n - 1u];
+}
+
 void dan_decoder_abort(dan_decoder_t *d)
 {
+    size_t k;
     if (d->consume > 0u) {
         d->stats.garbage += (uint32_t)drop_front(d, d->consume);
         d->consume = 0;
     }
-    if (d->len > 0u) {
-        reject(d, &d->stats.aborted);
+    if (d->len == 0u) {
+        return;
     }
+    d->stats.aborted++;
+    /* The line went idle: a frame sent just before the gap ends at the last
+     * byte received. Only such a frame is kept; shorter candidates inside
+     * the aborted bytes would be accepted on an 8-bit CRC alone. */
+    for (k = 1; k < d->len; k++) {
+        if (whole_frame_at(d, k)) {
+            (void)drop_front(d, k);
+            return; /* returned by the next dan_decoder_feed() */
+        }
+    }
+    d->len = 0;
+    d->scanned = 0;
+    d->need = 0;
+    d->guard = 0;
 }

@@ -55,6 +55,7 @@ typedef struct {
     size_t scanned;         /* buffered bytes already examined as the candidate */
     size_t consume;         /* length of the frame last returned, dropped on the next call */
     size_t need;            /* total length of the candidate once its header is read */
+    size_t guard;           /* buffered bytes that belonged to rejected candidates */
     uint32_t code;          /* the candidate's code, once its header is read */
     uint8_t hdr;            /* the candidate's header length (sync, code, length) */
     dan_decoder_stats_t stats;
@@ -82,10 +83,12 @@ int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len,
 /* True while a partial frame is buffered (a frame has started). */
 bool dan_decoder_busy(const dan_decoder_t *d);
 
-/* Rejects the partial frame being buffered (e.g. because the line went idle
- * in the middle of it), counting it in stats.aborted. Like any rejection,
- * the bytes after its sync byte are rescanned: call dan_decoder_feed()
- * (len may be 0) to collect a frame that was complete inside them. */
+/* Call when the line has been idle while a partial frame was buffered
+ * (see dan_decoder_busy()): the partial frame is dropped and counted in
+ * stats.aborted. If the buffered bytes end with a whole valid frame that
+ * started inside the dropped one (a stray sync byte before a real frame),
+ * that frame is kept: collect it with dan_decoder_feed() (len may be 0).
+ * Afterwards the decoder is no longer busy. */
 void dan_decoder_abort(dan_decoder_t *d);
 
 #ifdef __cplusplus

@@ -1,0 +1,137 @@
+/* Dispatcher: parses the interface spec and forwards to the backend. */
+#include "linux/can_backend.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+
+static int set_err(char *err, size_t errlen, int code, const char *msg,
+                   const char *spec)
+{
+    if (err && errlen)
+        snprintf(err, errlen, "%s: %s", spec, msg);
+    return code;
+}
+
+/* Parses "[@]digits" at s; returns the value, or 0 if not all digits. */
+static unsigned long parse_baud(const char *s)
+{
+    unsigned long v = 0;
+    if (*s == '\0')
+        return 0;
+    for (; *s; s++) {
+        if (*s < '0' || *s > '9' || v > 100000000ul)
+            return 0;
+        v = v * 10u + (unsigned long)(*s - '0');
+    }
+    return v;
+}
+
+int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen)
+{
+    if (err && errlen)
+        err[0] = '\0';
+    if (!c || !spec)
+        return set_err(err, errlen, DAN_ERR_ARG, "no interface given", "can");
+    memset(c, 0, sizeof *c);
+    c->fd = -1;
+
+    if (strncmp(spec, "socketcan:", 10) == 0) {
+        const char *ifname = spec + 10;
+        if (*ifname == '\0')
+            return set_err(err, errlen, DAN_ERR_ARG,
+                           "missing interface name (socketcan:can0)", spec);
+        return dan_canif_socketcan_open(c, ifname, err, errlen);
+    }
+    if (strncmp(spec, "slcan:", 6) == 0) {
+        char path[256];
+        unsigned long baud = DAN_SLCAN_DEFAULT_BAUD;
+        const char *p = spec + 6;
+        const char *at = strrchr(p, '@');
+        size_t n = strlen(p);
+        if (at && at[1] >= '0' && at[1] <= '9') {
+            baud = parse_baud(at + 1);
+            if (baud == 0)
+                return set_err(err, errlen, DAN_ERR_ARG,
+                               "bad serial baud after '@'", spec);
+            n = (size_t)(at - p);
+        }
+        if (n == 0)
+            return set_err(err, errlen, DAN_ERR_ARG,
+                           "missing device path (slcan:/dev/ttyACM0)", spec);
+        if (n >= sizeof path)
+            return set_err(err, errlen, DAN_ERR_ARG, "device path too long",
+                           spec);
+        memcpy(path, p, n);
+        path[n] = '\0';
+        return dan_canif_slcan_open(c, path, (unsigned)baud, err, errlen);
+    }
+    return set_err(err, errlen, DAN_ERR_ARG,
+                   "unknown CAN interface type (use socketcan:IF or "
+                   "slcan:/dev/TTY[@BAUD])", spec);
+}
+
+int dan_canif_fd(const dan_canif_t *c)
+{
+    return (c && c->kind != DAN_CANIF_NONE) ? c->fd : -1;
+}
+
+int dan_canif_send(dan_canif_t *c, const dan_can_frame_t *f)
+{
+    if (!c || !f)
+        return DAN_ERR_ARG;
+    switch (c->kind) {
+    case DAN_CANIF_SLCAN:
+        return dan_canif_slcan_send(c, f);
+    case DAN_CANIF_SOCKETCAN:
+        return dan_canif_socketcan_send(c, f);
+    default:
+        return DAN_ERR_IO;
+    }
+}
+
+int dan_canif_recv(dan_canif_t *c, dan_can_frame_t *f)
+{
+    if (!c || !f)
+        return DAN_ERR_ARG;
+    switch (c->kind) {
+    case DAN_CANIF_SLCAN:
+        return dan_canif_slcan_recv(c, f);
+    case DAN_CANIF_SOCKETCAN:
+        return dan_canif_socketcan_recv(c, f);
+    default:
+        return DAN_ERR_IO;
+    }
+}
+
+int dan_canif_tx_pending(const dan_canif_t *c)
+{
+    return c && c->kind == DAN_CANIF_SLCAN && c->tx_len > 0;
+}
+
+int dan_canif_flush(dan_canif_t *c)
+{
+    if (!c)
+        return DAN_ERR_ARG;
+    if (c->kind == DAN_CANIF_SLCAN)
+        return dan_canif_slcan_flush(c);
+    return c->kind == DAN_CANIF_NONE ? DAN_ERR_IO : 0;
+}
+
+void dan_canif_close(dan_canif_t *c)
+{
+    if (!c)
+        return;
+    switch (c->kind) {
+    case DAN_CANIF_SLCAN:
+        dan_canif_slcan_close(c);
+        break;
+    case DAN_CANIF_SOCKETCAN:
+        dan_canif_socketcan_close(c);
+        break;
+    default:
+        break;
+    }
+    c->kind = DAN_CANIF_NONE;
+    c->fd = -1;
+}

@@ -1,0 +1,518 @@
+/*
+ * SLCAN (Lawicel ASCII) backend: a USB-CAN adapter on a tty.
+ *
+ * Host -> adapter: "C\r" close, "S8\r" 1 Mbit/s, "O\r" open,
+ *   "tIIILDD..\r" / "TIIIIIIIILDD..\r" data frames, "rIIIL\r" / "RIIIIIIIIL\r"
+ *   remote frames.
+ * Adapter -> host: "\r" ACK, "\a" (BEL) error, "z\r" / "Z\r" transmit ACK,
+ *   received frames in the same t/T/r/R syntax, optionally followed by a
+ *   4-hex-digit millisecond timestamp (Z1 mode).
+ */
+#include "linux/can_backend.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+/* ---- pure line codec ---- */
+
+static int hexval(char ch)
+{
+    if (ch >= '0' && ch <= '9')
+        return ch - '0';
+    if (ch >= 'a' && ch <= 'f')
+        return ch - 'a' + 10;
+    if (ch >= 'A' && ch <= 'F')
+        return ch - 'A' + 10;
+    return -1;
+}
+
+/* n hex digits at s into *v; 0 or DAN_ERR_MALFORMED. */
+static int parse_hex(const char *s, size_t n, uint32_t *v)
+{
+    uint32_t x = 0;
+    for (size_t i = 0; i < n; i++) {
+        int h = hexval(s[i]);
+        if (h < 0)
+            return DAN_ERR_MALFORMED;
+        x = (x << 4) | (uint32_t)h;
+    }
+    *v = x;
+    return 0;
+}
+
+int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
+{
+    size_t idlen, pos, need;
+    uint32_t id, v;
+    uint8_t flags = 0;
+    int dlc;
+
+    if (!line || !f)
+        return DAN_ERR_ARG;
+    if (len == 0)
+        return 0;
+    switch (line[0]) {
+    case 'z':
+    case 'Z':
+        return len == 1 ? 0 : DAN_ERR_MALFORMED;
+    case 't': idlen = 3; break;
+    case 'r': idlen = 3; flags = DAN_CAN_RTR; break;
+    case 'T': idlen = 8; flags = DAN_CAN_EXT; break;
+    case 'R': idlen = 8; flags = DAN_CAN_EXT | DAN_CAN_RTR; break;
+    default:
+        return DAN_ERR_MALFORMED;
+    }
+    if (len < 1 + idlen + 1)
+        return DAN_ERR_MALFORMED;
+    if (parse_hex(line + 1, idlen, &id) < 0)
+        return DAN_ERR_MALFORMED;
+    if (id > ((flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+        return DAN_ERR_MALFORMED;
+    dlc = hexval(line[1 + idlen]);
+    if (dlc < 0 || dlc > 8)
+        return DAN_ERR_MALFORMED;
+    pos = 2 + idlen;
+    need = pos + ((flags & DAN_CAN_RTR) ? 0u : 2u * (size_t)dlc);
+    /* Exactly the frame, or the frame and a 4-digit timestamp. */
+    if (len != need && len != need + 4)
+        return DAN_ERR_MALFORMED;
+    if (len == need + 4 && parse_hex(line + need, 4, &v) < 0)
+        return DAN_ERR_MALFORMED;
+
+    memset(f, 0, sizeof *f);
+    f->id = id;
+    f->flags = flags;
+    f->dlc = (uint8_t)dlc;
+    if (!(flags & DAN_CAN_RTR)) {
+        for (int i = 0; i < dlc; i++) {
+            if (parse_hex(line + pos + 2 * (size_t)i, 2, &v) < 0)
+                return DAN_ERR_MALFORMED;
+            f->data[i] = (uint8_t)v;
+        }
+    }
+    return 1;
+}
+
+int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap)
+{
+    static const char hex[] = "0123456789ABCDEF";
+    char buf[DAN_SLCAN_FORMAT_MAX];
+    size_t n = 0, idlen;
+    int ext, rtr;
+
+    if (!f || !out)
+        return DAN_ERR_ARG;
+    ext = (f->flags & DAN_CAN_EXT) != 0;
+    rtr = (f->flags & DAN_CAN_RTR) != 0;
+    if ((f->flags & DAN_CAN_ERR) || f->dlc > 8 ||
+        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+        return DAN_ERR_ARG;
+    idlen = ext ? 8u : 3u;
+    buf[n++] = ext ? (rtr ? 'R' : 'T') : (rtr ? 'r' : 't');
+    for (size_t i = 0; i < idlen; i++)
+        buf[n++] = hex[(f->id >> (4u * (idlen - 1u - i))) & 0xFu];
+    buf[n++] = hex[f->dlc];
+    if (!rtr) {
+        for (size_t i = 0; i < f->dlc; i++) {
+            buf[n++] = hex[f->data[i] >> 4];
+            buf[n++] = hex[f->data[i] & 0xFu];
+        }
+    }
+    buf[n++] = '\r';
+    if (cap < n + 1)
+        return DAN_ERR_OVERFLOW;
+    memcpy(out, buf, n);
+    out[n] = '\0';
+    return (int)n;
+}
+
+/* ---- tty helpers ---- */
+
+static int fail(char *err, size_t errlen, int code, const char *path,
+                const char *what, int errnum)
+{
+    if (err && errlen) {
+        if (errnum)
+            snprintf(err, errlen, "slcan:%s: %s: %s", path, what,
+                     strerror(errnum));
+        else
+            snprintf(err, errlen, "slcan:%s: %s", path, what);
+    }
+    return code;
+}
+
+static speed_t baud_to_speed(unsigned baud)
+{
+    switch (baud) {
+    case 9600: return B9600;
+    case 19200: return B19200;
+    case 38400: return B38400;
+    case 57600: return B57600;
+    case 115200: return B115200;
+    case 230400: return B230400;
+    case 460800: return B460800;
+    case 500000: return B500000;
+    case 921600: return B921600;
+    case 1000000: return B1000000;
+    case 1500000: return B1500000;
+    case 2000000: return B2000000;
+    case 3000000: return B3000000;
+    case 4000000: return B4000000;
+    default: return B0;
+    }
+}
+
+static long ms_left(const struct timespec *deadline)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (long)(deadline->tv_sec - now.tv_sec) * 1000L +
+           (deadline->tv_nsec - now.tv_nsec) / 1000000L;
+}
+
+/* Writes all of s (a short command) before the deadline. */
+static int write_all(int fd, const char *s, size_t n,
+                     const struct timespec *deadline)
+{
+    while (n > 0) {
+        ssize_t w = write(fd, s, n);
+        if (w > 0) {
+            s += w;
+            n -= (size_t)w;
+            continue;
+        }
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+            long left = ms_left(deadline);
+            struct pollfd p = { .fd = fd, .events = POLLOUT, .revents = 0 };
+            if (left <= 0)
+                return DAN_ERR_TIMEOUT;
+            if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
+                return DAN_ERR_IO;
+            continue;
+        }
+        return DAN_ERR_IO;
+    }
+    return 0;
+}
+
+/* Waits for the adapter's answer to a command: an empty line ended by '\r'
+ * (ACK) or a BEL. Non-empty lines (frames still in flight, version text)
+ * are skipped. Returns 0 for ACK, DAN_ERR_REMOTE for BEL, DAN_ERR_TIMEOUT,
+ * DAN_ERR_IO. */
+static int wait_ack(int fd, const struct timespec *deadline)
+{
+    size_t linelen = 0;
+    for (;;) {
+        char b[64];
+        ssize_t n = read(fd, b, sizeof b);
+        if (n > 0) {
+            for (ssize_t i = 0; i < n; i++) {
+                if (b[i] == '\a')
+                    return DAN_ERR_REMOTE;
+                if (b[i] == '\r') {
+                    if (linelen == 0)
+                        return 0;
+                    linelen = 0;
+                } else if (b[i] != '\n') {
+                    linelen++;
+                }
+            }
+            continue;
+        }
+        if (n == 0)
+            return DAN_ERR_IO;
+        if (errno == EINTR)
+            continue;
+        if (errno != EAGAIN && errno != EWOULDBLOCK)
+            return DAN_ERR_IO;
+        long left = ms_left(deadline);
+        if (left <= 0)
+            return DAN_ERR_TIMEOUT;
+        struct pollfd p = { .fd = fd, .events = POLLIN, .revents = 0 };
+        if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
+            return DAN_ERR_IO;
+    }
+}
+
+static void restore_and_close(dan_canif_t *c)
+{
+    if (c->fd >= 0) {
+        if (c->have_old_tio)
+            tcsetattr(c->fd, TCSANOW, &c->old_tio);
+        close(c->fd);
+    }
+    c->fd = -1;
+    c->have_old_tio = 0;
+}
+
+int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
+                         char *err, size_t errlen)
+{
+    struct termios tio;
+    struct timespec deadline;
+    speed_t speed = baud_to_speed(baud);
+    int fd, r;
+
+    if (speed == B0)
+        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
+                    "unsupported serial baud (use 9600..4000000, a standard "
+                    "rate)", 0);
+    fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
+        int e = errno;
+        return fail(err, errlen,
+                    e == ENOENT || e == ENODEV || e == ENXIO
+                        ? DAN_ERR_NOTFOUND : DAN_ERR_IO,
+                    path, e == ENOENT ? "no such device" : "cannot open", e);
+    }
+    c->kind = DAN_CANIF_SLCAN;
+    c->fd = fd;
+    snprintf(c->name, sizeof c->name, "%s", path);
+
+    if (tcgetattr(fd, &c->old_tio) < 0) {
+        int e = errno;
+        restore_and_close(c);
+        c->kind = DAN_CANIF_NONE;
+        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
+                    "not a serial port (tcgetattr)", e);
+    }
+    c->have_old_tio = 1;
+    tio = c->old_tio;
+    cfmakeraw(&tio);
+    tio.c_cflag |= CLOCAL | CREAD;
+    tio.c_cflag &= (tcflag_t)~CRTSCTS;
+    tio.c_cc[VMIN] = 1;
+    tio.c_cc[VTIME] = 0;
+    cfsetispeed(&tio, speed);
+    cfsetospeed(&tio, speed);
+    if (tcsetattr(fd, TCSANOW, &tio) < 0) {
+        int e = errno;
+        restore_and_close(c);
+        c->kind = DAN_CANIF_NONE;
+        return fail(err, errlen, DAN_ERR_IO, path, "tcsetattr", e);
+    }
+    tcflush(fd, TCIOFLUSH);
+
+    clock_gettime(CLOCK_MONOTONIC, &deadline);
+    deadline.tv_sec += DAN_SLCAN_OPEN_TIMEOUT_MS / 1000;
+    deadline.tv_nsec += (long)(DAN_SLCAN_OPEN_TIMEOUT_MS % 1000) * 1000000L;
+    if (deadline.tv_nsec >= 1000000000L) {
+        deadline.tv_sec++;
+        deadline.tv_nsec -= 1000000000L;
+    }
+
+    /* Close the channel in case it was left open: ACK or BEL are both
+     * fine (some adapters refuse C when closed). Then drop whatever frames
+     * were still arriving. */
+    r = write_all(fd, "C\r", 2, &deadline);
+    if (r == 0)
+        r = wait_ack(fd, &deadline);
+    if (r == DAN_ERR_REMOTE)
+        r = 0;
+    if (r == 0) {
+        tcflush(fd, TCIFLUSH);
+        r = write_all(fd, "S8\r", 3, &deadline);
+        if (r == 0)
+            r = wait_ack(fd, &deadline);
+        if (r == 0) {
+            r = write_all(fd, "O\r", 2, &deadline);
+            if (r == 0)
+                r = wait_ack(fd, &deadline);
+            if (r < 0) {
+                restore_and_close(c);
+                c->kind = DAN_CANIF_NONE;
+                return fail(err, errlen, r, path,
+                            r == DAN_ERR_REMOTE
+                                ? "adapter refused O (open channel) with BEL"
+                                : r == DAN_ERR_TIMEOUT
+                                      ? "no answer from adapter to O"
+                                      : "I/O error during O (open channel)",
+                            0);
+            }
+        } else {
+            restore_and_close(c);
+            c->kind = DAN_CANIF_NONE;
+            return fail(err, errlen, r, path,
+                        r == DAN_ERR_REMOTE
+                            ? "adapter refused S8 (1 Mbit/s) with BEL"
+                            : r == DAN_ERR_TIMEOUT
+                                  ? "no answer from adapter to S8 within "
+                                    "1000 ms (not an SLCAN adapter, or wrong "
+                                    "baud?)"
+                                  : "I/O error during S8 (set bitrate)",
+                        0);
+        }
+    } else {
+        restore_and_close(c);
+        c->kind = DAN_CANIF_NONE;
+        return fail(err, errlen, r, path,
+                    r == DAN_ERR_TIMEOUT
+                        ? "no answer from adapter to C within 1000 ms "
+                          "(not an SLCAN adapter, or wrong baud?)"
+                        : "I/O error during C (close channel)",
+                    0);
+    }
+    return 0;
+}
+
+/* ---- sending ---- */
+
+int dan_canif_slcan_flush(dan_canif_t *c)
+{
+    while (c->tx_len > 0) {
+        ssize_t w = write(c->fd, c->txbuf, c->tx_len);
+        if (w > 0) {
+            memmove(c->txbuf, c->txbuf + w, c->tx_len - (size_t)w);
+            c->tx_len -= (size_t)w;
+            continue;
+        }
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+            return DAN_ERR_BUSY;
+        c->stats.errors++;
+        return DAN_ERR_IO;
+    }
+    return 0;
+}
+
+int dan_canif_slcan_send(dan_canif_t *c, const dan_can_frame_t *f)
+{
+    char line[DAN_SLCAN_FORMAT_MAX];
+    int n = dan_slcan_format(f, line, sizeof line);
+    ssize_t w;
+
+    if (n < 0)
+        return DAN_ERR_ARG;
+    if (c->tx_len > 0) {
+        int r = dan_canif_slcan_flush(c);
+        if (r == DAN_ERR_BUSY) {
+            c->stats.tx_dropped++;
+            return DAN_ERR_BUSY;
+        }
+        if (r < 0)
+            return r;
+    }
+    for (;;) {
+        w = write(c->fd, line, (size_t)n);
+        if (w < 0 && errno == EINTR)
+            continue;
+        break;
+    }
+    if (w < 0) {
+        if (errno == EAGAIN || errno == EWOULDBLOCK) {
+            c->stats.tx_dropped++;
+            return DAN_ERR_BUSY;
+        }
+        c->stats.errors++;
+        return DAN_ERR_IO;
+    }
+    if (w < n) {
+        /* Keep the rest of the line: a frame is never half sent. */
+        memcpy(c->txbuf, line + w, (size_t)(n - w));
+        c->tx_len = (size_t)(n - w);
+    }
+    c->stats.tx++;
+    return 0;
+}
+
+/* ---- receiving ---- */
+
+/* Feeds one byte; returns 1 when a frame was completed into *f. */
+static int feed(dan_canif_t *c, char b, dan_can_frame_t *f)
+{
+    int r;
+    if (b == '\a') {
+        c->stats.bel++;
+        c->stats.errors++;
+        c->line_len = 0;
+        c->line_overflow = 0;
+        return 0;
+    }
+    if (b != '\r' && b != '\n') {
+        if (c->line_len < DAN_SLCAN_LINE_MAX)
+            c->line[c->line_len++] = b;
+        else
+            c->line_overflow = 1;
+        return 0;
+    }
+    /* End of a line. */
+    if (c->line_overflow) {
+        c->stats.overlong++;
+        c->stats.errors++;
+        c->line_len = 0;
+        c->line_overflow = 0;
+        return 0;
+    }
+    r = dan_slcan_parse_line(c->line, c->line_len, f);
+    if (r == 0 && c->line_len == 1)
+        c->stats.tx_ack++;
+    c->line_len = 0;
+    if (r == 1) {
+        c->stats.rx++;
+        return 1;
+    }
+    if (r < 0)
+        c->stats.errors++;
+    return 0;
+}
+
+int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
+{
+    /* A few reads at most per call, so a flood of garbage cannot keep the
+     * caller's loop here; the fd stays readable and poll comes back. */
+    for (int reads = 0; reads < 4; reads++) {
+        while (c->rx_pos < c->rx_len) {
+            char b = (char)c->rxbuf[c->rx_pos++];
+            if (feed(c, b, f) == 1)
+                return 1;
+        }
+        c->rx_pos = c->rx_len = 0;
+        ssize_t n = read(c->fd, c->rxbuf, sizeof c->rxbuf);
+        if (n > 0) {
+            c->rx_len = (size_t)n;
+            continue;
+        }
+        if (n == 0) {           /* hangup: the adapter went away */
+            c->stats.errors++;
+            return DAN_ERR_IO;
+        }
+        if (errno == EINTR) {
+            reads--;
+            continue;
+        }
+        if (errno == EAGAIN || errno == EWOULDBLOCK)
+            return 0;
+        c->stats.errors++;
+        return DAN_ERR_IO;
+    }
+    return 0;
+}
+
+void dan_canif_slcan_close(dan_canif_t *c)
+{
+    if (c->fd >= 0) {
+        struct timespec deadline;
+        /* Best effort: close the CAN channel, give the adapter 100 ms to
+         * take it, then restore the tty. */
+        clock_gettime(CLOCK_MONOTONIC, &deadline);
+        deadline.tv_nsec += 100000000L;
+        if (deadline.tv_nsec >= 1000000000L) {
+            deadline.tv_sec++;
+            deadline.tv_nsec -= 1000000000L;
+        }
+        c->tx_len = 0;
+        if (write_all(c->fd, "C\r", 2, &deadline) == 0)
+            (void)wait_ack(c->fd, &deadline);
+    }
+    restore_and_close(c);
+}

@@ -1,0 +1,87 @@
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "vectors.h"
+
+void vec_open(vec_file_t *v, const char *name)
+{
+    const char *dir = getenv("DAN_VECTORS");
+    if (dir == NULL || dir[0] == '\0') {
+        dir = "tests/vectors";
+    }
+    snprintf(v->path, sizeof v->path, "%s/%s", dir, name);
+    v->f = fopen(v->path, "r");
+    v->lineno = 0;
+    if (v->f == NULL) {
+        fail_msg("cannot open vector file %s", v->path);
+    }
+}
+
+bool vec_next(vec_file_t *v)
+{
+    while (fgets(v->line, sizeof v->line, v->f) != NULL) {
+        size_t n = strlen(v->line);
+        v->lineno++;
+        while (n > 0 && (v->line[n - 1] == '\n' || v->line[n - 1] == '\r')) {
+            v->line[--n] = '\0';
+        }
+        if (n == 0 || v->line[0] == '#') {
+            continue;
+        }
+        return true;
+    }
+    return false;
+}
+
+void vec_close(vec_file_t *v)
+{
+    if (v->f != NULL) {
+        fclose(v->f);
+        v->f = NULL;
+    }
+}
+
+int vec_split(char *s, char sep, char **fields, int max)
+{
+    int n = 0;
+    while (n < max) {
+        char *e = strchr(s, sep);
+        fields[n++] = s;
+        if (e == NULL) {
+            break;
+        }
+        *e = '\0';
+        s = e + 1;
+    }
+    return n;
+}
+
+static int hexval(char c)
+{
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+size_t vec_hex(const char *hex, uint8_t *out, size_t cap)
+{
+    size_t n = 0;
+    if (strcmp(hex, "-") == 0) {
+        return 0;
+    }
+    while (hex[0] != '\0') {
+        int hi = hexval(hex[0]);
+        int lo = (hi < 0) ? -1 : hexval(hex[1]);
+        if (lo < 0 || n >= cap) {
+            fail_msg("bad hex or too long: %s", hex);
+        }
+        out[n++] = (uint8_t)(hi * 16 + lo);
+        hex += 2;
+    }
+    return n;
+}
