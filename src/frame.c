@@ -48,6 +48,13 @@ void dan_decoder_init(dan_decoder_t *d)
     memset(d, 0, sizeof *d);
 }
 
+void dan_decoder_reset(dan_decoder_t *d)
+{
+    dan_decoder_stats_t keep = d->stats;
+    dan_decoder_init(d);
+    d->stats = keep;
+}
+
 bool dan_decoder_busy(const dan_decoder_t *d)
 {
     return d->len > d->consume;

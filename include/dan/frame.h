@@ -62,6 +62,8 @@ typedef struct {
 } dan_decoder_t;
 
 void dan_decoder_init(dan_decoder_t *d);
+/* Drops everything buffered (e.g. after a baud change), keeping the counters. */
+void dan_decoder_reset(dan_decoder_t *d);
 
 /*
  * Consumes bytes from data (len bytes) until a frame is complete.

@@ -81,7 +81,8 @@ typedef struct {
  * a one-line message in err (errlen bytes, may be NULL/0):
  * DAN_ERR_ARG (bad spec), DAN_ERR_NOTFOUND (no such device),
  * DAN_ERR_UNSUPPORTED (AF_CAN missing, not a tty, unknown baud),
- * DAN_ERR_IO, DAN_ERR_TIMEOUT (no answer), DAN_ERR_REMOTE (BEL). */
+ * DAN_ERR_IO, DAN_ERR_TIMEOUT (no answer), DAN_ERR_REMOTE (BEL).
+ * c is overwritten: it must not hold an open interface (close it first). */
 int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen);
 
 /* File descriptor to poll, or -1 when closed. */

@@ -206,24 +206,31 @@ static int write_all(int fd, const char *s, size_t n,
 
 /* Waits for the adapter's answer to a command: an empty line ended by '\r'
  * (ACK) or a BEL. Non-empty lines (frames still in flight, version text)
- * are skipped. Returns 0 for ACK, DAN_ERR_REMOTE for BEL, DAN_ERR_TIMEOUT,
- * DAN_ERR_IO. */
-static int wait_ack(int fd, const struct timespec *deadline)
+ * are skipped. Bytes read after the answer are kept in c->rxbuf for
+ * dan_canif_recv(), so frames that follow the ACK of O are not lost.
+ * Returns 0 for ACK, DAN_ERR_REMOTE for BEL, DAN_ERR_TIMEOUT, DAN_ERR_IO. */
+static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
 {
     size_t linelen = 0;
+    c->rx_pos = c->rx_len = 0;
     for (;;) {
-        char b[64];
-        ssize_t n = read(fd, b, sizeof b);
+        ssize_t n = read(c->fd, c->rxbuf, sizeof c->rxbuf);
         if (n > 0) {
-            for (ssize_t i = 0; i < n; i++) {
-                if (b[i] == '\a')
-                    return DAN_ERR_REMOTE;
-                if (b[i] == '\r') {
-                    if (linelen == 0)
-                        return 0;
+            for (size_t i = 0; i < (size_t)n; i++) {
+                char b = (char)c->rxbuf[i];
+                int r = 1;
+                if (b == '\a')
+                    r = DAN_ERR_REMOTE;
+                else if (b == '\r' && linelen == 0)
+                    r = 0;
+                else if (b == '\r')
                     linelen = 0;
-                } else if (b[i] != '\n') {
+                else if (b != '\n')
                     linelen++;
+                if (r <= 0) {
+                    c->rx_pos = i + 1;
+                    c->rx_len = (size_t)n;
+                    return r;
                 }
             }
             continue;
@@ -237,7 +244,7 @@ static int wait_ack(int fd, const struct timespec *deadline)
         long left = ms_left(deadline);
         if (left <= 0)
             return DAN_ERR_TIMEOUT;
-        struct pollfd p = { .fd = fd, .events = POLLIN, .revents = 0 };
+        struct pollfd p = { .fd = c->fd, .events = POLLIN, .revents = 0 };
         if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
             return DAN_ERR_IO;
     }
@@ -315,18 +322,19 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
      * were still arriving. */
     r = write_all(fd, "C\r", 2, &deadline);
     if (r == 0)
-        r = wait_ack(fd, &deadline);
+        r = wait_ack(c, &deadline);
     if (r == DAN_ERR_REMOTE)
         r = 0;
     if (r == 0) {
         tcflush(fd, TCIFLUSH);
+        c->rx_pos = c->rx_len = 0;
         r = write_all(fd, "S8\r", 3, &deadline);
         if (r == 0)
-            r = wait_ack(fd, &deadline);
+            r = wait_ack(c, &deadline);
         if (r == 0) {
             r = write_all(fd, "O\r", 2, &deadline);
             if (r == 0)
-                r = wait_ack(fd, &deadline);
+                r = wait_ack(c, &deadline);
             if (r < 0) {
                 restore_and_close(c);
                 c->kind = DAN_CANIF_NONE;
@@ -512,7 +520,7 @@ void dan_canif_slcan_close(dan_canif_t *c)
         }
         c->tx_len = 0;
         if (write_all(c->fd, "C\r", 2, &deadline) == 0)
-            (void)wait_ack(c->fd, &deadline);
+            (void)wait_ack(c, &deadline);
     }
     restore_and_close(c);
 }

@@ -1,0 +1,137 @@
+/*
+ * The half-duplex link shared by the master and peripheral engines: the
+ * platform port, frame transmission with echo checking, listen-before-talk
+ * timing and reception with idle-gap handling.
+ *
+ * Time is always passed in as a monotonic microsecond count (now_us); the
+ * library never reads a clock or sleeps.
+ *
+ * Timing (docs/PROTOCOL.md, section 6), with C = one character time
+ * = 10 bits / baud (8N1), rounded up to whole microseconds:
+ *   - listen before talk: transmit only after the line was idle >= lbt_chars * C
+ *   - inter-byte gap: a frame's bytes are back to back; an idle gap longer
+ *     than gap_us while a frame is incomplete drops it
+ */
+#ifndef DAN_LINK_H
+#define DAN_LINK_H
+
+#include "dan/frame.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Defaults; each can be changed per engine at run time (config structs). */
+#ifndef DAN_LBT_CHARS
+#define DAN_LBT_CHARS 3u           /* idle character times before talking (>= 2) */
+#endif
+#ifndef DAN_GAP_CHARS
+#define DAN_GAP_CHARS 10u          /* inter-byte gap that ends a partial frame */
+#endif
+#ifndef DAN_GAP_MIN_US
+#define DAN_GAP_MIN_US 2000u       /* ... but never shorter than this */
+#endif
+#ifndef DAN_TURNAROUND_CHARS
+#define DAN_TURNAROUND_CHARS 2u    /* peripheral waits this long before replying */
+#endif
+#ifndef DAN_RESP_LATENCY_US
+#define DAN_RESP_LATENCY_US 10000u /* a reply must start this soon after the turnaround */
+#endif
+
+/*
+ * The platform: a small table of functions. write and set_baud are
+ * required; the others may be NULL.
+ */
+typedef struct {
+    /* Queues len bytes for transmission; returns len, or a negative error.
+     * Must not block for long (a UART FIFO/DMA or a kernel buffer). */
+    int (*write)(void *ctx, const uint8_t *data, size_t len);
+    /* Changes the UART baud for both directions. */
+    int (*set_baud)(void *ctx, uint32_t baud);
+    /* Direction pin (RS-485 DE): asserted before the first byte is queued,
+     * released once every byte has left the wire. NULL on a single wire. */
+    void (*set_tx)(void *ctx, bool on);
+    /* True while bytes are still in the UART (FIFO or shift register).
+     * NULL: the engine assumes the bytes are gone after len * C. */
+    bool (*tx_busy)(void *ctx);
+    /* Discards bytes not yet sent (after a collision). May be NULL. */
+    void (*flush_tx)(void *ctx);
+    void *ctx;
+    /* Highest baud the port can do (0: no limit). */
+    uint32_t max_baud;
+    /* The port hears its own bytes (single-wire bus, no hardware echo
+     * suppression). The engine then compares the echo with what it sent;
+     * a mismatch is a collision. */
+    bool echo;
+} dan_port_t;
+
+typedef struct {
+    uint32_t tx_frames;
+    uint32_t tx_bytes;
+    uint32_t rx_bytes;
+    uint32_t collisions;      /* echo differed from what we sent */
+    uint32_t echo_timeouts;   /* echo never came back (wiring, or port.echo wrong) */
+    uint32_t port_errors;     /* write or set_baud failed */
+} dan_link_stats_t;
+
+typedef enum {
+    DAN_LINK_IDLE = 0,
+    DAN_LINK_TX,              /* our frame is on the wire */
+    DAN_LINK_TX_DONE,         /* it has left the wire (echo complete) */
+    DAN_LINK_TX_FAILED        /* collision or missing echo */
+} dan_link_state_t;
+
+typedef void (*dan_frame_cb_t)(void *owner, const dan_frame_t *frame, uint64_t now_us);
+
+typedef struct {
+    dan_port_t port;
+    uint32_t baud;
+    uint32_t char_us;         /* one character time at baud */
+    uint32_t gap_us;          /* 0 = default: max(DAN_GAP_CHARS * C, DAN_GAP_MIN_US) */
+    dan_decoder_t dec;
+    uint8_t tx[DAN_MAX_FRAME];
+    size_t tx_len;
+    size_t echo_pos;          /* echoed bytes matched so far */
+    uint64_t tx_start_us;
+    uint64_t last_rx_us;      /* time of the last byte received (or echoed) */
+    bool rx_any;              /* a byte was received since the last frame/send */
+    dan_link_state_t state;
+    dan_frame_cb_t on_frame;
+    void *owner;
+    dan_link_stats_t stats;
+} dan_link_t;
+
+/* Character time at baud, in microseconds (rounded up). */
+uint32_t dan_char_us(uint32_t baud);
+
+void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud,
+                   dan_frame_cb_t on_frame, void *owner, uint64_t now_us);
+/* Switches the port's baud; drops any partial frame (bytes at the old baud). */
+int dan_link_set_baud(dan_link_t *l, uint32_t baud, uint64_t now_us);
+/* Effective inter-byte gap. */
+uint32_t dan_link_gap_us(const dan_link_t *l);
+/* Microseconds the line has been idle at now (0 while busy). */
+uint64_t dan_link_idle_us(const dan_link_t *l, uint64_t now_us);
+/* Feeds received bytes: our own echo is matched and removed, everything
+ * else goes to the decoder; whole frames go to on_frame. */
+void dan_link_rx(dan_link_t *l, const uint8_t *data, size_t len, uint64_t now_us);
+/* Encodes and queues a frame. The caller has checked listen-before-talk.
+ * Returns DAN_OK, DAN_ERR_BUSY (a frame is still on the wire), DAN_ERR_ARG
+ * or DAN_ERR_IO. */
+int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len,
+                  uint64_t now_us);
+/* Advances timers (idle-gap abort, end of transmission, direction pin).
+ * Returns the link state; TX_DONE and TX_FAILED stay until dan_link_ack(). */
+dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us);
+/* Acknowledges TX_DONE / TX_FAILED, back to IDLE. */
+void dan_link_ack(dan_link_t *l);
+/* Expected end of the current transmission on the wire. */
+uint64_t dan_link_tx_end_us(const dan_link_t *l);
+/* Earliest time dan_link_poll() has something to do (UINT64_MAX: nothing). */
+uint64_t dan_link_next_us(const dan_link_t *l);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_LINK_H */

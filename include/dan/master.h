@@ -1,0 +1,173 @@
+/*
+ * The DAN master engine: discovery, configure, transactions.
+ *
+ * One caller-owned dan_master_t per UART. Nothing blocks: the caller feeds
+ * received bytes with dan_master_rx(), calls dan_master_poll() regularly (at
+ * the latest by dan_master_next_us()), and starts one operation at a time:
+ * a transaction, a discovery or a configure. dan_master_poll() returns 1
+ * once when the operation completes; its result is dan_master_result().
+ *
+ *     dan_master_init(&m, &port, &cfg, types, ntypes, now);
+ *     dan_master_discover(&m, now);
+ *     while (!dan_master_poll(&m, now)) { feed rx; now = clock(); }
+ *     if (dan_master_result(&m) == DAN_OK) dan_master_configure(&m, 0, now);
+ *
+ * Timing rules, retries and the discovery/configure sequences are in
+ * docs/PROTOCOL.md section 6; the formulas are implemented here.
+ */
+#ifndef DAN_MASTER_H
+#define DAN_MASTER_H
+
+#include "dan/link.h"
+#include "dan/payloads.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Peripheral types one master can probe (and so, peers per UART). */
+#ifndef DAN_MASTER_MAX_TYPES
+#define DAN_MASTER_MAX_TYPES 8u
+#endif
+
+/* Bauds a master tries during discovery, in order: the spec's 9600 first,
+ * then the mask bauds from the highest (where a configured bus most likely
+ * is after a master reset) down. */
+#define DAN_DISCOVERY_BAUDS {9600u, 115200u, 57600u, 38400u, 19200u}
+#define DAN_DISCOVERY_NBAUDS 5u
+
+typedef struct {
+    uint32_t resp_latency_us;   /* a reply must start within this after our
+                                   request left the wire plus the turnaround
+                                   (default DAN_RESP_LATENCY_US) */
+    uint32_t gap_us;            /* inter-byte gap (0: link default) */
+    uint32_t busy_timeout_us;   /* give up waiting for an idle line (default 200 ms) */
+    uint32_t settle_us;         /* pause after a baud switch (default 2 ms) */
+    uint8_t retries;            /* extra attempts per transaction (default 2) */
+    uint8_t discovery_attempts; /* attempts per type per baud when probing (default 2) */
+    uint8_t lbt_chars;          /* idle characters before talking (default DAN_LBT_CHARS, min 2) */
+    bool scan_all_bauds;        /* probe types missing at 9600 at the other bauds (default true) */
+    uint32_t seed;              /* backoff jitter seed (any value; default 1) */
+} dan_master_config_t;
+
+void dan_master_config_default(dan_master_config_t *c);
+
+/* One discovered peripheral (one type on this UART). */
+typedef struct {
+    uint32_t first_code;        /* its type: IDENTIFY = first_code */
+    dan_identity_t identity;
+    uint32_t baud;              /* baud it answers at */
+    bool present;
+} dan_peer_t;
+
+typedef struct {
+    uint32_t transactions;      /* started */
+    uint32_t ok;
+    uint32_t timeouts;          /* attempts that got no reply */
+    uint32_t retries;
+    uint32_t remote_errors;     /* error frames received for our request */
+    uint32_t stray;             /* frames that answered nothing we asked */
+    uint32_t lbt_waits;         /* transmissions delayed by a busy line */
+    uint32_t busy_failures;     /* line never went idle */
+    uint32_t recoveries;        /* configure verification failed and was recovered */
+} dan_master_stats_t;
+
+typedef enum {
+    DAN_MASTER_OP_NONE = 0,
+    DAN_MASTER_OP_TXN,
+    DAN_MASTER_OP_DISCOVER,
+    DAN_MASTER_OP_CONFIGURE
+} dan_master_op_t;
+
+typedef struct {
+    dan_link_t link;
+    dan_master_config_t cfg;
+    uint32_t types[DAN_MASTER_MAX_TYPES];
+    size_t ntypes;
+    dan_peer_t peers[DAN_MASTER_MAX_TYPES];   /* one slot per type */
+
+    /* the current transaction */
+    uint32_t req_code;
+    uint8_t req[DAN_MAX_PAYLOAD];
+    size_t req_len;
+    uint8_t attempts_left;
+    uint8_t attempt;            /* attempts made, for the backoff */
+    uint8_t txn_phase;          /* internal */
+    uint64_t wait_until_us;     /* LBT backoff / response deadline / settle */
+    uint64_t busy_since_us;
+    bool lbt_counted;
+    int txn_result;
+
+    /* the response (valid after a transaction completes) */
+    uint32_t resp_code;
+    uint8_t resp[DAN_MAX_PAYLOAD];
+    size_t resp_len;
+    dan_error_msg_t remote_error;   /* when the result is DAN_ERR_REMOTE */
+
+    /* the current operation */
+    dan_master_op_t op;
+    uint8_t step;               /* sequencer state (internal) */
+    size_t idx;                 /* type index / baud index (internal) */
+    size_t bidx;
+    uint32_t target_baud;
+    bool done;
+    int result;
+    uint32_t rng;
+    dan_master_stats_t stats;
+} dan_master_t;
+
+/* types: the first code of each peripheral type to probe (e.g.
+ * DAN_TYPE_CAN_GW_FIRST); copied. baud: the port's current baud (9600 at
+ * power-up). cfg may be NULL for defaults. */
+int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_config_t *cfg,
+                    const uint32_t *types, size_t ntypes, uint32_t baud, uint64_t now_us);
+
+/* Received bytes, as they come (any count). */
+void dan_master_rx(dan_master_t *m, const uint8_t *data, size_t len, uint64_t now_us);
+
+/* Advances the engine. Returns 1 once when the current operation has just
+ * completed (see dan_master_result()), else 0. */
+int dan_master_poll(dan_master_t *m, uint64_t now_us);
+
+/* Earliest time the engine needs a poll (UINT64_MAX: only on rx). */
+uint64_t dan_master_next_us(const dan_master_t *m);
+
+/* True while an operation runs. */
+bool dan_master_busy(const dan_master_t *m);
+
+/* Result of the last completed operation: DAN_OK or a negative error. */
+int dan_master_result(const dan_master_t *m);
+
+/* Starts a transaction: sends code with payload, waits for the reply with
+ * the same code (or an error frame for it), retrying per cfg.retries on
+ * timeouts and collisions. The reply is in m->resp / m->resp_len. Needs the
+ * bus at the peer's baud (after discovery/configure). DAN_ERR_BUSY if an
+ * operation runs. */
+int dan_master_request(dan_master_t *m, uint32_t code, const uint8_t *payload, size_t len,
+                       uint64_t now_us);
+
+/* Starts discovery: probes IDENTIFY of every type at 9600, then (if
+ * cfg.scan_all_bauds) the types still missing at the other discovery bauds.
+ * Result DAN_OK if at least one peer answered, else DAN_ERR_NOTFOUND. */
+int dan_master_discover(dan_master_t *m, uint64_t now_us);
+
+/* Starts configure: moves every present peer to baud (0: the highest baud
+ * that all of them and the port support), switches the port, and verifies
+ * each peer at the new baud. If a step fails, it recovers to a working
+ * baud (9600) and the result tells what failed. */
+int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us);
+
+/* The highest baud every present peer and the port support (9600 if none). */
+uint32_t dan_master_best_baud(const dan_master_t *m);
+
+/* The peer of a type (by its first code), or NULL if not present. */
+const dan_peer_t *dan_master_peer(const dan_master_t *m, uint32_t first_code);
+
+/* Current bus baud. */
+static inline uint32_t dan_master_baud(const dan_master_t *m) { return m->link.baud; }
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_MASTER_H */

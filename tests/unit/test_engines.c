@@ -1,0 +1,460 @@
+/* Master and peripheral engines on a simulated wire, with injected time:
+ * discovery, configure, verification and recovery, transactions, error
+ * frames, unknown codes, listen-before-talk, echo and collisions, noise,
+ * the direction pin, turnaround and baud switch timing. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <setjmp.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "dan/codes.h"
+#include "simbus.h"
+
+#define STEP_US 10u
+
+/* ---- test peripherals ---- */
+
+static const dan_identity_t ident_a = {1, "DAN Project", "test A", "rev 1", "1.0.0",
+                                       DAN_BAUD_MASK_DEFINED, 0, false};
+static const dan_identity_t ident_b = {1, "DAN Project", "test B", "rev 2", "2.0.0",
+                                       DAN_BAUD_MASK_19200 | DAN_BAUD_MASK_57600 | DAN_BAUD_MASK_115200,
+                                       0, false};
+static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1",
+                                        DAN_BAUD_MASK_DEFINED, 0, false};
+
+/* 0x62: replies with the payload reversed; an empty payload is malformed. */
+static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len,
+                     dan_writer_t *resp, const char **err, uint64_t now)
+{
+    size_t i;
+    (void)user; (void)code; (void)now;
+    if (len == 0) {
+        *err = "empty payload";
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = len; i-- > 0;) {
+        dan_put_u8(resp, req[i]);
+    }
+    return DAN_OK;
+}
+
+/* 0x63: a command without a reply. */
+static int h_silent(void *user, uint32_t code, const uint8_t *req, size_t len,
+                    dan_writer_t *resp, const char **err, uint64_t now)
+{
+    (void)code; (void)req; (void)len; (void)resp; (void)err; (void)now;
+    (*(int *)user)++;
+    return DAN_PERIPH_NO_REPLY;
+}
+
+static int silent_calls;
+static const dan_handler_t handlers_a[] = {{0x62, h_reverse}, {0x63, h_silent}};
+
+static dan_ptype_t types_dev1[2];
+static dan_ptype_t types_dev2[1];
+static const uint32_t probe_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST,
+                                       DAN_TYPE_CAN_GW_FIRST, DAN_TYPE_VTX_FIRST};
+
+typedef struct {
+    simbus_t bus;
+    dan_master_t m;
+    dan_periph_t dev1, dev2;
+    sim_node_t *nm, *n1, *n2;
+} rig_t;
+
+static rig_t rig;
+
+/* Master (echo), device 1 (types A and B), device 2 (gateway type). */
+static void rig_setup(bool echo)
+{
+    dan_master_config_t cfg;
+    memset(&rig, 0, sizeof rig);
+    types_dev1[0] = (dan_ptype_t){DAN_TYPE_TEST_A_FIRST, &ident_a, handlers_a, 2, &silent_calls};
+    types_dev1[1] = (dan_ptype_t){DAN_TYPE_TEST_B_FIRST, &ident_b, NULL, 0, NULL};
+    types_dev2[0] = (dan_ptype_t){DAN_TYPE_CAN_GW_FIRST, &ident_gw, NULL, 0, NULL};
+    sim_init(&rig.bus, STEP_US);
+    dan_master_config_default(&cfg);
+    rig.nm = sim_add_master(&rig.bus, &rig.m, 9600, echo);
+    rig.n1 = sim_add_periph(&rig.bus, &rig.dev1, 9600, echo);
+    rig.n2 = sim_add_periph(&rig.bus, &rig.dev2, 9600, echo);
+    assert_int_equal(dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(dan_periph_init(&rig.dev1, &rig.n1->port, types_dev1, 2, NULL, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(dan_periph_init(&rig.dev2, &rig.n2->port, types_dev2, 1, NULL, 9600, rig.bus.now), DAN_OK);
+    silent_calls = 0;
+}
+
+static int discover(void)
+{
+    assert_int_equal(dan_master_discover(&rig.m, rig.bus.now), DAN_OK);
+    return sim_run_master(&rig.bus, &rig.m, 20000000u);
+}
+
+static int configure(uint32_t baud)
+{
+    int r = dan_master_configure(&rig.m, baud, rig.bus.now);
+    if (r != DAN_OK) {
+        return r;
+    }
+    return sim_run_master(&rig.bus, &rig.m, 20000000u);
+}
+
+static int request(uint32_t code, const void *p, size_t len)
+{
+    assert_int_equal(dan_master_request(&rig.m, code, p, len, rig.bus.now), DAN_OK);
+    return sim_run_master(&rig.bus, &rig.m, 20000000u);
+}
+
+/* ---- tests ---- */
+
+static void test_discovery_identities(void **state)
+{
+    const dan_peer_t *a, *b, *g;
+    uint64_t t0;
+    (void)state;
+    rig_setup(true);
+    t0 = rig.bus.now;
+    assert_int_equal(discover(), DAN_OK);
+    a = dan_master_peer(&rig.m, DAN_TYPE_TEST_A_FIRST);
+    b = dan_master_peer(&rig.m, DAN_TYPE_TEST_B_FIRST);
+    g = dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST);
+    assert_non_null(a);
+    assert_non_null(b);
+    assert_non_null(g);
+    assert_null(dan_master_peer(&rig.m, DAN_TYPE_VTX_FIRST)); /* nobody is a VTX */
+    assert_string_equal(a->identity.model, "test A");
+    assert_string_equal(b->identity.sw_version, "2.0.0");
+    assert_string_equal(g->identity.manufacturer, "ACME");
+    assert_int_equal(a->baud, 9600);
+    assert_int_equal(rig.m.link.stats.collisions, 0);
+    /* the absent VTX type was probed at every discovery baud */
+    assert_true(rig.m.stats.timeouts >= 2u * DAN_DISCOVERY_NBAUDS);
+    assert_true(rig.bus.now - t0 < 3000000u);
+}
+
+/* Configure picks the highest common baud (B lacks 38400 but has 115200),
+ * moves everyone, verifies at the new baud; later transactions work. */
+static void test_configure_best_baud(void **state)
+{
+    uint8_t out[3];
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(dan_master_best_baud(&rig.m), 115200);
+    assert_int_equal(configure(0), DAN_OK);
+    assert_int_equal(dan_master_baud(&rig.m), 115200);
+    assert_int_equal(dan_periph_baud(&rig.dev1), 115200);
+    assert_int_equal(dan_periph_baud(&rig.dev2), 115200);
+    assert_int_equal(rig.dev1.stats.baud_changes, 1); /* one UART, two types */
+    assert_int_equal(rig.m.stats.recoveries, 0);
+    assert_int_equal(request(0x62, "abc", 3), DAN_OK);
+    assert_int_equal(rig.m.resp_len, 3);
+    memcpy(out, rig.m.resp, 3);
+    assert_memory_equal(out, "cba", 3);
+    /* a baud one peer lacks is refused up front */
+    assert_int_equal(dan_master_configure(&rig.m, 38400, rig.bus.now), DAN_ERR_UNSUPPORTED);
+    /* and a port limit lowers the best baud */
+    rig.m.link.port.max_baud = 57600;
+    assert_int_equal(dan_master_best_baud(&rig.m), 57600);
+    assert_int_equal(configure(0), DAN_OK);
+    assert_int_equal(dan_periph_baud(&rig.dev2), 57600);
+}
+
+/* The ACK leaves the wire at the old baud; the switch comes after it. */
+static void test_baud_switch_after_ack(void **state)
+{
+    size_t i;
+    int acks_at_9600 = 0;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    rig.bus.nlog = 0;
+    assert_int_equal(configure(115200), DAN_OK);
+    for (i = 0; i + 3 < rig.bus.nlog; i++) {
+        const sim_byte_t *e = &rig.bus.log[i];
+        /* an ACK frame from a peripheral: 'D', code, 01, 00, crc */
+        if (e->src != rig.nm->idx && e->byte == 'D' && rig.bus.log[i + 2].byte == 1 &&
+            rig.bus.log[i + 3].byte == 0) {
+            assert_int_equal(e->baud, 9600);
+            assert_int_equal(rig.bus.log[i + 4].baud, 9600);
+            acks_at_9600++;
+        }
+    }
+    assert_int_equal(acks_at_9600, 2); /* device 1 and device 2 */
+}
+
+/* The peripheral waits at least the turnaround gap after a request. */
+static void test_turnaround_gap(void **state)
+{
+    size_t i;
+    int checked = 0;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    for (i = 1; i < rig.bus.nlog; i++) {
+        const sim_byte_t *prev = &rig.bus.log[i - 1], *e = &rig.bus.log[i];
+        if (prev->src == rig.nm->idx && e->src != rig.nm->idx) {
+            assert_true(e->start_us >= prev->end_us + DAN_TURNAROUND_CHARS * dan_char_us(9600));
+            checked++;
+        }
+    }
+    assert_int_equal(checked, 3);
+}
+
+/* Unknown codes are ignored (counted); a known code with a malformed
+ * payload gets an error frame whose text reaches the caller; handlers may
+ * stay silent. */
+static void test_unknown_malformed_silent(void **state)
+{
+    uint32_t unknown0;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    unknown0 = rig.dev1.stats.unknown;
+    assert_int_equal(request(0x64, NULL, 0), DAN_ERR_TIMEOUT); /* in A's block, not served */
+    assert_int_equal(rig.dev1.stats.unknown - unknown0, 3);    /* every attempt ignored */
+    assert_int_equal(request(0x62, NULL, 0), DAN_ERR_REMOTE);
+    assert_int_equal(rig.m.remote_error.code, 0x62);
+    assert_string_equal(rig.m.remote_error.text, "empty payload");
+    assert_int_equal(rig.dev1.stats.errors_sent, 1);
+    /* a malformed CONFIGURE is an error frame too */
+    assert_int_equal(request(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_A_FIRST), NULL, 0), DAN_ERR_REMOTE);
+    assert_string_equal(rig.m.remote_error.text, "malformed CONFIGURE payload");
+    /* a CONFIGURE for a baud not in the mask is ACK-FAIL, and nothing moves */
+    {
+        uint8_t p[8];
+        dan_configure_t c = {DAN_CONFIGURE_BPS, 38400};
+        int n = dan_configure_encode(&c, p, sizeof p);
+        assert_int_equal(request(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_B_FIRST), p, (size_t)n), DAN_OK);
+        assert_int_equal(rig.m.resp_len, 1);
+        assert_int_equal(rig.m.resp[0], DAN_ACK_FAIL);
+        assert_int_equal(dan_periph_baud(&rig.dev1), 9600);
+    }
+    assert_int_equal(request(0x63, "x", 1), DAN_ERR_TIMEOUT);
+    assert_int_equal(silent_calls, 3);
+    /* the bus still works */
+    assert_int_equal(request(0x62, "z", 1), DAN_OK);
+}
+
+/* After a master reset (new master at 9600) with peripherals left at
+ * 115200, discovery finds them at 115200 and configure keeps the bus. */
+static void test_master_restart_recovery(void **state)
+{
+    dan_master_config_t cfg;
+    const dan_peer_t *g;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(configure(0), DAN_OK);
+    /* the firmware resets: fresh master state, UART back at 9600 */
+    dan_master_config_default(&cfg);
+    cfg.seed = 99;
+    rig.nm->baud = 9600;
+    assert_int_equal(dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(discover(), DAN_OK);
+    g = dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST);
+    assert_non_null(g);
+    assert_int_equal(g->baud, 115200);
+    assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_TEST_B_FIRST));
+    assert_int_equal(configure(0), DAN_OK);
+    assert_int_equal(dan_master_baud(&rig.m), 115200);
+    assert_int_equal(request(0x62, "ok", 2), DAN_OK);
+}
+
+/* A peripheral that ACKs but cannot really switch: verification fails, the
+ * master recovers everyone to 9600, reports the failure, and the bus works. */
+static void test_configure_verify_failure_recovers(void **state)
+{
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    rig.n2->ignore_baud = true; /* device 2's UART stays at 9600 */
+    assert_int_equal(configure(115200), DAN_ERR_TIMEOUT);
+    assert_int_equal(rig.m.stats.recoveries, 1);
+    assert_int_equal(dan_master_baud(&rig.m), 9600);
+    assert_int_equal(rig.n1->baud, 9600);
+    assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_TEST_A_FIRST));
+    assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST));
+    assert_int_equal(request(0x62, "ab", 2), DAN_OK);
+    assert_int_equal(request(DAN_TYPE_IDENTIFY(DAN_TYPE_CAN_GW_FIRST), NULL, 0), DAN_OK);
+}
+
+/* A peripheral that vanishes mid-configure is dropped; the others work. */
+static void test_configure_peer_vanishes(void **state)
+{
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    rig.n2->mute = true;
+    assert_true(configure(115200) < 0);
+    assert_null(dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST));
+    assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_TEST_A_FIRST));
+    assert_int_equal(request(0x62, "ab", 2), DAN_OK);
+}
+
+/* Another talker starts while the master transmits: the echo differs, the
+ * master stops, backs off, retries and succeeds. */
+static void test_collision_detected_and_retried(void **state)
+{
+    static const uint8_t junk[] = {0x13, 0x37, 0x00, 0xFF, 0x55};
+    int r;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"hello", 5, rig.bus.now), DAN_OK);
+    /* let the master start, then talk over it */
+    while (rig.m.link.state != DAN_LINK_TX) {
+        sim_step(&rig.bus);
+    }
+    sim_inject(&rig.bus, rig.n2, junk, sizeof junk);
+    r = sim_run_master(&rig.bus, &rig.m, 5000000u);
+    assert_int_equal(r, DAN_OK);
+    assert_true(rig.m.link.stats.collisions >= 1);
+    assert_true(rig.m.stats.retries >= 1);
+    assert_memory_equal(rig.m.resp, "olleh", 5);
+}
+
+/* Listen before talk: while the line is busy the master waits; it talks
+ * only after the line was idle for lbt_chars characters. */
+static void test_listen_before_talk(void **state)
+{
+    uint8_t noise[40];
+    size_t i;
+    uint64_t noise_end;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    for (i = 0; i < sizeof noise; i++) {
+        noise[i] = (uint8_t)(0x10 + i); /* no sync byte */
+    }
+    sim_inject(&rig.bus, rig.n2, noise, sizeof noise);
+    noise_end = rig.n2->tx_free_us;
+    sim_step(&rig.bus);
+    rig.bus.nlog = 0;
+    assert_int_equal(request(0x62, "q", 1), DAN_OK);
+    assert_true(rig.m.stats.lbt_waits >= 1);
+    for (i = 0; i < rig.bus.nlog; i++) {
+        if (rig.bus.log[i].src == rig.nm->idx) {
+            assert_true(rig.bus.log[i].start_us >= noise_end + 3u * dan_char_us(9600));
+            break;
+        }
+    }
+    assert_true(i < rig.bus.nlog);
+    assert_int_equal(rig.m.link.stats.collisions, 0);
+}
+
+/* A line that never goes idle: the transaction gives up with BUSY. */
+static void test_busy_line_times_out(void **state)
+{
+    uint8_t noise[400];
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    memset(noise, 0x11, sizeof noise); /* 400 chars = 417 ms at 9600 */
+    sim_inject(&rig.bus, rig.n2, noise, sizeof noise);
+    sim_step(&rig.bus);
+    assert_int_equal(request(0x62, "q", 1), DAN_ERR_BUSY);
+    assert_int_equal(rig.m.stats.busy_failures, 1);
+}
+
+/* Noise on the wire: transactions retry; any reply delivered is correct. */
+static void test_noise_no_wrong_data(void **state)
+{
+    int i, ok = 0, failed = 0;
+    (void)state;
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(configure(0), DAN_OK);
+    rig.bus.noise_ppm = 20000; /* 2 % of bytes get a flipped bit */
+    for (i = 0; i < 200; i++) {
+        uint8_t req[4] = {(uint8_t)i, (uint8_t)(i >> 8), 0xA5, 0x5A};
+        int r = request(0x62, req, 4);
+        if (r == DAN_OK) {
+            uint8_t want[4] = {0x5A, 0xA5, (uint8_t)(i >> 8), (uint8_t)i};
+            assert_int_equal(rig.m.resp_len, 4);
+            assert_memory_equal(rig.m.resp, want, 4);
+            ok++;
+        } else {
+            failed++;
+        }
+    }
+    assert_true(ok >= 190);
+    assert_true(rig.m.stats.retries > 0);
+    rig.bus.noise_ppm = 0;
+    assert_int_equal(request(0x62, "x", 1), DAN_OK);
+    print_message("noise: %d ok, %d failed, %u retries\n", ok, failed, rig.m.stats.retries);
+}
+
+/* Direction-pin ports (no echo): the pin is asserted before the first byte
+ * and released only after the last byte left; everything still works. */
+static void test_direction_pin(void **state)
+{
+    (void)state;
+    rig_setup(false);
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(configure(0), DAN_OK);
+    assert_int_equal(request(0x62, "pin", 3), DAN_OK);
+    assert_false(rig.nm->tx_pin_error);
+    assert_false(rig.n1->tx_pin_error);
+    assert_false(rig.n2->tx_pin_error);
+    assert_true(rig.nm->set_tx_on > 0);
+    assert_int_equal(rig.nm->set_tx_on, rig.nm->set_tx_off);
+    assert_false(rig.nm->tx_pin);
+}
+
+/* Time bound: discovery + configure of 3 types on 2 devices (the absent VTX
+ * probed at 5 bauds) stays within what the rules allow. */
+static void test_discovery_configure_time(void **state)
+{
+    uint64_t t0, t;
+    (void)state;
+    rig_setup(true);
+    t0 = rig.bus.now;
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(configure(0), DAN_OK);
+    t = rig.bus.now - t0;
+    print_message("discovery+configure (3 present, 1 absent type): %llu us\n", (unsigned long long)t);
+    assert_true(t < 1500000u);
+}
+
+/* API misuse gets clear errors. */
+static void test_api_errors(void **state)
+{
+    dan_master_t m;
+    dan_periph_t p;
+    dan_port_t bad;
+    (void)state;
+    rig_setup(true);
+    memset(&bad, 0, sizeof bad);
+    assert_int_equal(dan_master_init(&m, &bad, NULL, probe_types, 1, 9600, 0), DAN_ERR_ARG);
+    assert_int_equal(dan_master_init(&m, &rig.nm->port, NULL, probe_types, DAN_MASTER_MAX_TYPES + 1, 9600, 0),
+                     DAN_ERR_ARG);
+    assert_int_equal(dan_periph_init(&p, &rig.n1->port, NULL, 0, NULL, 9600, 0), DAN_ERR_ARG);
+    assert_int_equal(dan_master_configure(&rig.m, 0, rig.bus.now), DAN_ERR_NOTFOUND);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, NULL, 1, rig.bus.now), DAN_ERR_ARG);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"a", 1, rig.bus.now), DAN_OK);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"a", 1, rig.bus.now), DAN_ERR_BUSY);
+    assert_int_equal(dan_master_discover(&rig.m, rig.bus.now), DAN_ERR_BUSY);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_discovery_identities),
+        cmocka_unit_test(test_configure_best_baud),
+        cmocka_unit_test(test_baud_switch_after_ack),
+        cmocka_unit_test(test_turnaround_gap),
+        cmocka_unit_test(test_unknown_malformed_silent),
+        cmocka_unit_test(test_master_restart_recovery),
+        cmocka_unit_test(test_configure_verify_failure_recovers),
+        cmocka_unit_test(test_configure_peer_vanishes),
+        cmocka_unit_test(test_collision_detected_and_retried),
+        cmocka_unit_test(test_listen_before_talk),
+        cmocka_unit_test(test_busy_line_times_out),
+        cmocka_unit_test(test_noise_no_wrong_data),
+        cmocka_unit_test(test_direction_pin),
+        cmocka_unit_test(test_discovery_configure_time),
+        cmocka_unit_test(test_api_errors),
+    };
+    return cmocka_run_group_tests_name("engines", tests, NULL, NULL);
+}
