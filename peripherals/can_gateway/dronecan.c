@@ -86,7 +86,8 @@ uint16_t dan_dc_crc16(uint16_t crc, const uint8_t *data, size_t len)
         unsigned b;
         crc = (uint16_t)(crc ^ (uint16_t)((unsigned)data[i] << 8));
         for (b = 0; b < 8u; b++) {
-            crc = (uint16_t)((crc & 0x8000u) != 0u ? (crc << 1) ^ 0x1021u : crc << 1);
+            crc = (uint16_t)((crc & 0x8000u) != 0u ? ((unsigned)crc << 1) ^ 0x1021u
+                                                   : (unsigned)crc << 1);
         }
     }
     return crc;
@@ -509,7 +510,7 @@ static void copy_bits(const uint8_t *src, size_t src_off, size_t bit_len,
     size_t i;
     for (i = 0; i < bit_len; i++) {
         size_t si = src_off + i, di = dst_off + i;
-        unsigned bit = (src[si / 8u] >> (7u - si % 8u)) & 1u;
+        unsigned bit = ((unsigned)src[si / 8u] >> (7u - si % 8u)) & 1u;
         uint8_t mask = (uint8_t)(0x80u >> (di % 8u));
         if (bit != 0u) {
             dst[di / 8u] = (uint8_t)(dst[di / 8u] | mask);
