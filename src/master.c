@@ -255,20 +255,20 @@ static void txn_poll(dan_master_t *m, uint64_t now_us)
         if (ls == DAN_LINK_TX_DONE) {
             dan_link_ack(&m->link);
             m->txn_phase = PH_WAIT;
-            m->wait_until_us = reply_start_deadline(m, now_us);
+            m->deadline_us = reply_start_deadline(m, now_us);
         } else if (ls == DAN_LINK_TX_FAILED) {
             dan_link_ack(&m->link);
             txn_attempt_failed(m, DAN_ERR_COLLISION, now_us);
         }
         break;
     case PH_WAIT:
-        if (now_us < m->wait_until_us) {
+        if (now_us < m->deadline_us) {
             break;
         }
         /* Past the start deadline: wait on while a reply is arriving, but
          * not longer than a whole maximal frame. */
         if (dan_link_idle_us(&m->link, now_us) < dan_link_gap_us(&m->link) &&
-            now_us < m->wait_until_us + (uint64_t)DAN_MAX_FRAME * m->link.char_us) {
+            now_us < m->deadline_us + (uint64_t)DAN_MAX_FRAME * m->link.char_us) {
             break;
         }
         m->stats.timeouts++;
@@ -651,7 +651,7 @@ uint64_t dan_master_next_us(const dan_master_t *m)
         }
         break;
     case PH_WAIT:
-        t = max_u64(m->wait_until_us, m->link.last_rx_us + dan_link_gap_us(&m->link));
+        t = max_u64(m->deadline_us, m->link.last_rx_us + dan_link_gap_us(&m->link));
         break;
     case PH_DONE:
         t = 0;

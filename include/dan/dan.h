@@ -7,5 +7,9 @@
 #include "dan/codes.h"
 #include "dan/frame.h"
 #include "dan/payloads.h"
+#include "dan/link.h"
+#include "dan/master.h"
+#include "dan/peripheral.h"
+#include "dan/types.h"
 
 #endif

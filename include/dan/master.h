@@ -93,7 +93,8 @@ typedef struct {
     uint8_t attempts_left;
     uint8_t attempt;            /* attempts made, for the backoff */
     uint8_t txn_phase;          /* internal */
-    uint64_t wait_until_us;     /* LBT backoff / response deadline / settle */
+    uint64_t wait_until_us;     /* not before: backoff or settle after a baud switch */
+    uint64_t deadline_us;       /* the reply must have started by then */
     uint64_t busy_since_us;
     bool lbt_counted;
     int txn_result;

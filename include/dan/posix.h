@@ -1,0 +1,78 @@
+/*
+ * libdan POSIX port (Linux): a DAN UART on a tty, for daemons and tools.
+ * Not part of the portable core; link build/libdan_posix.a.
+ *
+ * The tty is opened O_NOCTTY|O_NONBLOCK, made raw (cfmakeraw, 8N1, no flow
+ * control) at any baud (termios2/BOTHER for non-standard rates), and its
+ * original settings are restored on close.
+ *
+ * Half-duplex modes:
+ *   DAN_POSIX_ECHO    single wire: we hear our own bytes; the engine checks them
+ *   DAN_POSIX_NO_ECHO the adapter suppresses our echo (or a separate RX line)
+ *   a direction pin   dan_posix_de_gpio(): a GPIO (libgpiod) asserted before the
+ *                     first byte and released after the last has drained;
+ *                     implies NO_ECHO unless echo is requested too
+ */
+#ifndef DAN_POSIX_H
+#define DAN_POSIX_H
+
+#include <termios.h>
+
+#include "dan/link.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    DAN_POSIX_ECHO = 0,
+    DAN_POSIX_NO_ECHO = 1
+} dan_posix_mode_t;
+
+typedef struct {
+    int fd;
+    struct termios orig;
+    bool have_orig;
+    uint32_t baud;
+    dan_posix_mode_t mode;
+    void *gpio_chip;        /* struct gpiod_chip * (libgpiod v1) */
+    void *gpio_line;        /* struct gpiod_line * */
+    bool gpio_active_low;
+    uint32_t write_errors;
+    dan_port_t port;
+} dan_posix_port_t;
+
+/* Opens path raw at baud. On failure returns a negative DAN_ERR_* and a
+ * one-line reason in err (e.g. "/dev/ttyUSB0: No such file or directory"). */
+int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud,
+                   dan_posix_mode_t mode, char *err, size_t errlen);
+
+/* Drives a direction (DE) pin: spec is "CHIP:LINE" where CHIP is a gpiochip
+ * name, path or number (libgpiod's lookup). DAN_ERR_UNSUPPORTED when built
+ * without libgpiod. */
+int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low,
+                      char *err, size_t errlen);
+
+/* Restores the tty's settings, releases the pin, closes. Safe to call twice. */
+void dan_posix_close(dan_posix_port_t *p);
+
+/* The port table for the engines (valid while p is). */
+const dan_port_t *dan_posix_port(dan_posix_port_t *p);
+
+/* Non-blocking read: bytes read, 0 if none, negative on error (the device
+ * went away: DAN_ERR_IO). */
+int dan_posix_read(dan_posix_port_t *p, uint8_t *buf, size_t cap);
+
+/* Sets any baud on an open fd (termios2 BOTHER on Linux). */
+int dan_posix_set_speed(int fd, uint32_t baud);
+/* Reads the output baud of an fd (for a pty master: the slave's). 0 on error. */
+uint32_t dan_posix_get_speed(int fd);
+
+/* CLOCK_MONOTONIC in microseconds. */
+uint64_t dan_posix_now_us(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_POSIX_H */

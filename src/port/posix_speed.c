@@ -1,0 +1,31 @@
+/* Any baud on Linux through termios2 and BOTHER. Kept apart from the rest
+ * of the port: <asm/termbits.h> and <termios.h> cannot share a file. */
+#include <asm/ioctls.h>
+#include <asm/termbits.h>
+#include <stdint.h>
+#include <sys/ioctl.h>
+
+int dan_posix_set_speed(int fd, uint32_t baud);
+uint32_t dan_posix_get_speed(int fd);
+
+int dan_posix_set_speed(int fd, uint32_t baud)
+{
+    struct termios2 t;
+    if (ioctl(fd, TCGETS2, &t) != 0) {
+        return -1;
+    }
+    t.c_cflag &= ~(tcflag_t)(CBAUD | (CBAUD << IBSHIFT));
+    t.c_cflag |= BOTHER | (BOTHER << IBSHIFT);
+    t.c_ispeed = baud;
+    t.c_ospeed = baud;
+    return ioctl(fd, TCSETS2, &t);
+}
+
+uint32_t dan_posix_get_speed(int fd)
+{
+    struct termios2 t;
+    if (ioctl(fd, TCGETS2, &t) != 0) {
+        return 0;
+    }
+    return t.c_ospeed;
+}

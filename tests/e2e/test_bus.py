@@ -1,0 +1,171 @@
+"""The master and peripheral engines over a virtual half-duplex bus:
+dan-master (libdan master) and dan-testperiph processes on dan-vbus ptys."""
+import json
+import os
+import subprocess
+import threading
+import time
+
+import pytest
+
+from bus_util import (periph_stats, read_capture, start_periph, start_vbus,
+                      vbus_cmd, vbus_stats)
+from conftest import BIN
+
+TYPES = "test-a,test-b,can-gw,vtx"
+
+
+def master(port, *steps, types=TYPES, timeout=120, check=True):
+    """Runs dan-master with --json; returns (exit code, list of step results)."""
+    r = subprocess.run([str(BIN / "dan-master"), "--port", port, "--types", types, "--json", *steps],
+                       stdin=subprocess.DEVNULL, capture_output=True, timeout=timeout)
+    out = [json.loads(l) for l in r.stdout.decode().splitlines() if l.startswith("{")]
+    if check:
+        assert r.returncode == 0, (r.returncode, out, r.stderr.decode())
+    return r.returncode, out
+
+
+@pytest.fixture
+def bus3(procs, tmp_path):
+    """dan-vbus with a master endpoint and three peripherals of different
+    types: test-a (all bauds), test-b (all bauds), can-gw (no 57600)."""
+    vbus, eps, ctl = start_vbus(procs, tmp_path, 5)
+    ps = [start_periph(procs, eps[1], "test-a"),
+          start_periph(procs, eps[2], "test-b"),
+          start_periph(procs, eps[3], "can-gw", "0x0B")]
+    return eps, ctl, ps
+
+
+def test_discovery_identities_and_configure(bus3, procs, tmp_path):
+    eps, ctl, ps = bus3
+    rc, out = master(eps[0], "discover", "configure", "request:0x62:616263", "stats")
+    disc, conf, req, stats = out
+    peers = {p["type"]: p for p in disc["peers"]}
+    assert set(peers) == {"test-a", "test-b", "can-gw"}          # no VTX on this bus
+    assert peers["test-a"]["manufacturer"] == "DAN Project"
+    assert peers["test-b"]["model"] == "test-b"
+    assert peers["can-gw"]["baud_mask"] == 0x0B
+    assert peers["can-gw"]["dan_version"] == 1
+    assert all(p["baud"] == 9600 for p in peers.values())
+    assert conf["result"] == 0 and conf["baud"] == 115200
+    assert bytes.fromhex(req["payload"]) == b"cba"
+    # The capture shows the bus really moved: CONFIGURE and its ACKs at 9600,
+    # then IDENTIFY verification and the request at 115200 from every talker.
+    bursts = read_capture(tmp_path)
+    configures = [b for b in bursts if b[1] == 0 and b[3][1] in (0x41, 0x61, 0x71)]
+    assert len(configures) == 3 and all(b[2] == 9600 for b in configures)
+    fast = [b for b in bursts if b[2] == 115200]
+    assert {b[1] for b in fast} == {0, 1, 2, 3}
+    assert all(b[2] == 115200 for b in bursts if b[0] > configures[-1][0] + 0.2)
+    for p in ps:
+        s = periph_stats(procs, p)
+        assert s["baud"] == 115200 and s["baud_changes"] == 1 and s["collisions"] == 0
+
+
+def test_unknown_code_ignored_and_malformed_answered(bus3, procs):
+    eps, ctl, ps = bus3
+    rc, out = master(eps[0], "discover", "request:0x64", "request:0x62", "request:0x61", "request:0x62:00",
+                     check=False)
+    assert rc == 1
+    disc, unknown, malformed, bad_conf, ok = out
+    assert unknown["result"] == -4 and unknown["error"] == "timeout"        # ignored: no reply at all
+    assert malformed["result"] == -6 and malformed["error"] == "empty payload"
+    assert bad_conf["result"] == -6 and "CONFIGURE" in bad_conf["error"]
+    assert ok["result"] == 0 and ok["payload"] == "00"
+    s = periph_stats(procs, ps[0])
+    assert s["unknown"] >= 3            # 0x64 and its two retries were heard and ignored
+    assert s["errors_sent"] == 2
+    assert s["replies"] >= 3
+
+
+def test_master_restart_finds_configured_bus(bus3, procs, tmp_path):
+    eps, ctl, ps = bus3
+    master(eps[0], "discover", "configure:38400")
+    # A new master process starts at 9600 like a rebooted FC: nothing answers
+    # there, so it must find the peripherals at their configured baud.
+    rc, out = master(eps[0], "discover", "configure", "request:0x62:0102")
+    disc, conf, req = out
+    assert {p["baud"] for p in disc["peers"]} == {38400}
+    assert len(disc["peers"]) == 3
+    assert conf["baud"] == 115200
+    assert req["payload"] == "0201"
+
+
+def test_collisions_detected_and_recovered(bus3, procs, tmp_path):
+    """A second talker jams part of the traffic: whoever talks over it sees its
+    echo differ, backs off and retries; every exchange completes correctly."""
+    eps, ctl, ps = bus3
+    stop = threading.Event()
+    jams = []
+
+    def jammer():
+        fd = os.open(eps[4], os.O_RDWR | os.O_NOCTTY)
+        try:
+            os.set_blocking(fd, False)
+            seen = 0
+            while not stop.is_set():
+                try:
+                    data = os.read(fd, 256)
+                except BlockingIOError:
+                    time.sleep(0.0005)
+                    continue
+                # On every 4th sync byte heard, talk at once over the frame.
+                for b in data:
+                    if b == 0x44:
+                        seen += 1
+                        if seen % 4 == 0:
+                            os.write(fd, b"\x13\x37\x13")
+                            jams.append(time.monotonic())
+        finally:
+            os.close(fd)
+
+    t = threading.Thread(target=jammer, daemon=True)
+    t.start()
+    try:
+        rc, out = master(eps[0], "discover", "repeat:60:0x62:a1b2c3d4", "request:0x62:0a0b", "stats",
+                         types="test-a,test-b,can-gw")
+    finally:
+        stop.set()
+        t.join(5)
+    disc, rep, req, stats = out
+    assert len(disc["peers"]) == 3
+    assert rep["done"] == 60 and rep["result"] == 0
+    assert req["payload"] == "0b0a"
+    assert len(jams) >= 5
+    assert stats["collisions"] >= 1 and stats["retries"] >= 1
+    assert vbus_stats(ctl)["collisions"] >= 1
+
+
+def test_noise_recovered(bus3, procs):
+    """Bit errors on the wire: frames are dropped by the CRC, the master
+    retries, and no wrong payload is ever returned; once noise stops the
+    link is clean."""
+    eps, ctl, ps = bus3
+    master(eps[0], "discover", "configure")
+    assert vbus_cmd(ctl, "ber 0.002") == "ok"
+    rc, out = master(eps[0], "discover", "repeat:40:0x62:00112233445566778899", "stats",
+                     types="test-a", check=False)
+    disc, rep, stats = out
+    noisy = vbus_stats(ctl)
+    assert noisy["noise_flips"] > 0
+    # Every exchange the master reported OK returned the right bytes (the
+    # repeat step stops at the first failure, which is allowed under noise).
+    assert rep["done"] >= 1
+    assert vbus_cmd(ctl, "ber 0") == "ok"
+    rc, out = master(eps[0], "discover", "repeat:30:0x62:00112233445566778899", "request:0x62:cafe",
+                     types="test-a")
+    assert out[1]["done"] == 30 and out[2]["payload"] == "feca"
+
+
+def test_bad_arguments_and_missing_port(tmp_path):
+    r = subprocess.run([str(BIN / "dan-master"), "--port", str(tmp_path / "nope"), "discover"],
+                       capture_output=True, stdin=subprocess.DEVNULL, timeout=30)
+    assert r.returncode == 2 and b"No such file" in r.stderr
+    r = subprocess.run([str(BIN / "dan-master"), "--port", "/dev/null", "--bogus"],
+                       capture_output=True, stdin=subprocess.DEVNULL, timeout=30)
+    assert r.returncode == 2 and b"unknown option" in r.stderr
+    r = subprocess.run([str(BIN / "dan-master"), "--port", "/dev/null", "discover"],
+                       capture_output=True, stdin=subprocess.DEVNULL, timeout=30)
+    assert r.returncode == 2 and b"not a serial port" in r.stderr
+    r = subprocess.run([str(BIN / "dan-master"), "--help"], capture_output=True, timeout=30)
+    assert r.returncode == 0 and b"steps:" in r.stdout
