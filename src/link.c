@@ -123,8 +123,7 @@ void dan_link_rx(dan_link_t *l, const uint8_t *data, size_t len, uint64_t now_us
     }
 }
 
-int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len,
-                  uint64_t now_us)
+int dan_link_prepare(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len)
 {
     int n;
     if (l->state == DAN_LINK_TX) {
@@ -132,23 +131,42 @@ int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t l
     }
     n = dan_frame_encode(code, payload, len, l->tx, sizeof l->tx);
     if (n < 0) {
+        l->tx_len = 0;
         return n;
     }
     l->tx_len = (size_t)n;
+    return DAN_OK;
+}
+
+int dan_link_transmit(dan_link_t *l, uint64_t now_us)
+{
+    if (l->state == DAN_LINK_TX) {
+        return DAN_ERR_BUSY;
+    }
+    if (l->tx_len == 0u) {
+        return DAN_ERR_ARG;
+    }
     l->echo_pos = 0;
     l->tx_start_us = now_us;
     l->state = DAN_LINK_TX;
     if (l->port.set_tx != NULL) {
         l->port.set_tx(l->port.ctx, true);
     }
-    if (l->port.write(l->port.ctx, l->tx, l->tx_len) != n) {
+    if (l->port.write(l->port.ctx, l->tx, l->tx_len) != (int)l->tx_len) {
         l->stats.port_errors++;
         end_tx(l, DAN_LINK_TX_FAILED, now_us);
         return DAN_ERR_IO;
     }
     l->stats.tx_frames++;
-    l->stats.tx_bytes += (uint32_t)n;
+    l->stats.tx_bytes += (uint32_t)l->tx_len;
     return DAN_OK;
+}
+
+int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len,
+                  uint64_t now_us)
+{
+    int r = dan_link_prepare(l, code, payload, len);
+    return (r != DAN_OK) ? r : dan_link_transmit(l, now_us);
 }
 
 dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us)

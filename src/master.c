@@ -147,14 +147,25 @@ static void backoff(dan_master_t *m, uint64_t now_us)
     m->wait_until_us = now_us + (uint64_t)(next_rand(m) % slots) * m->link.char_us;
 }
 
+static void txn_finish(dan_master_t *m, int result)
+{
+    m->txn_result = result;
+    m->txn_phase = PH_DONE;
+    if (result == DAN_OK) {
+        m->stats.ok++;
+    }
+}
+
 static void txn_start(dan_master_t *m, uint32_t code, const uint8_t *payload, size_t len,
                       uint8_t attempts, uint64_t now_us)
 {
     m->req_code = code;
-    if (len > 0u) {
-        memcpy(m->req, payload, len);
+    /* The encoded frame waits in the link's TX buffer; retries resend it. */
+    if (dan_link_prepare(&m->link, code, payload, len) != DAN_OK) {
+        m->stats.transactions++;
+        txn_finish(m, DAN_ERR_ARG);
+        return;
     }
-    m->req_len = len;
     m->attempts_left = attempts;
     m->attempt = 0;
     m->txn_phase = PH_LBT;
@@ -165,15 +176,6 @@ static void txn_start(dan_master_t *m, uint32_t code, const uint8_t *payload, si
     m->stats.transactions++;
     if (m->wait_until_us < now_us) {
         m->wait_until_us = now_us;
-    }
-}
-
-static void txn_finish(dan_master_t *m, int result)
-{
-    m->txn_result = result;
-    m->txn_phase = PH_DONE;
-    if (result == DAN_OK) {
-        m->stats.ok++;
     }
 }
 
@@ -245,7 +247,7 @@ static void txn_poll(dan_master_t *m, uint64_t now_us)
             break;
         }
         m->lbt_counted = false;
-        if (dan_link_send(&m->link, m->req_code, m->req, m->req_len, now_us) != DAN_OK) {
+        if (dan_link_transmit(&m->link, now_us) != DAN_OK) {
             txn_finish(m, DAN_ERR_IO);
             break;
         }

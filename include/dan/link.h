@@ -115,9 +115,15 @@ uint64_t dan_link_idle_us(const dan_link_t *l, uint64_t now_us);
 /* Feeds received bytes: our own echo is matched and removed, everything
  * else goes to the decoder; whole frames go to on_frame. */
 void dan_link_rx(dan_link_t *l, const uint8_t *data, size_t len, uint64_t now_us);
-/* Encodes and queues a frame. The caller has checked listen-before-talk.
- * Returns DAN_OK, DAN_ERR_BUSY (a frame is still on the wire), DAN_ERR_ARG
- * or DAN_ERR_IO. */
+/* Encodes a frame into the link's TX buffer without sending it (the
+ * master keeps it there for its retries). DAN_ERR_BUSY while a frame is
+ * on the wire; DAN_ERR_ARG for an oversized payload. */
+int dan_link_prepare(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len);
+/* Queues the prepared frame (again, for a retry). The caller has checked
+ * listen-before-talk. Returns DAN_OK, DAN_ERR_BUSY, DAN_ERR_ARG (nothing
+ * prepared) or DAN_ERR_IO. */
+int dan_link_transmit(dan_link_t *l, uint64_t now_us);
+/* dan_link_prepare() then dan_link_transmit(). */
 int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len,
                   uint64_t now_us);
 /* Advances timers (idle-gap abort, end of transmission, direction pin).

@@ -25,9 +25,10 @@
 extern "C" {
 #endif
 
-/* Peripheral types one master can probe (and so, peers per UART). */
+/* Peripheral types one master can probe (and so, peers per UART). Each
+ * costs a dan_peer_t (its identity strings: see DAN_MAX_STRING). */
 #ifndef DAN_MASTER_MAX_TYPES
-#define DAN_MASTER_MAX_TYPES 8u
+#define DAN_MASTER_MAX_TYPES 4u
 #endif
 
 /* Bauds a master tries during discovery, in order: the spec's 9600 first,
@@ -87,9 +88,7 @@ typedef struct {
     dan_peer_t peers[DAN_MASTER_MAX_TYPES];   /* one slot per type */
 
     /* the current transaction */
-    uint32_t req_code;
-    uint8_t req[DAN_MAX_PAYLOAD];
-    size_t req_len;
+    uint32_t req_code;          /* the request itself waits in link.tx */
     uint8_t attempts_left;
     uint8_t attempt;            /* attempts made, for the backoff */
     uint8_t txn_phase;          /* internal */
