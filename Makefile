@@ -172,13 +172,17 @@ unit-run: unit
 	  echo "== $$t"; DAN_VECTORS=tests/vectors $$t || fail=1; \
 	done; exit $$fail
 
-pytest: all venv
+pytest: all venv firmware
 	CI=$${CI:-} $(VENV)/bin/python -m pytest -q tests/e2e
 
-test: deps-test
+test: deps-test deps-firmware
 	$(MAKE) --no-print-directory unit-run
 	$(MAKE) --no-print-directory BUILD=build/asan SAN=1 unit-run
 	$(MAKE) --no-print-directory pytest
+
+# ---- firmware (Cortex-M4 under QEMU), size budget, portability -------------
+
+include examples/fc_firmware/firmware.mk
 
 # ---- cross build ------------------------------------------------------------
 

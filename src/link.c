@@ -67,6 +67,22 @@ int dan_link_set_baud(dan_link_t *l, uint32_t baud, uint64_t now_us)
     return DAN_OK;
 }
 
+static uint32_t echo_timeout(const dan_link_t *l)
+{
+    uint32_t g = dan_link_gap_us(l);
+    return (l->echo_timeout_us > g) ? l->echo_timeout_us : g;
+}
+
+bool dan_link_is_own_frame(const dan_link_t *l, const dan_frame_t *f)
+{
+    size_t n = dan_frame_size(f->code, f->len);
+    uint32_t code;
+    if (l->tx_len != n || dan_uvarint_decode(l->tx + 1, n - 1u, &code) <= 0 || code != f->code) {
+        return false;
+    }
+    return f->len == 0u || memcmp(l->tx + n - 1u - f->len, f->payload, f->len) == 0;
+}
+
 uint64_t dan_link_idle_us(const dan_link_t *l, uint64_t now_us)
 {
     if (l->state == DAN_LINK_TX || dan_decoder_busy(&l->dec) || now_us < l->last_rx_us) {
@@ -179,7 +195,7 @@ dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us)
     if (l->state == DAN_LINK_TX) {
         uint64_t end = dan_link_tx_end_us(l);
         if (l->port.echo) {
-            if (now_us >= end + dan_link_gap_us(l)) {
+            if (now_us >= end + echo_timeout(l)) {
                 l->stats.echo_timeouts++;
                 end_tx(l, DAN_LINK_TX_FAILED, now_us);
             }
@@ -206,7 +222,7 @@ uint64_t dan_link_next_us(const dan_link_t *l)
     }
     if (l->state == DAN_LINK_TX) {
         uint64_t end = dan_link_tx_end_us(l);
-        uint64_t t = l->port.echo ? end + dan_link_gap_us(l) : end;
+        uint64_t t = l->port.echo ? end + echo_timeout(l) : end;
         if (t < next) {
             next = t;
         }

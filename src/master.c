@@ -72,6 +72,8 @@ int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_co
     m->ntypes = ntypes;
     dan_link_init(&m->link, port, baud, on_frame, m, now_us);
     m->link.gap_us = m->cfg.gap_us;
+    /* The echo comes back the way replies do: allow it the same latency. */
+    m->link.echo_timeout_us = m->cfg.resp_latency_us;
     return DAN_OK;
 }
 
@@ -201,6 +203,12 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
     dan_master_t *m = (dan_master_t *)owner;
     (void)now_us;
     if (m->txn_phase != PH_WAIT) {
+        m->stats.stray++;
+        return;
+    }
+    if (m->link.port.echo && dan_link_is_own_frame(&m->link, f)) {
+        /* Our own request, echoed late: never its own reply (our rule: a
+         * reply must differ from its request). */
         m->stats.stray++;
         return;
     }

@@ -15,9 +15,12 @@ from conftest import BIN
 TYPES = "test-a,test-b,can-gw,vtx"
 
 
-def master(port, *steps, types=TYPES, timeout=120, check=True):
-    """Runs dan-master with --json; returns (exit code, list of step results)."""
-    r = subprocess.run([str(BIN / "dan-master"), "--port", port, "--types", types, "--json", *steps],
+def master(port, *steps, types=TYPES, timeout=120, check=True, opts=()):
+    """Runs dan-master with --json; returns (exit code, list of step results).
+    The reply window is generous (250 ms): a loaded 2-core host can stall a
+    process that long, and these tests check behaviour, not speed."""
+    r = subprocess.run([str(BIN / "dan-master"), "--port", port, "--types", types, "--json",
+                        "--latency-ms", "250", *opts, *steps],
                        stdin=subprocess.DEVNULL, capture_output=True, timeout=timeout)
     out = [json.loads(l) for l in r.stdout.decode().splitlines() if l.startswith("{")]
     if check:
@@ -64,14 +67,14 @@ def test_discovery_identities_and_configure(bus3, procs, tmp_path):
 
 def test_unknown_code_ignored_and_malformed_answered(bus3, procs):
     eps, ctl, ps = bus3
-    rc, out = master(eps[0], "discover", "request:0x64", "request:0x62", "request:0x61", "request:0x62:00",
+    rc, out = master(eps[0], "discover", "request:0x64", "request:0x62", "request:0x61", "request:0x62:0001",
                      check=False)
     assert rc == 1
     disc, unknown, malformed, bad_conf, ok = out
     assert unknown["result"] == -4 and unknown["error"] == "timeout"        # ignored: no reply at all
     assert malformed["result"] == -6 and malformed["error"] == "empty payload"
     assert bad_conf["result"] == -6 and "CONFIGURE" in bad_conf["error"]
-    assert ok["result"] == 0 and ok["payload"] == "00"
+    assert ok["result"] == 0 and ok["payload"] == "0100"
     s = periph_stats(procs, ps[0])
     assert s["unknown"] >= 3            # 0x64 and its two retries were heard and ignored
     assert s["errors_sent"] == 2
@@ -109,11 +112,13 @@ def test_collisions_detected_and_recovered(bus3, procs, tmp_path):
                 except BlockingIOError:
                     time.sleep(0.0005)
                     continue
-                # On every 4th sync byte heard, talk at once over the frame.
+                # On every 7th sync byte heard, talk at once over the frame.
+                # An exchange has at most 2 sync bytes, so a transaction's
+                # next attempt is never jammed too: every one must succeed.
                 for b in data:
                     if b == 0x44:
                         seen += 1
-                        if seen % 4 == 0:
+                        if seen % 7 == 0:
                             os.write(fd, b"\x13\x37\x13")
                             jams.append(time.monotonic())
         finally:
@@ -123,7 +128,7 @@ def test_collisions_detected_and_recovered(bus3, procs, tmp_path):
     t.start()
     try:
         rc, out = master(eps[0], "discover", "repeat:60:0x62:a1b2c3d4", "request:0x62:0a0b", "stats",
-                         types="test-a,test-b,can-gw")
+                         types="test-a,test-b,can-gw", opts=("--retries", "4"))
     finally:
         stop.set()
         t.join(5)
@@ -131,7 +136,7 @@ def test_collisions_detected_and_recovered(bus3, procs, tmp_path):
     assert len(disc["peers"]) == 3
     assert rep["done"] == 60 and rep["result"] == 0
     assert req["payload"] == "0b0a"
-    assert len(jams) >= 5
+    assert len(jams) >= 3
     assert stats["collisions"] >= 1 and stats["retries"] >= 1
     assert vbus_stats(ctl)["collisions"] >= 1
 
@@ -153,7 +158,7 @@ def test_noise_recovered(bus3, procs):
     assert rep["done"] >= 1
     assert vbus_cmd(ctl, "ber 0") == "ok"
     rc, out = master(eps[0], "discover", "repeat:30:0x62:00112233445566778899", "request:0x62:cafe",
-                     types="test-a")
+                     types="test-a", opts=("--retries", "4"))
     assert out[1]["done"] == 30 and out[2]["payload"] == "feca"
 
 

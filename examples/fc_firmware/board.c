@@ -1,0 +1,237 @@
+/*
+ * Board support: SysTick clock, CMSDK APB UART0 with an RX interrupt,
+ * semihosting. Register facts, not code, from: the ARMv7-M Architecture
+ * Reference Manual (SysTick, NVIC, SCB), the Cortex-M System Design Kit
+ * TRM ARM DDI0479 (APB UART), ARM AN385/AN386 (memory map, interrupt
+ * numbers), the ARM semihosting specification v2 (operation numbers), and
+ * /work/shared/notes/qemu-cortex-m.md (QEMU's behaviour).
+ */
+#include "board.h"
+
+#define REG32(addr) (*(volatile uint32_t *)(uintptr_t)(addr))
+
+/* SysTick (ARMv7-M ARM, B3.3) */
+#define SYST_CSR REG32(0xE000E010u)
+#define SYST_RVR REG32(0xE000E014u)
+#define SYST_CVR REG32(0xE000E018u)
+#define SYST_CSR_ENABLE 0x1u
+#define SYST_CSR_TICKINT 0x2u
+#define SYST_CSR_CLKSOURCE 0x4u   /* processor clock */
+
+/* NVIC (ARMv7-M ARM, B3.4) */
+#define NVIC_ISER0 REG32(0xE000E100u)
+#define NVIC_IPR_BYTE(n) (*(volatile uint8_t *)(uintptr_t)(0xE000E400u + (n)))
+
+/* CMSDK APB UART (DDI0479, 4.3); UART0 at 0x40004000, RX IRQ 0 (AN386) */
+#define UART0_BASE 0x40004000u
+#define UART_DATA(b) REG32((b) + 0x00u)
+#define UART_STATE(b) REG32((b) + 0x04u)
+#define UART_CTRL(b) REG32((b) + 0x08u)
+#define UART_INT(b) REG32((b) + 0x0Cu)    /* read: INTSTATUS, write 1: INTCLEAR */
+#define UART_BAUDDIV(b) REG32((b) + 0x10u)
+#define UART_STATE_TXFULL 0x1u
+#define UART_STATE_RXFULL 0x2u
+#define UART_STATE_RXOVR 0x8u
+#define UART_CTRL_TXEN 0x1u
+#define UART_CTRL_RXEN 0x2u
+#define UART_CTRL_RXINTEN 0x8u
+#define UART_INT_RX 0x2u
+#define UART0_RX_IRQ 0u
+
+#define TICK_HZ 1000u
+#define TICK_RELOAD (BOARD_CPU_HZ / TICK_HZ - 1u)
+#define CYCLES_PER_US (BOARD_CPU_HZ / 1000000u)
+
+/* ---- clock ---- */
+
+static volatile uint32_t tick_ms;      /* written by SysTick_Handler only */
+
+void SysTick_Handler(void);
+void SysTick_Handler(void)
+{
+    tick_ms = tick_ms + 1u;
+}
+
+void clock_init(void)
+{
+    SYST_RVR = TICK_RELOAD;
+    SYST_CVR = 0;
+    SYST_CSR = SYST_CSR_CLKSOURCE | SYST_CSR_TICKINT | SYST_CSR_ENABLE;
+}
+
+uint64_t clock_now_us(void)
+{
+    /* Extends the 32-bit ms count to 64 bits (it is read far more often
+     * than every 49 days) and never goes backwards: a counter that wrapped
+     * just before its interrupt ran reads as a whole tick too early (QEMU
+     * raises the interrupt a little after the wrap), so such a reading is
+     * clamped to the last value returned. */
+    static uint32_t last_ms, epoch;
+    static uint64_t last_us;
+    uint32_t ms, ms2, val;
+    uint64_t us;
+    do {
+        ms = tick_ms;
+        val = SYST_CVR;
+        ms2 = tick_ms;
+    } while (ms != ms2);
+    if (ms < last_ms) {
+        epoch++;
+    }
+    last_ms = ms;
+    us = ((((uint64_t)epoch << 32) | ms) * 1000u) + (TICK_RELOAD - (val & 0xFFFFFFu)) / CYCLES_PER_US;
+    if (us < last_us) {
+        us = last_us;
+    }
+    last_us = us;
+    return us;
+}
+
+/* ---- UART0 ---- */
+
+dan_rxring_t uart0_rx;
+volatile uart_stats_t uart0_stats;
+
+/* The interrupt is the ring's only producer. */
+void UART0RX_Handler(void);
+void UART0RX_Handler(void)
+{
+    uart0_stats.rx_irqs = uart0_stats.rx_irqs + 1u;
+    while ((UART_STATE(UART0_BASE) & UART_STATE_RXFULL) != 0u) {
+        uint8_t b;
+        /* Clear the flag before reading the data register: the read lets
+         * the next byte in, whose flag would otherwise be cleared too. */
+        UART_INT(UART0_BASE) = UART_INT_RX;
+        b = (uint8_t)UART_DATA(UART0_BASE);
+        (void)dan_rxring_put(&uart0_rx, b);   /* full: counted in the ring */
+    }
+    if ((UART_STATE(UART0_BASE) & UART_STATE_RXOVR) != 0u) {
+        UART_STATE(UART0_BASE) = UART_STATE_RXOVR;   /* write 1 to clear */
+        uart0_stats.rx_overruns = uart0_stats.rx_overruns + 1u;
+    }
+}
+
+static uint32_t divisor_of(uint32_t baud)
+{
+    return (BOARD_CPU_HZ + baud / 2u) / baud;
+}
+
+static int port_write(void *ctx, const uint8_t *data, size_t len)
+{
+    size_t i;
+    (void)ctx;
+    /* Polled: the CMSDK UART holds one byte, so on hardware this waits for
+     * the frame to leave (len * C; 15 ms for 170 bytes at 115200). QEMU
+     * sends at once. A TX interrupt with a second ring removes the wait. */
+    for (i = 0; i < len; i++) {
+        while ((UART_STATE(UART0_BASE) & UART_STATE_TXFULL) != 0u) {
+        }
+        UART_DATA(UART0_BASE) = data[i];
+    }
+    uart0_stats.tx_bytes = uart0_stats.tx_bytes + (uint32_t)len;
+    return (int)len;
+}
+
+static int port_set_baud(void *ctx, uint32_t baud)
+{
+    uint32_t div;
+    (void)ctx;
+    if (baud == 0u) {
+        return DAN_ERR_ARG;
+    }
+    div = divisor_of(baud);
+    if (div < BOARD_UART_MIN_DIV || div > 0xFFFFFu) {
+        return DAN_ERR_UNSUPPORTED;
+    }
+    /* The master switches only after its last frame was echoed, so no byte
+     * of ours is in the UART now. */
+    UART_BAUDDIV(UART0_BASE) = div;
+    uart0_stats.baud_changes = uart0_stats.baud_changes + 1u;
+    return DAN_OK;
+}
+
+static const dan_port_t port0 = {
+    port_write, port_set_baud, NULL, NULL, NULL, NULL,
+    BOARD_CPU_HZ / BOARD_UART_MIN_DIV,   /* max baud: divisor 16 */
+    true                                 /* one wire: we hear our bytes */
+};
+
+void uart0_init(uint32_t baud)
+{
+    dan_rxring_init(&uart0_rx);
+    UART_CTRL(UART0_BASE) = 0;
+    /* The divisor must be >= 16 before TX is enabled. */
+    UART_BAUDDIV(UART0_BASE) = divisor_of(baud);
+    UART_INT(UART0_BASE) = 0xFu;
+    UART_CTRL(UART0_BASE) = UART_CTRL_TXEN | UART_CTRL_RXEN | UART_CTRL_RXINTEN;
+    NVIC_IPR_BYTE(UART0_RX_IRQ) = 0x40u;
+    NVIC_ISER0 = 1u << UART0_RX_IRQ;
+}
+
+const dan_port_t *uart0_port(void)
+{
+    return &port0;
+}
+
+uint32_t uart0_actual_baud(void)
+{
+    uint32_t div = UART_BAUDDIV(UART0_BASE);
+    return div != 0u ? BOARD_CPU_HZ / div : 0u;
+}
+
+void board_idle(void)
+{
+    /* With interrupts masked, WFI still wakes on a pending interrupt, so a
+     * byte that arrives between the check and the WFI is not slept over. */
+    __asm__ volatile("cpsid i" ::: "memory");
+    if (dan_rxring_count(&uart0_rx) == 0u) {
+        __asm__ volatile("dsb\n\twfi" ::: "memory");
+    }
+    __asm__ volatile("cpsie i" ::: "memory");
+}
+
+/* ---- semihosting ---- */
+
+#define SH_SYS_WRITE0 0x04u
+#define SH_SYS_GET_CMDLINE 0x15u
+#define SH_SYS_EXIT_EXTENDED 0x20u
+#define SH_ADP_STOPPED_APPLICATION_EXIT 0x20026u
+
+static uint32_t sh_call(uint32_t op, const void *arg)
+{
+    register uint32_t r0 __asm__("r0") = op;
+    register const void *r1 __asm__("r1") = arg;
+    __asm__ volatile("bkpt 0xAB" : "+r"(r0) : "r"(r1) : "memory");
+    return r0;
+}
+
+void sh_puts(const char *s)
+{
+    (void)sh_call(SH_SYS_WRITE0, s);
+}
+
+void sh_exit(int code)
+{
+    uint32_t block[2];
+    block[0] = SH_ADP_STOPPED_APPLICATION_EXIT;
+    block[1] = (uint32_t)code;
+    (void)sh_call(SH_SYS_EXIT_EXTENDED, block);
+    for (;;) {
+        __asm__ volatile("bkpt 0");   /* no debugger: stops here */
+    }
+}
+
+void sh_cmdline(char *buf, size_t cap)
+{
+    uint32_t block[2];
+    if (cap == 0u) {
+        return;
+    }
+    buf[0] = '\0';
+    block[0] = (uint32_t)(uintptr_t)buf;
+    block[1] = (uint32_t)cap;
+    if (sh_call(SH_SYS_GET_CMDLINE, block) != 0u) {
+        buf[0] = '\0';
+    }
+    buf[cap - 1u] = '\0';
+}

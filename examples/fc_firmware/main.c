@@ -1,0 +1,662 @@
+/*
+ * fc_firmware: libdan's master engine inside a flight-controller firmware
+ * (Cortex-M4, QEMU mps2-an386). UART0 is the DAN bus; results go out over
+ * semihosting as one JSON object per line; the exit code is 0 when every
+ * required phase passed, else 1 (3: a fault).
+ *
+ * The main loop never blocks: the RX interrupt puts bytes into a ring, the
+ * loop moves them into the engine, polls it, and runs one phase at a time.
+ * A phase is a pair of functions in the table below: start() begins one
+ * master operation (or asks to wait, or to skip), done() takes its result
+ * and says whether the phase goes on, is finished, or failed. A new step
+ * of the FC's work is one more row.
+ *
+ * Command line (QEMU: -append "..." or -semihosting-config ...,arg=...):
+ *   gw=off|try|require   the gateway phase (default try: run it when a
+ *                        can-gw is present, report but do not fail on it)
+ */
+#include <string.h>
+
+#include "dan/dan.h"
+#include "dan/rxring.h"
+#if defined(FW_WITH_GATEWAY)
+#include "dan/gateway.h"
+#endif
+#include "board.h"
+
+#ifndef FW_RUN_LIMIT_US
+#define FW_RUN_LIMIT_US 120000000u   /* the whole run, as a last resort */
+#endif
+#define TXN_COUNT 40u                /* test-a echo transactions */
+#define RAMP_STEPS 40u               /* ESC commands in the throttle ramp */
+#define RAMP_PERIOD_US 20000u        /* 50 Hz command rate */
+#define RAMP_MAX 2000                /* raw command at the top (of 8191) */
+#define NUM_ESC 4u
+
+/* ---- output: one JSON object per line ---- */
+
+static char out_line[1024];
+static size_t out_len;
+
+static void o_str(const char *s)
+{
+    while (*s != '\0' && out_len < sizeof out_line - 2u) {
+        out_line[out_len++] = *s++;
+    }
+}
+
+static void o_u64(uint64_t v)
+{
+    char tmp[21];
+    size_t n = 0;
+    do {
+        tmp[n++] = (char)('0' + (int)(v % 10u));
+        v /= 10u;
+    } while (v != 0u);
+    while (n > 0u && out_len < sizeof out_line - 2u) {
+        out_line[out_len++] = tmp[--n];
+    }
+}
+
+static void o_u32(uint32_t v)
+{
+    o_u64(v);
+}
+
+static void o_int(int32_t v)
+{
+    if (v < 0) {
+        o_str("-");
+        o_u64((uint64_t)(-(int64_t)v));
+    } else {
+        o_u64((uint64_t)v);
+    }
+}
+
+static void o_hex(const uint8_t *p, size_t n)
+{
+    static const char digits[] = "0123456789abcdef";
+    size_t i;
+    for (i = 0; i < n && out_len < sizeof out_line - 3u; i++) {
+        out_line[out_len++] = digits[p[i] >> 4];
+        out_line[out_len++] = digits[p[i] & 15u];
+    }
+}
+
+/* A JSON string: quoted, with quotes, backslashes and control bytes escaped. */
+static void o_jstr(const char *s)
+{
+    o_str("\"");
+    for (; *s != '\0'; s++) {
+        unsigned char ch = (unsigned char)*s;
+        char one[2] = {0, 0};
+        if (ch == '"' || ch == '\\') {
+            o_str(ch == '"' ? "\\\"" : "\\\\");
+        } else if (ch < 0x20u || ch >= 0x7Fu) {
+            o_str("\\u00");
+            o_hex(&ch, 1);
+        } else {
+            one[0] = (char)ch;
+            o_str(one);
+        }
+    }
+    o_str("\"");
+}
+
+/* ,"key": */
+static void o_key(const char *k)
+{
+    o_str(",\"");
+    o_str(k);
+    o_str("\":");
+}
+
+static void o_begin(const char *step)
+{
+    out_len = 0;
+    o_str("{\"step\":");
+    o_jstr(step);
+}
+
+static void o_end(void)
+{
+    out_line[out_len++] = '}';
+    out_line[out_len++] = '\n';
+    out_line[out_len < sizeof out_line ? out_len : sizeof out_line - 1u] = '\0';
+    sh_puts(out_line);
+    out_len = 0;
+}
+
+static void o_result(int r)
+{
+    o_key("result");
+    o_int(r);
+    o_key("error");
+    o_jstr(r == DAN_OK ? "" : dan_strerror(r));
+}
+
+/* ---- the application ---- */
+
+typedef enum { STEP_AGAIN, STEP_NEXT, STEP_FAIL } step_t;
+
+/* start(): DAN_OK (an operation started), FW_WAIT (call again later),
+ * FW_SKIP (nothing to do: next phase) or an error (the phase failed). */
+#define FW_WAIT 1
+#define FW_SKIP 2
+
+enum { GW_OFF = 0, GW_TRY, GW_REQUIRE };
+
+typedef struct app app_t;
+typedef struct {
+    const char *name;
+    int (*start)(app_t *a, uint64_t now);
+    step_t (*done)(app_t *a, int result, uint64_t now);
+} phase_t;
+
+struct app {
+    dan_master_t m;
+    size_t phase;
+    uint32_t k;                 /* step within the phase */
+    uint64_t op_t0;             /* when the running operation started */
+    uint64_t not_before;        /* FW_WAIT: start no sooner */
+    bool op_running;
+    /* transactions */
+    uint8_t payload[32];
+    size_t plen;
+    uint32_t txn_ok, txn_bad;
+    uint64_t txn_sum_us, txn_max_us;
+    int gw_mode;
+#if defined(FW_WITH_GATEWAY)
+    dan_gw_t gw;
+    uint32_t esc_ok;
+    int gw_result;
+#endif
+};
+
+static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST, DAN_TYPE_CAN_GW_FIRST};
+
+static const char *type_name(uint32_t first)
+{
+    const dan_type_info_t *t = dan_type_of_code(first);
+    return (t != NULL) ? t->name : "?";
+}
+
+/* -- discover -- */
+
+static int discover_start(app_t *a, uint64_t now)
+{
+    return dan_master_discover(&a->m, now);
+}
+
+static step_t discover_done(app_t *a, int r, uint64_t now)
+{
+    size_t i;
+    bool first = true;
+    o_begin("discover");
+    o_result(r);
+    o_key("ms");
+    o_u64((now - a->op_t0) / 1000u);
+    o_key("baud");
+    o_u32(dan_master_baud(&a->m));
+    o_key("peers");
+    o_str("[");
+    for (i = 0; i < a->m.ntypes; i++) {
+        const dan_peer_t *p = &a->m.peers[i];
+        if (!p->present) {
+            continue;
+        }
+        o_str(first ? "{\"type\":" : ",{\"type\":");
+        o_jstr(type_name(p->first_code));
+        o_key("baud");
+        o_u32(p->baud);
+        o_key("dan_version");
+        o_u32(p->identity.dan_version);
+        o_key("manufacturer");
+        o_jstr(p->identity.manufacturer);
+        o_key("model");
+        o_jstr(p->identity.model);
+        o_key("sw_version");
+        o_jstr(p->identity.sw_version);
+        o_key("baud_mask");
+        o_u32(p->identity.baud_mask);
+        o_str("}");
+        first = false;
+    }
+    o_str("]");
+    o_end();
+    return (r == DAN_OK) ? STEP_NEXT : STEP_FAIL;
+}
+
+/* -- configure: the best common baud -- */
+
+static int configure_start(app_t *a, uint64_t now)
+{
+    return dan_master_configure(&a->m, 0, now);
+}
+
+static step_t configure_done(app_t *a, int r, uint64_t now)
+{
+    o_begin("configure");
+    o_result(r);
+    o_key("baud");
+    o_u32(dan_master_baud(&a->m));
+    o_key("uart_baud");
+    o_u32(uart0_actual_baud());   /* 25 MHz / divisor */
+    o_key("ms");
+    o_u64((now - a->op_t0) / 1000u);
+    o_key("recoveries");
+    o_u32(a->m.stats.recoveries);
+    o_end();
+    return (r == DAN_OK) ? STEP_NEXT : STEP_FAIL;
+}
+
+/* -- transactions: test-a reverses the payload of 0x62 -- */
+
+static int txn_start(app_t *a, uint64_t now)
+{
+    size_t i;
+    if (dan_master_peer(&a->m, DAN_TYPE_TEST_A_FIRST) == NULL) {
+        return DAN_ERR_NOTFOUND;
+    }
+    a->plen = 1u + a->k % (uint32_t)sizeof a->payload;
+    for (i = 0; i < a->plen; i++) {
+        a->payload[i] = (uint8_t)(a->k * 7u + i * 13u);
+    }
+    return dan_master_request(&a->m, DAN_TYPE_TEST_A_FIRST + 2u, a->payload, a->plen, now);
+}
+
+static step_t txn_done(app_t *a, int r, uint64_t now)
+{
+    uint64_t us = now - a->op_t0;
+    bool good = (r == DAN_OK && a->m.resp_len == a->plen);
+    size_t i;
+    for (i = 0; good && i < a->plen; i++) {
+        good = (a->m.resp[i] == a->payload[a->plen - 1u - i]);
+    }
+    if (good) {
+        a->txn_ok++;
+    } else {
+        a->txn_bad++;
+    }
+    a->txn_sum_us += us;
+    if (us > a->txn_max_us) {
+        a->txn_max_us = us;
+    }
+    if (++a->k < TXN_COUNT) {
+        return STEP_AGAIN;
+    }
+    o_begin("transactions");
+    o_key("code");
+    o_u32(DAN_TYPE_TEST_A_FIRST + 2u);
+    o_key("count");
+    o_u32(TXN_COUNT);
+    o_key("ok");
+    o_u32(a->txn_ok);
+    o_key("bad");
+    o_u32(a->txn_bad);
+    o_key("baud");
+    o_u32(dan_master_baud(&a->m));
+    o_key("avg_us");
+    o_u64(a->txn_sum_us / TXN_COUNT);
+    o_key("max_us");
+    o_u64(a->txn_max_us);
+    o_key("last_payload");
+    o_str("\"");
+    o_hex(a->m.resp, a->m.resp_len);
+    o_str("\"");
+    o_end();
+    return (a->txn_bad == 0u) ? STEP_NEXT : STEP_FAIL;
+}
+
+/* -- IDENTIFY of test-b at the configured baud, decoded -- */
+
+static int ident_start(app_t *a, uint64_t now)
+{
+    if (dan_master_peer(&a->m, DAN_TYPE_TEST_B_FIRST) == NULL) {
+        return FW_SKIP;
+    }
+    return dan_master_request(&a->m, DAN_TYPE_IDENTIFY(DAN_TYPE_TEST_B_FIRST), NULL, 0, now);
+}
+
+static step_t ident_done(app_t *a, int r, uint64_t now)
+{
+    dan_identity_t id;
+    (void)now;
+    if (r == DAN_OK) {
+        r = dan_identity_decode(&id, a->m.resp, a->m.resp_len);
+    }
+    o_begin("identify");
+    o_key("type");
+    o_jstr("test-b");
+    o_result(r);
+    o_key("baud");
+    o_u32(dan_master_baud(&a->m));
+    if (r == DAN_OK) {
+        o_key("model");
+        o_jstr(id.model);
+    }
+    o_end();
+    return (r == DAN_OK) ? STEP_NEXT : STEP_FAIL;
+}
+
+/* -- gateway: arm, a throttle ramp on four ESCs, telemetry, disarm -- */
+
+#if defined(FW_WITH_GATEWAY)
+
+static int16_t ramp_value(uint32_t k)
+{
+    /* k = 1..RAMP_STEPS: up to RAMP_MAX at the middle, back down to 0 */
+    uint32_t half = RAMP_STEPS / 2u, pos = (k <= half) ? k : RAMP_STEPS - k;
+    return (int16_t)((int32_t)RAMP_MAX * (int32_t)pos / (int32_t)half);
+}
+
+static void o_telem(const dan_gw_telem_t *t)
+{
+    o_str("{\"esc\":");
+    o_u32(t->esc_index);
+    o_key("node");
+    o_u32(t->node_id);
+    o_key("flags");
+    o_u32(t->flags);
+    o_key("rpm");
+    o_int(t->rpm);
+    o_key("mV");
+    o_int((int32_t)(dan_gw_f16_to_float(t->voltage_f16) * 1000.0f));
+    o_key("mA");
+    o_int((int32_t)(dan_gw_f16_to_float(t->current_f16) * 1000.0f));
+    o_key("power_pct");
+    o_u32(t->power_pct);
+    o_key("age_ms");
+    o_u32(t->age_ms);
+    o_str("}");
+}
+
+static int gw_start(app_t *a, uint64_t now)
+{
+    int16_t v[NUM_ESC];
+    size_t i;
+    if (a->k == 0u) {
+        if (a->gw_mode == GW_OFF || dan_master_peer(&a->m, DAN_TYPE_CAN_GW_FIRST) == NULL) {
+            o_begin("gateway");
+            o_key("skipped");
+            o_jstr(a->gw_mode == GW_OFF ? "gw=off" : "no can-gw on the bus");
+            o_end();
+            return a->gw_mode == GW_REQUIRE ? DAN_ERR_NOTFOUND : FW_SKIP;
+        }
+        dan_gw_init(&a->gw, &a->m);
+        a->esc_ok = 0;
+        return dan_gw_arm(&a->gw, true, now);
+    }
+    if (a->k <= RAMP_STEPS) {
+        if (now < a->not_before) {
+            return FW_WAIT;
+        }
+        a->not_before = now + RAMP_PERIOD_US;
+        for (i = 0; i < NUM_ESC; i++) {
+            v[i] = ramp_value(a->k);
+        }
+        return dan_gw_esc_command(&a->gw, v, NUM_ESC, now);
+    }
+    if (a->k == RAMP_STEPS + 1u) {
+        return dan_gw_telemetry(&a->gw, 0, now);
+    }
+    return dan_gw_arm(&a->gw, false, now);
+}
+
+/* Ends the phase: a summary line; fatal only with gw=require. */
+static step_t gw_finish(app_t *a, int r, const char *at)
+{
+    size_t i;
+    bool first = true;
+    o_begin("gateway");
+    o_result(r);
+    o_key("at");
+    o_jstr(at);
+    o_key("required");
+    o_str(a->gw_mode == GW_REQUIRE ? "true" : "false");
+    o_key("esc_commands_ok");
+    o_u32(a->esc_ok);
+    o_key("flags");
+    o_u32(a->gw.gw_flags);
+    o_key("telemetry");
+    o_str("[");
+    for (i = 0; r == DAN_OK && i < NUM_ESC && i < DAN_GW_MAX_ESC; i++) {
+        if ((a->gw.esc[i].flags & DAN_GW_TELEM_STATUS) != 0u) {
+            if (!first) {
+                o_str(",");
+            }
+            o_telem(&a->gw.esc[i]);
+            first = false;
+        }
+    }
+    o_str("]");
+    o_end();
+    a->gw_result = r;
+    return (r == DAN_OK || a->gw_mode != GW_REQUIRE) ? STEP_NEXT : STEP_FAIL;
+}
+
+static step_t gw_done(app_t *a, int r, uint64_t now)
+{
+    const char *at;
+    r = dan_gw_complete(&a->gw, now);
+    at = (a->k == 0u) ? "arm" : (a->k <= RAMP_STEPS) ? "esc_command"
+         : (a->k == RAMP_STEPS + 1u) ? "telemetry" : "disarm";
+    if (r != DAN_OK) {
+        return gw_finish(a, r, at);
+    }
+    if (a->k == 0u && (a->gw.gw_flags & DAN_GW_FLAG_ARMED) == 0u) {
+        return gw_finish(a, DAN_ERR_NACK, "arm (flag not set)");
+    }
+    if (a->k >= 1u && a->k <= RAMP_STEPS) {
+        a->esc_ok++;
+        if (a->k % 10u == 0u) {
+            o_begin("gw_esc");
+            o_key("k");
+            o_u32(a->k);
+            o_key("throttle");
+            o_int(ramp_value(a->k));
+            o_key("telem");
+            if (a->gw.last_telem < DAN_GW_MAX_ESC) {
+                o_telem(&a->gw.esc[a->gw.last_telem]);
+            } else {
+                o_str("null");
+            }
+            o_end();
+        }
+    }
+    if (++a->k <= RAMP_STEPS + 2u) {
+        return STEP_AGAIN;
+    }
+    return gw_finish(a, DAN_OK, "done");
+}
+
+#else /* !FW_WITH_GATEWAY */
+
+/* TODO(gateway): built without include/dan/gateway.h + src/gateway.c; the
+ * firmware.mk adds -DFW_WITH_GATEWAY once they exist. */
+static int gw_start(app_t *a, uint64_t now)
+{
+    (void)now;
+    o_begin("gateway");
+    o_key("skipped");
+    o_jstr("built without the gateway client");
+    o_end();
+    return a->gw_mode == GW_REQUIRE ? DAN_ERR_UNSUPPORTED : FW_SKIP;
+}
+
+static step_t gw_done(app_t *a, int r, uint64_t now)
+{
+    (void)a; (void)r; (void)now;
+    return STEP_NEXT;
+}
+
+#endif
+
+static const phase_t phases[] = {
+    {"discover", discover_start, discover_done},
+    {"configure", configure_start, configure_done},
+    {"transactions", txn_start, txn_done},
+    {"identify", ident_start, ident_done},
+    {"gateway", gw_start, gw_done},
+};
+#define NUM_PHASES (sizeof phases / sizeof phases[0])
+
+static void print_stats(const app_t *a, int code)
+{
+    const dan_master_stats_t *s = &a->m.stats;
+    const dan_link_stats_t *l = &a->m.link.stats;
+    const dan_decoder_stats_t *d = &a->m.link.dec.stats;
+    o_begin("stats");
+    o_key("transactions");
+    o_u32(s->transactions);
+    o_key("ok");
+    o_u32(s->ok);
+    o_key("timeouts");
+    o_u32(s->timeouts);
+    o_key("retries");
+    o_u32(s->retries);
+    o_key("collisions");
+    o_u32(l->collisions);
+    o_key("echo_timeouts");
+    o_u32(l->echo_timeouts);
+    o_key("crc_errors");
+    o_u32(d->crc_errors);
+    o_key("rx_bytes");
+    o_u32(l->rx_bytes);
+    o_key("tx_bytes");
+    o_u32(l->tx_bytes);
+    o_key("rx_irqs");
+    o_u32(uart0_stats.rx_irqs);
+    o_key("uart_overruns");
+    o_u32(uart0_stats.rx_overruns);
+    o_key("ring_dropped");
+    o_u32(dan_rxring_dropped(&uart0_rx));
+    o_key("baud_changes");
+    o_u32(uart0_stats.baud_changes);
+    o_key("exit");
+    o_int(code);
+    o_end();
+}
+
+static int parse_gw_mode(const char *cmdline)
+{
+    const char *p = strstr(cmdline, "gw=");
+    if (p == NULL) {
+        return GW_TRY;
+    }
+    p += 3;
+    if (strncmp(p, "off", 3) == 0) {
+        return GW_OFF;
+    }
+    if (strncmp(p, "require", 7) == 0) {
+        return GW_REQUIRE;
+    }
+    return GW_TRY;
+}
+
+int main(void)
+{
+    static app_t a;
+    static char cmdline[128];
+    dan_master_config_t cfg;
+    uint64_t now, deadline;
+    int code = 0;
+
+    clock_init();
+    uart0_init(9600);                   /* DAN starts at 9600 */
+    sh_cmdline(cmdline, sizeof cmdline);
+    a.gw_mode = parse_gw_mode(cmdline);
+
+    /* The same settings as dan-master on a pty: a reply may start 50 ms
+     * late and bytes may come in bursts (QEMU and the pty, not the wire). */
+    dan_master_config_default(&cfg);
+    cfg.resp_latency_us = 50000u;
+    cfg.gap_us = 20000u;
+    cfg.retries = 2;
+    cfg.seed = 0x5EEDu;
+    now = clock_now_us();
+    deadline = now + FW_RUN_LIMIT_US;
+    if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types, sizeof bus_types / sizeof bus_types[0], 9600,
+                        now) != DAN_OK) {
+        sh_puts("{\"event\":\"init failed\"}\n");
+        return 1;
+    }
+    o_begin("boot");
+    o_key("fw");
+    o_jstr("fc_firmware");
+    o_key("cmdline");
+    o_jstr(cmdline);
+    o_key("gw_mode");
+    o_jstr(a.gw_mode == GW_OFF ? "off" : a.gw_mode == GW_REQUIRE ? "require" : "try");
+    o_key("rxring");
+    o_u32(DAN_RXRING_SIZE);
+    o_key("master_bytes");
+    o_u32((uint32_t)sizeof a.m);
+    o_end();
+
+    while (a.phase < NUM_PHASES) {
+        uint8_t buf[64];
+        size_t n;
+        uint64_t next;
+
+        /* The only consumer of the ring: bytes go to the engine in order,
+         * stamped with the time they are handed over. */
+        while ((n = dan_rxring_get_many(&uart0_rx, buf, sizeof buf)) > 0u) {
+            dan_master_rx(&a.m, buf, n, clock_now_us());
+        }
+        now = clock_now_us();
+        if (now > deadline) {
+            o_begin(phases[a.phase].name);
+            o_result(DAN_ERR_TIMEOUT);
+            o_key("note");
+            o_jstr("run limit");
+            o_end();
+            code = 1;
+            break;
+        }
+        if (dan_master_poll(&a.m, now) && a.op_running) {
+            step_t st;
+            a.op_running = false;
+            st = phases[a.phase].done(&a, dan_master_result(&a.m), now);
+            if (st == STEP_FAIL) {
+                code = 1;
+                break;
+            }
+            if (st == STEP_NEXT) {
+                a.phase++;
+                a.k = 0;
+                a.not_before = 0;
+            }
+            continue;
+        }
+        if (!a.op_running) {
+            int r = phases[a.phase].start(&a, now);
+            if (r == DAN_OK) {
+                a.op_running = true;
+                a.op_t0 = now;
+                continue;
+            }
+            if (r == FW_SKIP) {
+                a.phase++;
+                a.k = 0;
+                a.not_before = 0;
+                continue;
+            }
+            if (r != FW_WAIT) {
+                o_begin(phases[a.phase].name);
+                o_result(r);
+                o_end();
+                code = 1;
+                break;
+            }
+            next = a.not_before;
+        } else {
+            next = dan_master_next_us(&a.m);
+        }
+        if (next > now + 1000u) {
+            board_idle();   /* wakes on the next SysTick (1 ms) or byte */
+        }
+    }
+    print_stats(&a, code);
+    return code;
+}
