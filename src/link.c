@@ -73,11 +73,12 @@ static uint32_t echo_timeout(const dan_link_t *l)
     return (l->echo_timeout_us > g) ? l->echo_timeout_us : g;
 }
 
-bool dan_link_is_own_frame(const dan_link_t *l, const dan_frame_t *f)
+bool dan_link_is_late_echo(const dan_link_t *l, const dan_frame_t *f, uint64_t now_us)
 {
     size_t n = dan_frame_size(f->code, f->len);
     uint32_t code;
-    if (l->tx_len != n || dan_uvarint_decode(l->tx + 1, n - 1u, &code) <= 0 || code != f->code) {
+    if (!l->port.echo || l->echo_late_us == 0u || now_us - l->echo_late_us > DAN_ECHO_LATE_HOLD_US ||
+        l->tx_len != n || dan_uvarint_decode(l->tx + 1, n - 1u, &code) <= 0 || code != f->code) {
         return false;
     }
     return f->len == 0u || memcmp(l->tx + n - 1u - f->len, f->payload, f->len) == 0;
@@ -197,6 +198,7 @@ dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us)
         if (l->port.echo) {
             if (now_us >= end + echo_timeout(l)) {
                 l->stats.echo_timeouts++;
+                l->echo_late_us = now_us;
                 end_tx(l, DAN_LINK_TX_FAILED, now_us);
             }
         } else if (now_us >= end &&

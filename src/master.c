@@ -151,6 +151,9 @@ static void backoff(dan_master_t *m, uint64_t now_us)
 
 static void txn_finish(dan_master_t *m, int result)
 {
+    if (m->link.state == DAN_LINK_TX_DONE) {
+        dan_link_ack(&m->link); /* completed before a poll saw the TX end */
+    }
     m->txn_result = result;
     m->txn_phase = PH_DONE;
     if (result == DAN_OK) {
@@ -201,15 +204,16 @@ static void txn_attempt_failed(dan_master_t *m, int why, uint64_t now_us)
 static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
 {
     dan_master_t *m = (dan_master_t *)owner;
-    (void)now_us;
-    if (m->txn_phase != PH_WAIT) {
+    /* A reply may arrive in the same read as the last echo byte (or, with a
+     * direction pin, before a poll has noticed the end of our frame). */
+    bool sent = m->txn_phase == PH_WAIT ||
+                (m->txn_phase == PH_TX && (!m->link.port.echo || m->link.state == DAN_LINK_TX_DONE));
+    if (!sent) {
         m->stats.stray++;
         return;
     }
-    if (m->link.port.echo && dan_link_is_own_frame(&m->link, f)) {
-        /* Our own request, echoed late: never its own reply (our rule: a
-         * reply must differ from its request). */
-        m->stats.stray++;
+    if (dan_link_is_late_echo(&m->link, f, now_us)) {
+        m->stats.stray++; /* our own request, echoed late: not its reply */
         return;
     }
     if (f->code == m->req_code) {
