@@ -34,9 +34,13 @@ extern "C" {
 /* ---- configuration (override with -D) ---- */
 
 /* Concurrent multi-frame RX sessions, one per (data type, transfer type,
- * source node). Each slot holds DAN_DC_MAX_TRANSFER bytes. */
+ * source node); a slot stays in use for the transfer timeout after its
+ * transfer completes (duplicate detection). 20 ESCs sending esc.Status and
+ * StatusExtended need 40, plus GetNodeInfo and tunnels: 64 (25 KiB on a
+ * Linux gateway; an MCU gateway with fewer ESCs can lower it). Each slot
+ * holds DAN_DC_MAX_TRANSFER bytes. */
 #ifndef DAN_DC_RX_SESSIONS
-#define DAN_DC_RX_SESSIONS 16u
+#define DAN_DC_RX_SESSIONS 64u
 #endif
 
 /* Largest transfer payload received, in bytes, excluding the transfer CRC.

@@ -1,0 +1,147 @@
+/*
+ * CAN-over-DAN gateway client: the FC (master) side, typed calls on top of
+ * dan_master_t transactions. Portable C99, no allocation, no globals.
+ *
+ * One caller-owned dan_gw_t per gateway, bound to the dan_master_t of its
+ * UART (after discovery/configure). Every call starts one transaction and
+ * returns at once (DAN_ERR_BUSY while another operation runs); completion
+ * comes through dan_gw_poll(), which wraps dan_master_poll():
+ *
+ *     dan_gw_init(&gw, &m);
+ *     dan_gw_esc_command(&gw, values, 4, now);        // once per cycle
+ *     ... feed rx with dan_master_rx(&m, ...) ...
+ *     if (dan_gw_poll(&gw, now)) {                     // 1: done
+ *         if (gw.result == DAN_OK) use gw.esc[...];
+ *     }
+ *
+ * Results land in the dan_gw_t: the newest telemetry per ESC (gw.esc),
+ * the gateway flags, settings, counters, tunnel offsets. Variable-length
+ * results (node table pages, node info, tunnel data, received CAN frames)
+ * are read straight out of the master's response buffer with the
+ * dan_gw_*_get/next functions below; they stay valid until the next
+ * transaction starts, so the client itself stays small:
+ *   sizeof(dan_gw_t) ~ 100 + 40 * DAN_GW_MAX_ESC + 4 * DAN_GW_STAT_COUNT
+ *                      + 24 * DAN_GW_TUNNELS bytes (~540 with the defaults).
+ *
+ * Retries: the master retries a transaction whose response was lost. Every
+ * gateway message is idempotent under retry (ESC commands and ARM are
+ * states; tunnel writes carry an offset and reads acknowledge by offset;
+ * CAN_SEND carries a sequence number; CAN_RECV acknowledges by sequence).
+ */
+#ifndef DAN_GATEWAY_H
+#define DAN_GATEWAY_H
+
+#include "dan/gateway_msgs.h"
+#include "dan/master.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Telemetry slots kept by the client (ESC indexes 0..DAN_GW_MAX_ESC-1;
+ * records of higher indexes are counted in telem_ignored). */
+#ifndef DAN_GW_MAX_ESC
+#define DAN_GW_MAX_ESC 8u
+#endif
+/* Tunnel ports the client tracks (port numbers 0..DAN_GW_TUNNELS-1). */
+#ifndef DAN_GW_TUNNELS
+#define DAN_GW_TUNNELS 2u
+#endif
+
+typedef struct {
+    uint32_t wr_offset;        /* bytes of ours the gateway has accepted */
+    uint32_t rd_offset;        /* bytes we have received */
+    uint32_t wr_space;         /* gateway buffer space, last seen */
+    uint32_t rd_dropped;       /* bytes the gateway dropped (CAN -> DAN) */
+    uint32_t rd_lost;          /* bytes skipped here (gateway dropped them) */
+    uint16_t accepted;         /* of the last xfer's data */
+} dan_gw_tunnel_t;
+
+typedef struct {
+    dan_master_t *m;
+    uint32_t code;             /* code of the call in flight (0: none) */
+    uint8_t port;              /* tunnel port of the call in flight */
+    uint8_t can_seq;           /* CAN_SEND sequence number */
+    int result;                /* of the last completed call */
+    uint8_t gw_flags;          /* DAN_GW_FLAG_*, from the last response */
+    uint8_t esc_seen;          /* ESCs the gateway knows (ESC_CMD rsp) */
+    uint8_t telem_next;        /* ESC_TELEM: next page (DAN_GW_NONE: end) */
+    uint8_t last_telem;        /* index of the last record received, or DAN_GW_NONE */
+    dan_gw_telem_t esc[DAN_GW_MAX_ESC];
+    uint32_t telem_ignored;
+    dan_gw_config_t config;    /* last CONFIG response */
+    uint32_t stats[DAN_GW_STAT_COUNT];
+    dan_gw_tunnel_t tun[DAN_GW_TUNNELS];
+    uint32_t can_rx_next;      /* next raw frame sequence number wanted */
+    uint32_t can_rx_dropped;
+    uint32_t can_rx_lost;      /* frames skipped (dropped at the gateway) */
+    uint8_t can_accepted;      /* of the last CAN_SEND */
+    uint32_t can_queue_free;
+    uint32_t decode_errors;    /* responses that did not decode */
+} dan_gw_t;
+
+void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
+
+/* Wraps dan_master_poll(): returns 1 once when the current operation
+ * completes (gateway calls are decoded first; gw->result is the result,
+ * for other master operations too), else 0. */
+int dan_gw_poll(dan_gw_t *gw, uint64_t now_us);
+/* Decodes the completed transaction (for callers that poll the master
+ * themselves: call it when dan_master_poll() returned 1). Returns and
+ * stores the result. */
+int dan_gw_complete(dan_gw_t *gw, uint64_t now_us);
+
+/* ESC command: n (1..20) raw values -8192..8191 (RawCommand semantics). The
+ * response's telemetry record (round-robin over the ESCs) updates gw->esc. */
+int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t now_us);
+/* Telemetry page from esc_index first (0 for the first page); next page
+ * index in gw->telem_next. */
+int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us);
+/* Armed state for ArmingStatus (true: 255 FULLY_ARMED, false: 0). */
+int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us);
+/* Reads (set == NULL or set->set_mask == 0) or changes the settings; the
+ * response lands in gw->config. */
+int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us);
+/* Counters into gw->stats (DAN_GW_STAT_*). */
+int dan_gw_stats(dan_gw_t *gw, uint64_t now_us);
+
+/* Node table page from node id first (1 for the first page). After
+ * completion: dan_gw_nodes_begin() then dan_gw_nodes_next() per entry. */
+int dan_gw_nodes(dan_gw_t *gw, uint8_t first, uint64_t now_us);
+/* Reader over the completed page; hdr gets next/count. */
+int dan_gw_nodes_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_nodes_hdr_t *hdr);
+int dan_gw_nodes_next(dan_reader_t *r, dan_gw_node_entry_t *node);
+/* One node's GetNodeInfo data; read it with dan_gw_node_info_get(). */
+int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us);
+int dan_gw_node_info_get(const dan_gw_t *gw, dan_gw_node_info_t *info);
+
+/* Opens (or reconfigures, or closes with mode DAN_GW_TUN_CLOSED) a tunnel
+ * port; the client's offsets for it restart at 0. */
+int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_us);
+/* Writes up to DAN_GW_TUN_CHUNK_MAX bytes (len may be 0: a pure read) and
+ * reads up to rd_max bytes. After completion gw->tun[port].accepted says how
+ * many of data were taken (send the rest again later) and
+ * dan_gw_tunnel_data() gives the bytes read (new ones only). */
+int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len,
+                       size_t rd_max, uint64_t now_us);
+int dan_gw_tunnel_data(const dan_gw_t *gw, const uint8_t **data, size_t *len);
+
+/* Sends up to DAN_GW_CAN_FRAMES_MAX raw frames; gw->can_accepted after. */
+int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint64_t now_us);
+/* Fetches up to max frames that passed the filter; then read them with
+ * dan_gw_can_begin() / dan_gw_can_next(). */
+int dan_gw_can_recv(dan_gw_t *gw, uint8_t max, uint64_t now_us);
+int dan_gw_can_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_can_recv_t *hdr);
+int dan_gw_can_next(dan_reader_t *r, dan_can_frame_t *f);
+/* Changes the raw receive filter (op DAN_GW_FILTER_*). After completion the
+ * table is read with dan_gw_filter_begin() / dan_gw_filter_next(). */
+int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t n,
+                      uint64_t now_us);
+int dan_gw_filter_begin(const dan_gw_t *gw, dan_reader_t *r, uint8_t *result, uint8_t *count);
+int dan_gw_filter_next(dan_reader_t *r, dan_gw_filter_t *f);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_GATEWAY_H */

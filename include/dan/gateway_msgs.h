@@ -1,0 +1,346 @@
+/*
+ * CAN-over-DAN gateway messages (codes 0x42..0x4D): the payload codec
+ * shared by the gateway (peripheral side) and the FC's client (dan/gateway.h).
+ * docs/PROTOCOL.md section 7 is the byte-level definition; the vectors in
+ * tests/vectors/gateway.txt pin it.
+ *
+ * Conventions (as in dan/payloads.h): encoders take a caller buffer and
+ * return the payload length or a negative DAN_ERR_*; with out == NULL they
+ * return the size only. Decoders never read outside the payload, return
+ * DAN_ERR_MALFORMED for a truncated payload or a field out of range, and
+ * ignore trailing bytes. Repeated items (telemetry records, node entries,
+ * CAN frames, filters) are read one at a time with a dan_reader_t left
+ * after the header, so nobody needs an array of them.
+ *
+ * Portable C99; no allocation, no globals.
+ */
+#ifndef DAN_GATEWAY_MSGS_H
+#define DAN_GATEWAY_MSGS_H
+
+#include "dan/can.h"
+#include "dan/common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- codes (block 0x40..0x4F; 0x40 IDENTIFY, 0x41 CONFIGURE) ---- */
+#define DAN_GW_CODE_ESC_CMD     0x42u  /* ESC command -> one ESC's telemetry */
+#define DAN_GW_CODE_ESC_TELEM   0x43u  /* paged telemetry of every ESC */
+#define DAN_GW_CODE_ARM         0x44u  /* armed state -> ArmingStatus */
+#define DAN_GW_CODE_CONFIG      0x45u  /* read / set gateway settings */
+#define DAN_GW_CODE_STATS       0x46u  /* counters of both sides */
+#define DAN_GW_CODE_NODES       0x47u  /* paged node table (NodeStatus) */
+#define DAN_GW_CODE_NODE_INFO   0x48u  /* one node's GetNodeInfo data */
+#define DAN_GW_CODE_TUN_OPEN    0x49u  /* open / configure / close a tunnel */
+#define DAN_GW_CODE_TUN_XFER    0x4Au  /* tunnel write + read, by offset */
+#define DAN_GW_CODE_CAN_SEND    0x4Bu  /* raw CAN frames to the bus */
+#define DAN_GW_CODE_CAN_RECV    0x4Cu  /* filtered raw CAN frames from the bus */
+#define DAN_GW_CODE_CAN_FILTER  0x4Du  /* raw receive filter */
+/* 0x4E, 0x4F reserved */
+
+/* ---- limits of the message set ---- */
+#define DAN_GW_ESC_MAX          20u    /* RawCommand.cmd is int14[<=20] */
+#define DAN_GW_ESC_RAW_MIN      (-8192)
+#define DAN_GW_ESC_RAW_MAX      8191
+#define DAN_GW_ESC_INDEX_MAX    31u    /* esc.Status.esc_index is uint5 */
+#define DAN_GW_TUN_CHUNK_MAX    128u   /* data bytes in one TUN_XFER either way */
+#define DAN_GW_CAN_FRAMES_MAX   11u    /* frames in one CAN_SEND / CAN_RECV */
+#define DAN_GW_FILTERS_MAX      16u    /* filters in one CAN_FILTER */
+#define DAN_GW_NAME_MAX         80u    /* GetNodeInfo name */
+#define DAN_GW_NONE             0xFFu  /* "no next page" index */
+
+/* Gateway flags byte, in several responses. */
+#define DAN_GW_FLAG_ARMED       0x01u  /* ArmingStatus being broadcast: armed */
+#define DAN_GW_FLAG_FAILSAFE    0x02u  /* failsafe active (commands stopped) */
+#define DAN_GW_FLAG_CAN_OK      0x04u  /* CAN interface up */
+
+/* ---- ESC command (0x42) ----
+ * Request: uint8 n (1..20), then the n int14 values bit-packed: value i
+ * occupies stream bits 14i..14i+13, least significant bit first, stream
+ * bit k is bit (k % 8) of byte k / 8; the last byte is zero-padded.
+ * Response: a telemetry header and 0 or 1 records (see below). */
+#define DAN_GW_ESC_CMD_SIZE(n)  (1u + ((n) * 14u + 7u) / 8u)
+
+/* Values outside -8192..8191 are DAN_ERR_ARG (no silent clipping). */
+int dan_gw_msg_esc_cmd_encode(const int16_t *values, size_t n, uint8_t *out, size_t cap);
+/* values must hold DAN_GW_ESC_MAX entries. n 0 or above 20 is malformed. */
+int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, size_t *n);
+
+/* ---- ESC telemetry record (ESC_CMD and ESC_TELEM responses) ----
+ * Floats stay IEEE binary16 bit patterns exactly as the ESC sent them in
+ * esc.Status (dan_gw_f16_to_float() converts). */
+#define DAN_GW_TELEM_STATUS     0x01u  /* esc.Status fields valid */
+#define DAN_GW_TELEM_EXT        0x02u  /* esc.StatusExtended fields valid */
+
+typedef struct {
+    uint8_t esc_index;         /* 0..31 */
+    uint8_t node_id;           /* sender of the newest message */
+    uint8_t flags;             /* DAN_GW_TELEM_* */
+    uint8_t power_pct;         /* esc.Status.power_rating_pct */
+    uint32_t age_ms;           /* since esc.Status arrived */
+    uint16_t voltage_f16;      /* V */
+    uint16_t current_f16;      /* A */
+    uint16_t temperature_f16;  /* K */
+    int32_t rpm;               /* int18 */
+    uint32_t error_count;
+    /* StatusExtended */
+    uint32_t ext_age_ms;
+    uint8_t input_pct;
+    uint8_t output_pct;
+    int16_t motor_temp_c;
+    uint16_t motor_angle;
+    uint32_t status_flags;     /* uint19 */
+} dan_gw_telem_t;
+
+/* Header of both telemetry responses: uint8 gw_flags, uint8 aux (ESC_CMD:
+ * ESCs known; ESC_TELEM: next esc_index to ask for, DAN_GW_NONE at the end),
+ * uint8 count, then count records. */
+typedef struct {
+    uint8_t gw_flags;
+    uint8_t aux;
+    uint8_t count;
+} dan_gw_telem_hdr_t;
+
+void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h);
+int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h);
+void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t);
+int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
+
+/* IEEE binary16 bits to float (exact). */
+float dan_gw_f16_to_float(uint16_t h);
+
+/* ESC_TELEM request: uint8 first esc_index (records with index >= it). */
+
+/* ---- ARM (0x44) ----
+ * Request: uint8 status, the ArmingStatus value (0 disarmed, 255 fully
+ * armed; others are sent on as they are). Response: uint8 gw_flags. */
+
+/* ---- CONFIG (0x45) ----
+ * Request: uint8 set_mask, then for each set bit in bit order its field:
+ *   bit0 uvarint esc_timeout_ms (50..60000), bit1 uvarint arming_rate_hz
+ *   (1..50). An empty request or mask 0 only reads.
+ * Response: uint8 node_id, uvarint esc_timeout_ms, uvarint arming_rate_hz,
+ *   uint8 gw_flags. Values out of range are malformed (error frame). */
+#define DAN_GW_CFG_ESC_TIMEOUT  0x01u
+#define DAN_GW_CFG_ARMING_RATE  0x02u
+#define DAN_GW_ESC_TIMEOUT_MIN  50u
+#define DAN_GW_ESC_TIMEOUT_MAX  60000u
+#define DAN_GW_ARMING_RATE_MIN  1u
+#define DAN_GW_ARMING_RATE_MAX  50u
+
+typedef struct {
+    uint8_t set_mask;          /* request only */
+    uint8_t node_id;           /* response only */
+    uint8_t gw_flags;          /* response only */
+    uint32_t esc_timeout_ms;
+    uint32_t arming_rate_hz;
+} dan_gw_config_t;
+
+int dan_gw_msg_config_req_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap);
+int dan_gw_msg_config_req_decode(dan_gw_config_t *c, const uint8_t *p, size_t len);
+int dan_gw_msg_config_rsp_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap);
+int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t len);
+
+/* ---- STATS (0x46) ----
+ * Request: empty. Response: uint8 n, then n uvarint counters in this order
+ * (later versions append; a decoder keeps the ones it knows). */
+enum {
+    DAN_GW_STAT_DAN_FRAMES = 0,    /* valid DAN frames received */
+    DAN_GW_STAT_DAN_CRC,           /* DAN frames with a bad CRC */
+    DAN_GW_STAT_DAN_UNKNOWN,       /* frames with codes not ours */
+    DAN_GW_STAT_DAN_ERRORS_SENT,   /* error frames sent */
+    DAN_GW_STAT_DAN_REQUESTS,
+    DAN_GW_STAT_CAN_TX,            /* CAN frames queued for the bus */
+    DAN_GW_STAT_CAN_RX,            /* CAN frames received */
+    DAN_GW_STAT_CAN_TX_DROPPED,    /* CAN output queue full */
+    DAN_GW_STAT_CAN_ERRORS,        /* adapter / bus errors */
+    DAN_GW_STAT_DC_TRANSFERS,      /* DroneCAN transfers received */
+    DAN_GW_STAT_DC_CRC,            /* DroneCAN transfer CRC errors */
+    DAN_GW_STAT_DC_ERRORS,         /* other DroneCAN reassembly errors */
+    DAN_GW_STAT_ESC_CMDS,          /* ESC commands received */
+    DAN_GW_STAT_FAILSAFES,         /* failsafe events */
+    DAN_GW_STAT_FAILSAFE_ACTIVE,   /* 1 while active */
+    DAN_GW_STAT_TUN_DROPPED,       /* tunnel bytes dropped (both ways) */
+    DAN_GW_STAT_RAW_DROPPED,       /* raw frames dropped (receive ring full) */
+    DAN_GW_STAT_NODES,             /* nodes in the table */
+    DAN_GW_STAT_COUNT
+};
+
+int dan_gw_msg_stats_encode(const uint32_t *v, size_t n, uint8_t *out, size_t cap);
+/* Fills v[0..cap) (unknown trailing counters skipped, missing ones 0);
+ * *n is the count sent. */
+int dan_gw_msg_stats_decode(uint32_t *v, size_t cap, size_t *n, const uint8_t *p, size_t len);
+
+/* ---- NODES (0x47) ----
+ * Request: uint8 first node_id. Response: uint8 next node_id to ask for
+ * (0 at the end), uint8 count, then entries of node_id >= first:
+ *   uint8 node_id, uint8 health | mode << 2 | sub_mode << 5,
+ *   uvarint uptime_sec, uint16 vendor_status, uvarint age_ms,
+ *   uint8 info_state (DAN_GW_INFO_*). */
+#define DAN_GW_INFO_NONE        0u     /* not asked yet */
+#define DAN_GW_INFO_PENDING     1u     /* GetNodeInfo requested */
+#define DAN_GW_INFO_VALID       2u
+#define DAN_GW_INFO_FAILED      3u     /* no answer after the retries */
+
+typedef struct {
+    uint8_t node_id;
+    uint8_t health;
+    uint8_t mode;
+    uint8_t sub_mode;
+    uint32_t uptime_sec;
+    uint16_t vendor_status;
+    uint32_t age_ms;
+    uint8_t info_state;
+} dan_gw_node_entry_t;
+
+typedef struct {
+    uint8_t next;
+    uint8_t count;
+} dan_gw_nodes_hdr_t;
+
+void dan_gw_msg_nodes_hdr_put(dan_writer_t *w, const dan_gw_nodes_hdr_t *h);
+int dan_gw_msg_nodes_hdr_get(dan_reader_t *r, dan_gw_nodes_hdr_t *h);
+void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n);
+int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n);
+
+/* ---- NODE_INFO (0x48) ----
+ * Request: uint8 node_id. Response: uint8 node_id, uint8 info_state, and
+ * when it is DAN_GW_INFO_VALID: uint8 sw_major, uint8 sw_minor, uint8
+ * sw_flags, uint32 vcs_commit, uint8 hw_major, uint8 hw_minor, 16 bytes
+ * unique_id, string name (<= 80). Unknown node: error frame. */
+typedef struct {
+    uint8_t node_id;
+    uint8_t info_state;
+    uint8_t sw_major, sw_minor, sw_flags;
+    uint32_t vcs_commit;
+    uint8_t hw_major, hw_minor;
+    uint8_t unique_id[16];
+    char name[DAN_GW_NAME_MAX + 1u];
+} dan_gw_node_info_t;
+
+int dan_gw_msg_node_info_encode(const dan_gw_node_info_t *i, uint8_t *out, size_t cap);
+int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t len);
+
+/* ---- TUN_OPEN (0x49) ----
+ * Request: uint8 port, uint8 mode (DAN_GW_TUN_*), uint8 protocol, uint8
+ * target (Targetted: node id; Broadcast: channel_id), int8 serial_id,
+ * uint8 options (Targetted options, bit0 LOCK_PORT), uvarint baud.
+ * Opening (again) discards buffered data and restarts both offsets at 0.
+ * Response: uint8 port, uint8 result (0 OK, 1 refused: bad port or field). */
+#define DAN_GW_TUN_CLOSED       0u
+#define DAN_GW_TUN_TARGETTED    1u
+#define DAN_GW_TUN_BROADCAST    2u
+
+typedef struct {
+    uint8_t port;
+    uint8_t mode;
+    uint8_t protocol;
+    uint8_t target;
+    int8_t serial_id;
+    uint8_t options;
+    uint32_t baud;
+} dan_gw_tun_open_t;
+
+int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap);
+int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len);
+
+/* ---- TUN_XFER (0x4A) ----
+ * Request: uint8 port, uvarint wr_offset (stream offset of data[0], modulo
+ * 2^32), uvarint rd_offset (every byte before it was received: the gateway
+ * may forget them), uvarint rd_max, array data (<= 128).
+ * The gateway appends the bytes of data from its wr_next on (a retried
+ * request repeats bytes it has: they are skipped; a gap is refused) as far
+ * as its buffer has space.
+ * Response: uint8 port, uvarint wr_next (bytes accepted so far), uvarint
+ * wr_space, uvarint rd_offset (offset of data[0]: the request's, or later
+ * if bytes were dropped), uvarint rd_dropped (total bytes dropped for a
+ * full buffer, CAN -> DAN), array data (<= min(rd_max, 128)). */
+typedef struct {
+    uint8_t port;
+    uint32_t wr_offset;        /* req: offset of data; rsp: wr_next */
+    uint32_t wr_space;         /* rsp */
+    uint32_t rd_offset;
+    uint32_t rd_max;           /* req */
+    uint32_t rd_dropped;       /* rsp */
+    const uint8_t *data;       /* decode: a view into the payload */
+    size_t len;
+} dan_gw_tun_xfer_t;
+
+int dan_gw_msg_tun_xfer_req_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap);
+int dan_gw_msg_tun_xfer_req_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len);
+int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap);
+int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len);
+
+/* ---- CAN frame item (CAN_SEND, CAN_RECV) ----
+ * uint32 id_flags (bits 0..28 identifier, bit 31 extended, bit 30 RTR),
+ * uint8 dlc (0..8), dlc data bytes (none for RTR). */
+#define DAN_GW_CAN_ID_EXT       0x80000000u
+#define DAN_GW_CAN_ID_RTR       0x40000000u
+
+void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f);
+int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f);
+
+/* CAN_SEND request: uint8 seq, uint8 count (<= 11), frames. A request with
+ * the seq of the previous accepted one is a retry: not sent again.
+ * Response: uint8 seq, uint8 accepted, uvarint queue_free. */
+typedef struct {
+    uint8_t seq;
+    uint8_t count;             /* req: frames; rsp: accepted */
+    uint32_t queue_free;       /* rsp */
+} dan_gw_can_send_t;
+
+/* CAN_RECV request: uvarint next_seq (frames before it were received),
+ * uint8 max. Response: uvarint first_seq (of the first frame here),
+ * uvarint dropped (total), uint8 count, frames. */
+typedef struct {
+    uint32_t seq;              /* req: next_seq; rsp: first_seq */
+    uint32_t dropped;          /* rsp */
+    uint8_t count;             /* req: max; rsp: frames */
+} dan_gw_can_recv_t;
+
+/* CAN_FILTER request: uint8 op (DAN_GW_FILTER_*), uint8 count (<= 16),
+ * entries uint32 id_flags (bit 31 extended), uint32 mask. A frame passes
+ * when some entry has its ext flag and (id & mask) == (entry id & mask).
+ * No entries: nothing passes (the default). ADD of an entry present and
+ * REMOVE of one absent do nothing, so retries are harmless.
+ * Response: uint8 result (0 OK, 1 table full), uint8 count, the table. */
+#define DAN_GW_FILTER_REPLACE   0u
+#define DAN_GW_FILTER_ADD       1u
+#define DAN_GW_FILTER_REMOVE    2u
+#define DAN_GW_FILTER_READ      3u
+
+typedef struct {
+    uint32_t id;               /* with DAN_GW_CAN_ID_EXT */
+    uint32_t mask;
+} dan_gw_filter_t;
+
+/* Header of CAN_SEND / CAN_RECV / CAN_FILTER: fixed fields before the
+ * items; items follow with dan_gw_msg_can_frame_* / dan_gw_msg_filter_*. */
+void dan_gw_msg_can_send_req_put(dan_writer_t *w, const dan_gw_can_send_t *s);
+int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s);
+int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap);
+int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len);
+int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap);
+int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_t len);
+void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q);
+int dan_gw_msg_can_recv_rsp_get(dan_reader_t *r, dan_gw_can_recv_t *q);
+/* op/result byte then count */
+void dan_gw_msg_filter_hdr_put(dan_writer_t *w, uint8_t op, uint8_t count);
+int dan_gw_msg_filter_hdr_get(dan_reader_t *r, uint8_t *op, uint8_t *count);
+void dan_gw_msg_filter_put(dan_writer_t *w, const dan_gw_filter_t *f);
+int dan_gw_msg_filter_get(dan_reader_t *r, dan_gw_filter_t *f);
+/* True if f passes filter e. */
+bool dan_gw_filter_match(const dan_gw_filter_t *e, const dan_can_frame_t *f);
+
+/* Signed difference a - b of two 32-bit stream offsets (modulo 2^32). */
+static inline int32_t dan_gw_off_diff(uint32_t a, uint32_t b)
+{
+    return (int32_t)(a - b); /* two's complement on every target we build for */
+}
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_GATEWAY_MSGS_H */

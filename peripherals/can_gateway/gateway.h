@@ -1,0 +1,223 @@
+/*
+ * The CAN-over-DAN gateway node: a DAN peripheral (type block 0x40) on one
+ * side, a DroneCAN node on the other. Portable C99, no allocation, no
+ * globals, no clock: time comes in as now_us.
+ *
+ *     dan_gw_node_init(&gwn, &cfg, now);
+ *     dan_gw_node_ptype(&gwn, &ptype);               // block 0x40 handlers
+ *     dan_periph_init(&p, &port, &ptype, 1, &pcfg, 9600, now);
+ *     dan_gw_node_attach(&gwn, &p);                  // for the DAN counters
+ *     loop:
+ *       CAN frame in     -> dan_gw_node_rx_can(&gwn, &frame, now);
+ *       DAN bytes in     -> dan_periph_rx(&p, bytes, n, now);
+ *       timers           -> dan_periph_poll(&p, now); dan_gw_node_poll(&gwn, now);
+ *       CAN frames out   -> while (dan_gw_node_tx_peek(&gwn, &f)) {
+ *                               if (send(&f) busy) break; dan_gw_node_tx_pop(&gwn); }
+ *       sleep until min(dan_periph_next_us, dan_gw_node_next_us) or I/O
+ *
+ * DroneCAN behaviour (docs/PROTOCOL.md section 7):
+ *   - NodeStatus every second: health OK while a DAN master sent a request
+ *     within cfg.master_timeout_ms, WARNING otherwise; mode OPERATIONAL;
+ *     vendor-specific status code = the gateway flags byte.
+ *   - Answers GetNodeInfo; asks every new node (from its NodeStatus) for
+ *     GetNodeInfo, up to DAN_GW_NODE_INFO_TRIES times a second apart (and
+ *     again after the node restarts: its uptime went down).
+ *   - ESC_CMD: uavcan.equipment.esc.RawCommand broadcast at once (priority
+ *     high). Failsafe: no ESC_CMD for esc_timeout_ms -> RawCommand of zeros
+ *     (the channel count last used) and ArmingStatus DISARMED at once, then
+ *     both repeated at the arming rate until the next ESC_CMD.
+ *   - ArmingStatus at arming_rate_hz, and at once on a change.
+ *   - Tunnels: uavcan.tunnel.Targetted as ArduPilot's AP_DroneCAN_serial
+ *     does it (chunks <= 120 bytes, an empty keepalive every 500 ms while
+ *     idle, options from TUN_OPEN, received only from the target node with
+ *     target_node == our id and the port's serial_id) and tunnel.Broadcast
+ *     (chunks <= 60, received by protocol and channel_id).
+ *   - Every received CAN frame, processed or not, goes through the raw
+ *     filter into the raw receive ring.
+ * CAN output has two bounded queues: urgent (ESC, arming, services,
+ * NodeStatus, raw frames) before bulk (tunnels). A transfer that does not
+ * fit is dropped whole and counted.
+ */
+#ifndef DAN_GATEWAY_NODE_H
+#define DAN_GATEWAY_NODE_H
+
+#include "dan/gateway_msgs.h"
+#include "dan/peripheral.h"
+#include "dronecan.h"
+#include "dsdl.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- configuration (override with -D) ---- */
+#ifndef DAN_GW_NODE_MAX_NODES
+#define DAN_GW_NODE_MAX_NODES 32u      /* node table entries */
+#endif
+#ifndef DAN_GW_NODE_TUNNELS
+#define DAN_GW_NODE_TUNNELS 4u         /* tunnel ports */
+#endif
+#ifndef DAN_GW_NODE_TUN_TX_BUF
+#define DAN_GW_NODE_TUN_TX_BUF 1024u   /* DAN -> CAN bytes per port (power of 2) */
+#endif
+#ifndef DAN_GW_NODE_TUN_RX_BUF
+#define DAN_GW_NODE_TUN_RX_BUF 4096u   /* CAN -> DAN bytes per port (power of 2) */
+#endif
+#ifndef DAN_GW_NODE_TXQ
+#define DAN_GW_NODE_TXQ 128u           /* frames per CAN output queue */
+#endif
+#ifndef DAN_GW_NODE_RAW_RX
+#define DAN_GW_NODE_RAW_RX 64u         /* raw frames waiting for CAN_RECV */
+#endif
+#define DAN_GW_NODE_ESC_SLOTS   32u    /* one per esc_index (uint5) */
+#define DAN_GW_NODE_INFO_TRIES  3u
+#define DAN_GW_NODE_INFO_RETRY_US 1000000u
+#define DAN_GW_NODE_KEEPALIVE_US 500000u  /* ArduPilot's tunnel keepalive */
+#define DAN_GW_NODE_STATUS_US   1000000u
+
+#define DAN_GW_NODE_DEFAULT_ID          10u
+#define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT 500u   /* ms */
+#define DAN_GW_NODE_DEFAULT_ARMING_RATE 2u     /* Hz */
+#define DAN_GW_NODE_NAME "org.dan.can_gateway"
+
+typedef struct {
+    uint8_t node_id;            /* 1..127 (default 10) */
+    uint32_t esc_timeout_ms;    /* failsafe (default 500) */
+    uint32_t arming_rate_hz;    /* ArmingStatus rate (default 2) */
+    uint32_t master_timeout_ms; /* health WARNING after this without DAN (1000) */
+    uint8_t sw_major, sw_minor;
+    uint32_t vcs_commit;
+    uint8_t hw_major, hw_minor;
+    uint8_t unique_id[16];
+    const char *name;           /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
+} dan_gw_node_config_t;
+
+void dan_gw_node_config_default(dan_gw_node_config_t *c);
+
+/* Counters kept here; STATS adds the DAN engine's. */
+typedef struct {
+    uint32_t can_tx;            /* frames queued */
+    uint32_t can_rx;
+    uint32_t can_tx_dropped;    /* frames of transfers that did not fit */
+    uint32_t can_errors;        /* reported by the daemon */
+    uint32_t esc_cmds;
+    uint32_t failsafes;
+    uint32_t tun_dropped;       /* bytes, both ways */
+    uint32_t raw_dropped;       /* raw receive ring full */
+    uint32_t nodes_dropped;     /* node table full */
+    uint32_t info_requests;     /* GetNodeInfo requests sent */
+    uint32_t dan_requests;      /* gateway requests handled */
+} dan_gw_node_stats_t;
+
+typedef struct {
+    dan_gw_telem_t t;           /* age fields filled when sent */
+    uint64_t status_us, ext_us;
+} dan_gw_node_esc_t;
+
+typedef struct {
+    dan_gw_node_entry_t e;      /* age_ms filled when sent */
+    uint64_t seen_us;
+    uint64_t info_due_us;
+    uint8_t info_tries;
+    uint8_t info_tid;           /* our GetNodeInfo transfer ID to this node */
+    dan_gw_node_info_t info;
+} dan_gw_node_slot_t;
+
+typedef struct {
+    dan_gw_tun_open_t cfg;      /* cfg.mode DAN_GW_TUN_CLOSED: unused */
+    uint32_t wr_next;           /* DAN -> CAN bytes accepted */
+    uint32_t tx_len;            /* of them, not yet sent on CAN */
+    uint32_t rd_base;           /* CAN -> DAN: oldest byte kept */
+    uint32_t rd_end;            /* next byte offset */
+    uint32_t rd_dropped;
+    uint64_t last_tx_us;
+    uint8_t tx[DAN_GW_NODE_TUN_TX_BUF];
+    uint8_t rx[DAN_GW_NODE_TUN_RX_BUF];
+} dan_gw_node_tun_t;
+
+typedef struct {
+    dan_can_frame_t f[DAN_GW_NODE_TXQ];
+    uint16_t head, len;
+} dan_gw_node_txq_t;
+
+typedef struct {
+    dan_gw_node_config_t cfg;
+    dan_identity_t identity;
+    const dan_periph_t *periph;
+    dan_dc_rx_t rx;
+    dan_dc_tid_table_t tids;
+    dan_gw_node_txq_t q_urgent, q_bulk;
+    uint64_t start_us;
+    uint64_t last_dan_us;       /* last gateway request (0: none yet) */
+    uint64_t status_due_us;
+    uint64_t arming_due_us;
+    bool can_ok;
+    /* ESC */
+    uint8_t arming;             /* ArmingStatus value broadcast */
+    bool esc_active;            /* commands have been received */
+    bool failsafe;              /* failsafe active */
+    uint8_t esc_n;              /* channel count last used */
+    uint64_t last_cmd_us;
+    uint8_t rr;                 /* round-robin position */
+    dan_gw_node_esc_t esc[DAN_GW_NODE_ESC_SLOTS];
+    /* nodes */
+    dan_gw_node_slot_t nodes[DAN_GW_NODE_MAX_NODES];
+    /* tunnels */
+    dan_gw_node_tun_t tun[DAN_GW_NODE_TUNNELS];
+    /* raw CAN */
+    dan_gw_filter_t filters[DAN_GW_FILTERS_MAX];
+    uint8_t nfilters;
+    bool send_seq_valid;
+    uint8_t send_seq;           /* last CAN_SEND seq accepted */
+    uint8_t send_accepted;
+    dan_can_frame_t raw[DAN_GW_NODE_RAW_RX];
+    uint32_t raw_first;         /* sequence number of raw[raw_head] */
+    uint16_t raw_head, raw_len;
+    dan_gw_node_stats_t stats;
+    /* scratch for DSDL structs too big for a small stack (per instance) */
+    union {
+        dan_dc_get_node_info_rsp_t info;
+        dan_dc_tunnel_targetted_t targetted;
+        dan_dc_tunnel_broadcast_t bcast;
+    } scratch;
+    uint8_t scratch_buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
+} dan_gw_node_t;
+
+/* cfg may be NULL (defaults). Returns DAN_ERR_ARG for a bad node id. */
+int dan_gw_node_init(dan_gw_node_t *g, const dan_gw_node_config_t *cfg, uint64_t now_us);
+/* Fills the peripheral type for block 0x40 (user = g). */
+void dan_gw_node_ptype(dan_gw_node_t *g, dan_ptype_t *t);
+/* The peripheral engine whose counters STATS reports (may be NULL). */
+void dan_gw_node_attach(dan_gw_node_t *g, const dan_periph_t *p);
+
+/* A frame received from the CAN bus. */
+void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
+/* Timers: NodeStatus, arming, failsafe, GetNodeInfo requests, tunnels. */
+void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us);
+/* Earliest time a poll has something to do. */
+uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us);
+/* Next frame to send (urgent queue first); false if none. */
+bool dan_gw_node_tx_peek(const dan_gw_node_t *g, dan_can_frame_t *f);
+/* Removes the frame dan_gw_node_tx_peek() returned. */
+void dan_gw_node_tx_pop(dan_gw_node_t *g);
+/* Frames waiting. */
+size_t dan_gw_node_tx_pending(const dan_gw_node_t *g);
+
+/* Forces the failsafe now (daemon shutdown): RawCommand zeros for the last
+ * channel count (if commands were ever sent) and ArmingStatus DISARMED,
+ * queued urgent. */
+void dan_gw_node_failsafe(dan_gw_node_t *g, uint64_t now_us);
+/* CAN interface state and errors, from the daemon. */
+void dan_gw_node_can_state(dan_gw_node_t *g, bool ok);
+void dan_gw_node_can_error(dan_gw_node_t *g);
+/* Gateway flags byte (DAN_GW_FLAG_*). */
+uint8_t dan_gw_node_flags(const dan_gw_node_t *g);
+/* Settings that DAN CONFIG can change too (range-checked: DAN_ERR_ARG). */
+int dan_gw_node_set_esc_timeout(dan_gw_node_t *g, uint32_t ms);
+int dan_gw_node_set_arming_rate(dan_gw_node_t *g, uint32_t hz, uint64_t now_us);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* DAN_GATEWAY_NODE_H */

@@ -1,0 +1,608 @@
+/* CAN-over-DAN gateway payload codec (docs/PROTOCOL.md section 7). */
+#include <math.h>
+#include <string.h>
+
+#include "dan/gateway_msgs.h"
+
+static int finish_reader(const dan_reader_t *r)
+{
+    return dan_reader_finish(r);
+}
+
+/* ---- ESC command ---- */
+
+int dan_gw_msg_esc_cmd_encode(const int16_t *values, size_t n, uint8_t *out, size_t cap)
+{
+    size_t size, i;
+    uint32_t acc = 0;
+    unsigned bits = 0;
+    size_t pos = 1;
+    if (values == NULL || n == 0u || n > DAN_GW_ESC_MAX) {
+        return DAN_ERR_ARG;
+    }
+    for (i = 0; i < n; i++) {
+        if (values[i] < DAN_GW_ESC_RAW_MIN || values[i] > DAN_GW_ESC_RAW_MAX) {
+            return DAN_ERR_ARG;
+        }
+    }
+    size = DAN_GW_ESC_CMD_SIZE(n);
+    if (out == NULL) {
+        return (int)size;
+    }
+    if (cap < size) {
+        return DAN_ERR_OVERFLOW;
+    }
+    out[0] = (uint8_t)n;
+    for (i = 0; i < n; i++) {
+        acc |= ((uint32_t)(uint16_t)values[i] & 0x3FFFu) << bits;
+        bits += 14u;
+        while (bits >= 8u) {
+            out[pos++] = (uint8_t)(acc & 0xFFu);
+            acc >>= 8;
+            bits -= 8u;
+        }
+    }
+    if (bits > 0u) {
+        out[pos] = (uint8_t)(acc & 0xFFu);
+    }
+    return (int)size;
+}
+
+int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, size_t *n)
+{
+    size_t cnt, i, pos = 1;
+    uint32_t acc = 0;
+    unsigned bits = 0;
+    if (p == NULL || values == NULL || n == NULL) {
+        return DAN_ERR_ARG;
+    }
+    if (len < 1u) {
+        return DAN_ERR_MALFORMED;
+    }
+    cnt = p[0];
+    if (cnt == 0u || cnt > DAN_GW_ESC_MAX || len < DAN_GW_ESC_CMD_SIZE(cnt)) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = 0; i < cnt; i++) {
+        uint32_t v;
+        while (bits < 14u) {
+            acc |= (uint32_t)p[pos++] << bits;
+            bits += 8u;
+        }
+        v = acc & 0x3FFFu;
+        acc >>= 14;
+        bits -= 14u;
+        values[i] = (int16_t)((v & 0x2000u) ? (int32_t)v - 0x4000 : (int32_t)v);
+    }
+    *n = cnt;
+    return DAN_OK;
+}
+
+/* ---- telemetry ---- */
+
+static void put_i24(dan_writer_t *w, int32_t v)
+{
+    uint32_t u = (uint32_t)v;
+    dan_put_u8(w, (uint8_t)(u & 0xFFu));
+    dan_put_u16(w, (uint16_t)((u >> 8) & 0xFFFFu));
+}
+
+static uint32_t get_u24(dan_reader_t *r)
+{
+    uint32_t lo = dan_get_u8(r);
+    return lo | ((uint32_t)dan_get_u16(r) << 8);
+}
+
+void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h)
+{
+    dan_put_u8(w, h->gw_flags);
+    dan_put_u8(w, h->aux);
+    dan_put_u8(w, h->count);
+}
+
+int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h)
+{
+    h->gw_flags = dan_get_u8(r);
+    h->aux = dan_get_u8(r);
+    h->count = dan_get_u8(r);
+    return finish_reader(r);
+}
+
+void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
+{
+    dan_put_u8(w, t->esc_index);
+    dan_put_u8(w, t->node_id);
+    dan_put_u8(w, (uint8_t)(t->flags & (DAN_GW_TELEM_STATUS | DAN_GW_TELEM_EXT)));
+    if (t->flags & DAN_GW_TELEM_STATUS) {
+        dan_put_uvarint(w, t->age_ms);
+        dan_put_u16(w, t->voltage_f16);
+        dan_put_u16(w, t->current_f16);
+        dan_put_u16(w, t->temperature_f16);
+        put_i24(w, t->rpm);
+        dan_put_u8(w, t->power_pct);
+        dan_put_uvarint(w, t->error_count);
+    }
+    if (t->flags & DAN_GW_TELEM_EXT) {
+        dan_put_uvarint(w, t->ext_age_ms);
+        dan_put_u8(w, t->input_pct);
+        dan_put_u8(w, t->output_pct);
+        dan_put_u16(w, (uint16_t)t->motor_temp_c);
+        dan_put_u16(w, t->motor_angle);
+        put_i24(w, (int32_t)t->status_flags);
+    }
+}
+
+int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
+{
+    memset(t, 0, sizeof *t);
+    t->esc_index = dan_get_u8(r);
+    t->node_id = dan_get_u8(r);
+    t->flags = dan_get_u8(r);
+    if (t->flags & DAN_GW_TELEM_STATUS) {
+        uint32_t rpm;
+        t->age_ms = dan_get_uvarint(r);
+        t->voltage_f16 = dan_get_u16(r);
+        t->current_f16 = dan_get_u16(r);
+        t->temperature_f16 = dan_get_u16(r);
+        rpm = get_u24(r);
+        t->rpm = (rpm & 0x800000u) ? (int32_t)rpm - 0x1000000 : (int32_t)rpm;
+        t->power_pct = dan_get_u8(r);
+        t->error_count = dan_get_uvarint(r);
+    }
+    if (t->flags & DAN_GW_TELEM_EXT) {
+        t->ext_age_ms = dan_get_uvarint(r);
+        t->input_pct = dan_get_u8(r);
+        t->output_pct = dan_get_u8(r);
+        t->motor_temp_c = (int16_t)dan_get_u16(r);
+        t->motor_angle = dan_get_u16(r);
+        t->status_flags = get_u24(r);
+    }
+    t->flags &= (uint8_t)(DAN_GW_TELEM_STATUS | DAN_GW_TELEM_EXT);
+    return finish_reader(r);
+}
+
+float dan_gw_f16_to_float(uint16_t h)
+{
+    /* binary16: 1 sign, 5 exponent (bias 15), 10 fraction bits */
+    uint32_t exp = (h >> 10) & 0x1Fu;
+    uint32_t frac = h & 0x3FFu;
+    float v;
+    if (exp == 0u) {
+        v = (float)frac * (1.0f / 16777216.0f); /* subnormal: frac * 2^-24 */
+    } else if (exp == 31u) {
+        v = (frac == 0u) ? INFINITY : NAN;
+    } else {
+        v = (float)(frac | 0x400u);
+        if (exp >= 25u) {
+            v *= (float)(1u << (exp - 25u));
+        } else {
+            v /= (float)(1u << (25u - exp));
+        }
+    }
+    return (h & 0x8000u) ? -v : v;
+}
+
+/* ---- config ---- */
+
+int dan_gw_msg_config_req_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, c->set_mask);
+    if (c->set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
+        dan_put_uvarint(&w, c->esc_timeout_ms);
+    }
+    if (c->set_mask & DAN_GW_CFG_ARMING_RATE) {
+        dan_put_uvarint(&w, c->arming_rate_hz);
+    }
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_config_req_decode(dan_gw_config_t *c, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    memset(c, 0, sizeof *c);
+    if (len == 0u) {
+        return DAN_OK;
+    }
+    dan_reader_init(&r, p, len);
+    c->set_mask = dan_get_u8(&r);
+    if (c->set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
+        c->esc_timeout_ms = dan_get_uvarint(&r);
+        if (c->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN || c->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
+    if (c->set_mask & DAN_GW_CFG_ARMING_RATE) {
+        c->arming_rate_hz = dan_get_uvarint(&r);
+        if (c->arming_rate_hz < DAN_GW_ARMING_RATE_MIN || c->arming_rate_hz > DAN_GW_ARMING_RATE_MAX) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_config_rsp_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, c->node_id);
+    dan_put_uvarint(&w, c->esc_timeout_ms);
+    dan_put_uvarint(&w, c->arming_rate_hz);
+    dan_put_u8(&w, c->gw_flags);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    memset(c, 0, sizeof *c);
+    dan_reader_init(&r, p, len);
+    c->node_id = dan_get_u8(&r);
+    c->esc_timeout_ms = dan_get_uvarint(&r);
+    c->arming_rate_hz = dan_get_uvarint(&r);
+    c->gw_flags = dan_get_u8(&r);
+    return dan_reader_finish(&r);
+}
+
+/* ---- stats ---- */
+
+int dan_gw_msg_stats_encode(const uint32_t *v, size_t n, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    size_t i;
+    if (n > 255u) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, (uint8_t)n);
+    for (i = 0; i < n; i++) {
+        dan_put_uvarint(&w, v[i]);
+    }
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_stats_decode(uint32_t *v, size_t cap, size_t *n, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    size_t i, cnt;
+    dan_reader_init(&r, p, len);
+    cnt = dan_get_u8(&r);
+    for (i = 0; i < cap; i++) {
+        v[i] = 0;
+    }
+    for (i = 0; i < cnt; i++) {
+        uint32_t x = dan_get_uvarint(&r);
+        if (i < cap) {
+            v[i] = x;
+        }
+    }
+    *n = cnt;
+    return dan_reader_finish(&r);
+}
+
+/* ---- nodes ---- */
+
+void dan_gw_msg_nodes_hdr_put(dan_writer_t *w, const dan_gw_nodes_hdr_t *h)
+{
+    dan_put_u8(w, h->next);
+    dan_put_u8(w, h->count);
+}
+
+int dan_gw_msg_nodes_hdr_get(dan_reader_t *r, dan_gw_nodes_hdr_t *h)
+{
+    h->next = dan_get_u8(r);
+    h->count = dan_get_u8(r);
+    return dan_reader_finish(r);
+}
+
+void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n)
+{
+    dan_put_u8(w, n->node_id);
+    dan_put_u8(w, (uint8_t)((n->health & 3u) | ((n->mode & 7u) << 2) | ((n->sub_mode & 7u) << 5)));
+    dan_put_uvarint(w, n->uptime_sec);
+    dan_put_u16(w, n->vendor_status);
+    dan_put_uvarint(w, n->age_ms);
+    dan_put_u8(w, n->info_state);
+}
+
+int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n)
+{
+    uint8_t b;
+    n->node_id = dan_get_u8(r);
+    b = dan_get_u8(r);
+    n->health = (uint8_t)(b & 3u);
+    n->mode = (uint8_t)((b >> 2) & 7u);
+    n->sub_mode = (uint8_t)((b >> 5) & 7u);
+    n->uptime_sec = dan_get_uvarint(r);
+    n->vendor_status = dan_get_u16(r);
+    n->age_ms = dan_get_uvarint(r);
+    n->info_state = dan_get_u8(r);
+    return dan_reader_finish(r);
+}
+
+int dan_gw_msg_node_info_encode(const dan_gw_node_info_t *i, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, i->node_id);
+    dan_put_u8(&w, i->info_state);
+    if (i->info_state == DAN_GW_INFO_VALID) {
+        dan_put_u8(&w, i->sw_major);
+        dan_put_u8(&w, i->sw_minor);
+        dan_put_u8(&w, i->sw_flags);
+        dan_put_u32(&w, i->vcs_commit);
+        dan_put_u8(&w, i->hw_major);
+        dan_put_u8(&w, i->hw_minor);
+        dan_put_raw(&w, i->unique_id, sizeof i->unique_id);
+        dan_put_string(&w, i->name);
+    }
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    memset(i, 0, sizeof *i);
+    dan_reader_init(&r, p, len);
+    i->node_id = dan_get_u8(&r);
+    i->info_state = dan_get_u8(&r);
+    if (i->info_state == DAN_GW_INFO_VALID) {
+        i->sw_major = dan_get_u8(&r);
+        i->sw_minor = dan_get_u8(&r);
+        i->sw_flags = dan_get_u8(&r);
+        i->vcs_commit = dan_get_u32(&r);
+        i->hw_major = dan_get_u8(&r);
+        i->hw_minor = dan_get_u8(&r);
+        dan_get_raw(&r, i->unique_id, sizeof i->unique_id);
+        (void)dan_get_string(&r, i->name, sizeof i->name);
+    }
+    return dan_reader_finish(&r);
+}
+
+/* ---- tunnels ---- */
+
+int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, o->port);
+    dan_put_u8(&w, o->mode);
+    dan_put_u8(&w, o->protocol);
+    dan_put_u8(&w, o->target);
+    dan_put_u8(&w, (uint8_t)o->serial_id);
+    dan_put_u8(&w, o->options);
+    dan_put_uvarint(&w, o->baud);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    o->port = dan_get_u8(&r);
+    o->mode = dan_get_u8(&r);
+    o->protocol = dan_get_u8(&r);
+    o->target = dan_get_u8(&r);
+    o->serial_id = (int8_t)dan_get_u8(&r);
+    o->options = dan_get_u8(&r);
+    o->baud = dan_get_uvarint(&r);
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_tun_xfer_req_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    if (x->len > DAN_GW_TUN_CHUNK_MAX || (x->len > 0u && x->data == NULL)) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, x->port);
+    dan_put_uvarint(&w, x->wr_offset);
+    dan_put_uvarint(&w, x->rd_offset);
+    dan_put_uvarint(&w, x->rd_max);
+    dan_put_array(&w, x->data, x->len);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_tun_xfer_req_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    memset(x, 0, sizeof *x);
+    dan_reader_init(&r, p, len);
+    x->port = dan_get_u8(&r);
+    x->wr_offset = dan_get_uvarint(&r);
+    x->rd_offset = dan_get_uvarint(&r);
+    x->rd_max = dan_get_uvarint(&r);
+    dan_get_array_view(&r, &x->data, &x->len);
+    if (x->len > DAN_GW_TUN_CHUNK_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    if (x->len > DAN_GW_TUN_CHUNK_MAX || (x->len > 0u && x->data == NULL)) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, x->port);
+    dan_put_uvarint(&w, x->wr_offset);
+    dan_put_uvarint(&w, x->wr_space);
+    dan_put_uvarint(&w, x->rd_offset);
+    dan_put_uvarint(&w, x->rd_dropped);
+    dan_put_array(&w, x->data, x->len);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    memset(x, 0, sizeof *x);
+    dan_reader_init(&r, p, len);
+    x->port = dan_get_u8(&r);
+    x->wr_offset = dan_get_uvarint(&r);
+    x->wr_space = dan_get_uvarint(&r);
+    x->rd_offset = dan_get_uvarint(&r);
+    x->rd_dropped = dan_get_uvarint(&r);
+    dan_get_array_view(&r, &x->data, &x->len);
+    if (x->len > DAN_GW_TUN_CHUNK_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(&r);
+}
+
+/* ---- raw CAN ---- */
+
+void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f)
+{
+    uint32_t id = f->id & ((f->flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK);
+    uint8_t dlc = f->dlc > 8u ? 8u : f->dlc;
+    if (f->flags & DAN_CAN_EXT) {
+        id |= DAN_GW_CAN_ID_EXT;
+    }
+    if (f->flags & DAN_CAN_RTR) {
+        id |= DAN_GW_CAN_ID_RTR;
+    }
+    dan_put_u32(w, id);
+    dan_put_u8(w, dlc);
+    if (!(f->flags & DAN_CAN_RTR)) {
+        dan_put_raw(w, f->data, dlc);
+    }
+}
+
+int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f)
+{
+    uint32_t id;
+    memset(f, 0, sizeof *f);
+    id = dan_get_u32(r);
+    f->dlc = dan_get_u8(r);
+    f->flags = (uint8_t)(((id & DAN_GW_CAN_ID_EXT) ? DAN_CAN_EXT : 0u) |
+                         ((id & DAN_GW_CAN_ID_RTR) ? DAN_CAN_RTR : 0u));
+    f->id = id & DAN_CAN_EFF_MASK;
+    if (f->dlc > 8u || (!(f->flags & DAN_CAN_EXT) && f->id > DAN_CAN_SFF_MASK) ||
+        (id & 0x20000000u) != 0u) {
+        return DAN_ERR_MALFORMED;
+    }
+    if (!(f->flags & DAN_CAN_RTR)) {
+        dan_get_raw(r, f->data, f->dlc);
+    }
+    return dan_reader_finish(r);
+}
+
+void dan_gw_msg_can_send_req_put(dan_writer_t *w, const dan_gw_can_send_t *s)
+{
+    dan_put_u8(w, s->seq);
+    dan_put_u8(w, s->count);
+}
+
+int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s)
+{
+    s->seq = dan_get_u8(r);
+    s->count = dan_get_u8(r);
+    s->queue_free = 0;
+    if (s->count > DAN_GW_CAN_FRAMES_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(r);
+}
+
+int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, s->seq);
+    dan_put_u8(&w, s->count);
+    dan_put_uvarint(&w, s->queue_free);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    s->seq = dan_get_u8(&r);
+    s->count = dan_get_u8(&r);
+    s->queue_free = dan_get_uvarint(&r);
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, out, cap);
+    dan_put_uvarint(&w, q->seq);
+    dan_put_u8(&w, q->count);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    q->seq = dan_get_uvarint(&r);
+    q->count = dan_get_u8(&r);
+    q->dropped = 0;
+    return dan_reader_finish(&r);
+}
+
+void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q)
+{
+    dan_put_uvarint(w, q->seq);
+    dan_put_uvarint(w, q->dropped);
+    dan_put_u8(w, q->count);
+}
+
+int dan_gw_msg_can_recv_rsp_get(dan_reader_t *r, dan_gw_can_recv_t *q)
+{
+    q->seq = dan_get_uvarint(r);
+    q->dropped = dan_get_uvarint(r);
+    q->count = dan_get_u8(r);
+    if (q->count > DAN_GW_CAN_FRAMES_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(r);
+}
+
+void dan_gw_msg_filter_hdr_put(dan_writer_t *w, uint8_t op, uint8_t count)
+{
+    dan_put_u8(w, op);
+    dan_put_u8(w, count);
+}
+
+int dan_gw_msg_filter_hdr_get(dan_reader_t *r, uint8_t *op, uint8_t *count)
+{
+    *op = dan_get_u8(r);
+    *count = dan_get_u8(r);
+    if (*count > DAN_GW_FILTERS_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(r);
+}
+
+void dan_gw_msg_filter_put(dan_writer_t *w, const dan_gw_filter_t *f)
+{
+    dan_put_u32(w, f->id & (DAN_GW_CAN_ID_EXT | DAN_CAN_EFF_MASK));
+    dan_put_u32(w, f->mask & DAN_CAN_EFF_MASK);
+}
+
+int dan_gw_msg_filter_get(dan_reader_t *r, dan_gw_filter_t *f)
+{
+    f->id = dan_get_u32(r);
+    f->mask = dan_get_u32(r);
+    if ((f->id & 0x60000000u) != 0u || (f->mask & 0xE0000000u) != 0u) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(r);
+}
+
+bool dan_gw_filter_match(const dan_gw_filter_t *e, const dan_can_frame_t *f)
+{
+    bool ext = (f->flags & DAN_CAN_EXT) != 0u;
+    if (ext != ((e->id & DAN_GW_CAN_ID_EXT) != 0u)) {
+        return false;
+    }
+    return ((f->id ^ e->id) & e->mask & DAN_CAN_EFF_MASK) == 0u;
+}

@@ -1,0 +1,600 @@
+/*
+ * dan-fcsim: a test flight controller. libdan's master and the gateway
+ * client (dan/gateway.h) over the POSIX port, driven by a script; every
+ * step prints one JSON line on stdout.
+ *
+ *   dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] STEP...
+ *
+ * Steps:
+ *   discover                      find the gateway (9600 first, then the others)
+ *   configure[:BAUD]              move the bus to BAUD (default: best common)
+ *   arm | disarm
+ *   config[:timeout=MS][:rate=HZ] read / change gateway settings
+ *   esc:V1,V2,..[@MS[@HZ]]        ESC commands for MS ms (default one) at HZ
+ *                                 (0: back to back); prints exchanges/s and
+ *                                 the telemetry received
+ *   esc-ramp:N:FROM:TO:MS         N channels ramping FROM..TO over MS ms
+ *   telemetry                     every ESC's telemetry (paged)
+ *   nodes                         node table with GetNodeInfo data (paged)
+ *   stats                         gateway counters
+ *   tunnel:PORT:targetted:NODE:SERIAL[:BAUD] | tunnel:PORT:broadcast:PROTO:CHANNEL
+ *   xfer:PORT:INFILE:OUTFILE:N[:TIMEOUT_MS]
+ *                                 writes INFILE ("-": nothing) through the
+ *                                 tunnel while reading until N bytes came back
+ *                                 into OUTFILE
+ *   filter:ID/MASK[,...]          replace the raw filter (ID hex; 8 digits = 29-bit)
+ *   cansend:ID#DATA[,...]         raw frames (cansend syntax, no RTR)
+ *   candump:N[:TIMEOUT_MS]        receive N filtered frames
+ *   sleep:MS
+ *   stop                          exit at once, no disarm (to test the failsafe)
+ * Exit: 0 all steps OK, 1 a step failed, 2 bad arguments or port.
+ */
+#include <errno.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dan/codes.h"
+#include "dan/gateway.h"
+#include "dan/master.h"
+#include "dan/posix.h"
+
+static dan_posix_port_t g_port;
+static dan_master_t g_m;
+static dan_gw_t g_gw;
+
+/* Pumps the port until the operation in flight completes; returns its result. */
+static int run(void)
+{
+    for (;;) {
+        uint64_t now = dan_posix_now_us(), next = dan_master_next_us(&g_m);
+        struct pollfd pf;
+        int to, n;
+        uint8_t buf[512];
+        if (dan_gw_poll(&g_gw, now)) {
+            return g_gw.result;
+        }
+        next = dan_master_next_us(&g_m);
+        to = next <= now ? 0 : (next - now > 50000u ? 50 : (int)((next - now + 999u) / 1000u));
+        pf.fd = g_port.fd;
+        pf.events = POLLIN;
+        if (poll(&pf, 1, to) < 0 && errno != EINTR) {
+            return DAN_ERR_IO;
+        }
+        now = dan_posix_now_us();
+        while ((n = dan_posix_read(&g_port, buf, sizeof buf)) > 0) {
+            dan_master_rx(&g_m, buf, (size_t)n, now);
+        }
+        if (n < 0) {
+            return DAN_ERR_IO;
+        }
+    }
+}
+
+static void sleep_us(uint64_t us)
+{
+    uint64_t end = dan_posix_now_us() + us;
+    uint8_t buf[256];
+    while (dan_posix_now_us() < end) {
+        struct pollfd pf = {g_port.fd, POLLIN, 0};
+        uint64_t left = end - dan_posix_now_us();
+        (void)poll(&pf, 1, (int)(left / 1000u) + 1);
+        while (dan_posix_read(&g_port, buf, sizeof buf) > 0) {
+        }
+    }
+}
+
+static int fail(const char *step, int rc)
+{
+    printf("{\"step\": \"%s\", \"ok\": false, \"error\": \"%s\"", step, dan_strerror(rc));
+    if (rc == DAN_ERR_REMOTE) {
+        printf(", \"remote\": \"%s\"", g_m.remote_error.text);
+    }
+    printf("}\n");
+    fflush(stdout);
+    return 1;
+}
+
+static void print_telem(const dan_gw_telem_t *t)
+{
+    printf("{\"index\": %u, \"node\": %u, \"flags\": %u", t->esc_index, t->node_id, t->flags);
+    if (t->flags & DAN_GW_TELEM_STATUS) {
+        printf(", \"age_ms\": %lu, \"voltage\": %.17g, \"current\": %.17g, \"temperature\": %.17g, "
+               "\"rpm\": %ld, \"power_pct\": %u, \"error_count\": %lu",
+               (unsigned long)t->age_ms, (double)dan_gw_f16_to_float(t->voltage_f16),
+               (double)dan_gw_f16_to_float(t->current_f16),
+               (double)dan_gw_f16_to_float(t->temperature_f16), (long)t->rpm, t->power_pct,
+               (unsigned long)t->error_count);
+    }
+    if (t->flags & DAN_GW_TELEM_EXT) {
+        printf(", \"ext_age_ms\": %lu, \"input_pct\": %u, \"output_pct\": %u, "
+               "\"motor_temp_c\": %d, \"motor_angle\": %u, \"status_flags\": %lu",
+               (unsigned long)t->ext_age_ms, t->input_pct, t->output_pct, t->motor_temp_c,
+               t->motor_angle, (unsigned long)t->status_flags);
+    }
+    printf("}");
+}
+
+static void print_all_telem(void)
+{
+    size_t i;
+    int first = 1;
+    printf("\"esc\": [");
+    for (i = 0; i < DAN_GW_MAX_ESC; i++) {
+        if (g_gw.esc[i].flags) {
+            printf(first ? "" : ", ");
+            print_telem(&g_gw.esc[i]);
+            first = 0;
+        }
+    }
+    printf("]");
+}
+
+static int parse_values(char *s, int16_t *v, size_t *n)
+{
+    char *tok, *save = NULL;
+    *n = 0;
+    for (tok = strtok_r(s, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        long x = strtol(tok, NULL, 0);
+        if (*n >= DAN_GW_ESC_MAX || x < -8192 || x > 8191) {
+            return -1;
+        }
+        v[(*n)++] = (int16_t)x;
+    }
+    return *n > 0 ? 0 : -1;
+}
+
+/* ESC commands for ms at hz; values may ramp (to != NULL). */
+static int esc_run(const char *step, const int16_t *from, const int16_t *to, size_t n,
+                   uint32_t ms, uint32_t hz)
+{
+    uint64_t start = dan_posix_now_us(), end = start + (uint64_t)ms * 1000u, next = start;
+    uint32_t count = 0, errors = 0, telem = 0;
+    int16_t v[DAN_GW_ESC_MAX];
+    int rc;
+    size_t i;
+    do {
+        uint64_t now = dan_posix_now_us();
+        if (hz > 0u && now < next) {
+            sleep_us(next - now);
+            now = dan_posix_now_us();
+        }
+        next += hz ? 1000000u / hz : 0u;
+        for (i = 0; i < n; i++) {
+            if (to != NULL && ms > 0u) {
+                uint64_t el = now - start > (uint64_t)ms * 1000u ? (uint64_t)ms * 1000u : now - start;
+                v[i] = (int16_t)(from[i] + (int32_t)((to[i] - from[i]) * (int64_t)el / ((int64_t)ms * 1000)));
+            } else {
+                v[i] = from[i];
+            }
+        }
+        rc = dan_gw_esc_command(&g_gw, v, n, dan_posix_now_us());
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            errors++;
+        } else {
+            count++;
+            telem += g_gw.last_telem != DAN_GW_NONE;
+        }
+    } while (dan_posix_now_us() < end);
+    {
+        double secs = (double)(dan_posix_now_us() - start) / 1e6;
+        printf("{\"step\": \"%s\", \"ok\": %s, \"exchanges\": %u, \"errors\": %u, "
+               "\"telemetry_records\": %u, \"seconds\": %.3f, \"rate\": %.1f, \"esc_seen\": %u, "
+               "\"flags\": %u, \"baud\": %u, ",
+               step, errors == 0 ? "true" : "false", count, errors, telem, secs,
+               secs > 0 ? count / secs : 0.0, g_gw.esc_seen, g_gw.gw_flags, dan_master_baud(&g_m));
+        print_all_telem();
+        printf("}\n");
+    }
+    return errors == 0 ? 0 : 1;
+}
+
+static int parse_frame(const char *s, dan_can_frame_t *f)
+{
+    const char *hash = strchr(s, '#');
+    size_t idlen, i;
+    memset(f, 0, sizeof *f);
+    if (hash == NULL) {
+        return -1;
+    }
+    idlen = (size_t)(hash - s);
+    f->id = (uint32_t)strtoul(s, NULL, 16);
+    if (idlen == 8) {
+        f->flags = DAN_CAN_EXT;
+    }
+    hash++;
+    for (i = 0; hash[2 * i] && hash[2 * i + 1] && i < 8; i++) {
+        char b[3] = {hash[2 * i], hash[2 * i + 1], 0};
+        f->data[i] = (uint8_t)strtoul(b, NULL, 16);
+    }
+    f->dlc = (uint8_t)i;
+    return 0;
+}
+
+static int step_xfer(const char *step, char *args)
+{
+    unsigned port;
+    char infile[256], outfile[256];
+    unsigned long want, timeout_ms = 120000;
+    FILE *in = NULL, *out;
+    static uint8_t wbuf[1u << 20];
+    size_t wlen = 0, wpos = 0, got = 0;
+    uint32_t xfers = 0;
+    uint64_t start, deadline;
+    int rc;
+    if (sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms) < 4) {
+        return fail(step, DAN_ERR_ARG);
+    }
+    if (strcmp(infile, "-") != 0) {
+        in = fopen(infile, "rb");
+        if (in == NULL) {
+            return fail(step, DAN_ERR_NOTFOUND);
+        }
+        wlen = fread(wbuf, 1, sizeof wbuf, in);
+        fclose(in);
+    }
+    out = fopen(outfile, "wb");
+    if (out == NULL) {
+        return fail(step, DAN_ERR_IO);
+    }
+    start = dan_posix_now_us();
+    deadline = start + timeout_ms * 1000u;
+    while ((wpos < wlen || got < want) && dan_posix_now_us() < deadline) {
+        const uint8_t *d;
+        size_t n = wlen - wpos;
+        rc = dan_gw_tunnel_xfer(&g_gw, (uint8_t)port, wbuf + wpos, n, DAN_GW_TUN_CHUNK_MAX,
+                                dan_posix_now_us());
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        xfers++;
+        if (rc != DAN_OK) {
+            continue; /* a timeout: the next call repeats the same offsets */
+        }
+        wpos += g_gw.tun[port].accepted;
+        if (dan_gw_tunnel_data(&g_gw, &d, &n) == DAN_OK && n > 0u) {
+            fwrite(d, 1, n, out);
+            got += n;
+        } else if (g_gw.tun[port].accepted == 0u) {
+            sleep_us(5000); /* nothing moved: do not spin */
+        }
+    }
+    fclose(out);
+    {
+        double secs = (double)(dan_posix_now_us() - start) / 1e6;
+        printf("{\"step\": \"%s\", \"ok\": %s, \"written\": %zu, \"read\": %zu, \"xfers\": %u, "
+               "\"seconds\": %.3f, \"rd_dropped\": %u, \"rd_lost\": %u}\n",
+               step, (wpos == wlen && got >= want) ? "true" : "false", wpos, got, xfers, secs,
+               g_gw.tun[port].rd_dropped, g_gw.tun[port].rd_lost);
+    }
+    return (wpos == wlen && got >= want) ? 0 : 1;
+}
+
+static int do_step(char *step)
+{
+    char name[64];
+    char *args = strchr(step, ':');
+    int rc;
+    size_t i;
+    snprintf(name, sizeof name, "%.*s", args ? (int)(args - step) : (int)strlen(step), step);
+    if (args) {
+        args++;
+    }
+    if (!strcmp(name, "stop")) {
+        printf("{\"step\": \"stop\", \"ok\": true}\n");
+        fflush(stdout);
+        _exit(0);
+    }
+    if (!strcmp(name, "sleep")) {
+        sleep_us(args ? strtoull(args, NULL, 0) * 1000u : 0u);
+        printf("{\"step\": \"sleep\", \"ok\": true}\n");
+        return 0;
+    }
+    if (!strcmp(name, "discover")) {
+        const dan_peer_t *p;
+        rc = dan_master_discover(&g_m, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        p = dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST);
+        if (p == NULL) return fail(step, DAN_ERR_NOTFOUND);
+        printf("{\"step\": \"discover\", \"ok\": true, \"baud\": %u, \"manufacturer\": \"%s\", "
+               "\"model\": \"%s\", \"baud_mask\": %u}\n", p->baud, p->identity.manufacturer,
+               p->identity.model, p->identity.baud_mask);
+        return 0;
+    }
+    if (!strcmp(name, "configure")) {
+        rc = dan_master_configure(&g_m, args ? (uint32_t)strtoul(args, NULL, 0) : 0u, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u}\n", dan_master_baud(&g_m));
+        return 0;
+    }
+    if (!strcmp(name, "arm") || !strcmp(name, "disarm")) {
+        rc = dan_gw_arm(&g_gw, name[0] == 'a', dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u}\n", name, g_gw.gw_flags);
+        return 0;
+    }
+    if (!strcmp(name, "config")) {
+        dan_gw_config_t c;
+        char *tok, *save = NULL;
+        memset(&c, 0, sizeof c);
+        for (tok = args ? strtok_r(args, ":", &save) : NULL; tok; tok = strtok_r(NULL, ":", &save)) {
+            if (!strncmp(tok, "timeout=", 8)) {
+                c.set_mask |= DAN_GW_CFG_ESC_TIMEOUT;
+                c.esc_timeout_ms = (uint32_t)strtoul(tok + 8, NULL, 0);
+            } else if (!strncmp(tok, "rate=", 5)) {
+                c.set_mask |= DAN_GW_CFG_ARMING_RATE;
+                c.arming_rate_hz = (uint32_t)strtoul(tok + 5, NULL, 0);
+            }
+        }
+        rc = dan_gw_config(&g_gw, &c, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"config\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
+               "\"arming_rate_hz\": %u, \"flags\": %u}\n", g_gw.config.node_id,
+               g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz, g_gw.config.gw_flags);
+        return 0;
+    }
+    if (!strcmp(name, "esc") || !strcmp(name, "esc-ramp")) {
+        int16_t from[DAN_GW_ESC_MAX], to[DAN_GW_ESC_MAX];
+        size_t n;
+        uint32_t ms = 0, hz = 0;
+        if (args == NULL) return fail(step, DAN_ERR_ARG);
+        if (name[3] == '-') {
+            unsigned nn;
+            long a, b;
+            if (sscanf(args, "%u:%ld:%ld:%u", &nn, &a, &b, &ms) != 4 || nn < 1 || nn > 20) {
+                return fail(step, DAN_ERR_ARG);
+            }
+            for (i = 0; i < nn; i++) {
+                from[i] = (int16_t)a;
+                to[i] = (int16_t)b;
+            }
+            return esc_run("esc-ramp", from, to, nn, ms, 50);
+        }
+        {
+            char *at = strchr(args, '@');
+            if (at) {
+                *at++ = '\0';
+                ms = (uint32_t)strtoul(at, &at, 0);
+                if (*at == '@') hz = (uint32_t)strtoul(at + 1, NULL, 0);
+            }
+        }
+        if (parse_values(args, from, &n)) return fail(step, DAN_ERR_ARG);
+        return esc_run("esc", from, NULL, n, ms, hz);
+    }
+    if (!strcmp(name, "telemetry")) {
+        uint8_t first = 0;
+        int pages = 0;
+        do {
+            rc = dan_gw_telemetry(&g_gw, first, dan_posix_now_us());
+            if (rc == DAN_OK) rc = run();
+            if (rc != DAN_OK) return fail(step, rc);
+            first = g_gw.telem_next;
+        } while (first != DAN_GW_NONE && ++pages < 8);
+        printf("{\"step\": \"telemetry\", \"ok\": true, \"flags\": %u, ", g_gw.gw_flags);
+        print_all_telem();
+        printf("}\n");
+        return 0;
+    }
+    if (!strcmp(name, "nodes")) {
+        static dan_gw_node_entry_t list[128];
+        size_t nn = 0;
+        uint8_t first = 1;
+        do {
+            dan_reader_t r;
+            dan_gw_nodes_hdr_t h;
+            rc = dan_gw_nodes(&g_gw, first, dan_posix_now_us());
+            if (rc == DAN_OK) rc = run();
+            if (rc == DAN_OK) rc = dan_gw_nodes_begin(&g_gw, &r, &h);
+            if (rc != DAN_OK) return fail(step, rc);
+            for (i = 0; i < h.count && nn < 128; i++) {
+                if (dan_gw_nodes_next(&r, &list[nn]) == DAN_OK) nn++;
+            }
+            first = h.next;
+        } while (first != 0);
+        printf("{\"step\": \"nodes\", \"ok\": true, \"nodes\": [");
+        for (i = 0; i < nn; i++) {
+            dan_gw_node_info_t ni;
+            memset(&ni, 0, sizeof ni);
+            rc = dan_gw_node_info(&g_gw, list[i].node_id, dan_posix_now_us());
+            if (rc == DAN_OK) rc = run();
+            if (rc == DAN_OK) (void)dan_gw_node_info_get(&g_gw, &ni);
+            printf("%s{\"id\": %u, \"health\": %u, \"mode\": %u, \"sub_mode\": %u, \"uptime\": %lu, "
+                   "\"vendor\": %u, \"age_ms\": %lu, \"info\": %u, \"name\": \"%s\", "
+                   "\"sw\": [%u, %u], \"hw\": [%u, %u], \"uid\": \"",
+                   i ? ", " : "", list[i].node_id, list[i].health, list[i].mode, list[i].sub_mode,
+                   (unsigned long)list[i].uptime_sec, list[i].vendor_status,
+                   (unsigned long)list[i].age_ms, ni.info_state, ni.name, ni.sw_major, ni.sw_minor,
+                   ni.hw_major, ni.hw_minor);
+            {
+                size_t k;
+                for (k = 0; k < 16; k++) printf("%02x", ni.unique_id[k]);
+            }
+            printf("\"}");
+        }
+        printf("]}\n");
+        return 0;
+    }
+    if (!strcmp(name, "stats")) {
+        static const char *names[DAN_GW_STAT_COUNT] = {
+            "dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
+            "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers", "dc_crc_errors",
+            "dc_errors", "esc_cmds", "failsafes", "failsafe_active", "tun_dropped", "raw_dropped",
+            "nodes"};
+        rc = dan_gw_stats(&g_gw, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"stats\", \"ok\": true");
+        for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
+            printf(", \"%s\": %u", names[i], g_gw.stats[i]);
+        }
+        printf(", \"master_timeouts\": %u, \"master_retries\": %u}\n", g_m.stats.timeouts,
+               g_m.stats.retries);
+        return 0;
+    }
+    if (!strcmp(name, "tunnel")) {
+        dan_gw_tun_open_t o;
+        unsigned port, a = 0, b = 0;
+        int serial = 0;
+        unsigned long baud = 0;
+        char mode[16];
+        memset(&o, 0, sizeof o);
+        if (args == NULL || sscanf(args, "%u:%15[^:]:%u:%d:%lu", &port, mode, &a, &serial, &baud) < 4) {
+            return fail(step, DAN_ERR_ARG);
+        }
+        o.port = (uint8_t)port;
+        if (!strcmp(mode, "targetted")) {
+            o.mode = DAN_GW_TUN_TARGETTED;
+            o.protocol = 255; /* UNDEFINED, as ArduPilot sends */
+            o.target = (uint8_t)a;
+            o.serial_id = (int8_t)serial;
+            o.options = 1; /* LOCK_PORT */
+            o.baud = (uint32_t)baud;
+        } else {
+            b = (unsigned)serial;
+            o.mode = DAN_GW_TUN_BROADCAST;
+            o.protocol = (uint8_t)a;
+            o.target = (uint8_t)b;
+        }
+        rc = dan_gw_tunnel_open(&g_gw, &o, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"tunnel\", \"ok\": true, \"port\": %u}\n", port);
+        return 0;
+    }
+    if (!strcmp(name, "xfer")) {
+        return args ? step_xfer("xfer", args) : fail(step, DAN_ERR_ARG);
+    }
+    if (!strcmp(name, "filter")) {
+        dan_gw_filter_t f[DAN_GW_FILTERS_MAX];
+        char *tok, *save = NULL;
+        size_t n = 0;
+        for (tok = args ? strtok_r(args, ",", &save) : NULL; tok && n < DAN_GW_FILTERS_MAX;
+             tok = strtok_r(NULL, ",", &save)) {
+            char *slash = strchr(tok, '/');
+            if (slash == NULL) return fail(step, DAN_ERR_ARG);
+            f[n].id = (uint32_t)strtoul(tok, NULL, 16) | ((slash - tok) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
+            f[n].mask = (uint32_t)strtoul(slash + 1, NULL, 16);
+            n++;
+        }
+        rc = dan_gw_can_filter(&g_gw, DAN_GW_FILTER_REPLACE, f, n, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"filter\", \"ok\": true, \"count\": %zu}\n", n);
+        return 0;
+    }
+    if (!strcmp(name, "cansend")) {
+        dan_can_frame_t f[DAN_GW_CAN_FRAMES_MAX];
+        char *tok, *save = NULL;
+        size_t n = 0;
+        for (tok = args ? strtok_r(args, ",", &save) : NULL; tok && n < DAN_GW_CAN_FRAMES_MAX;
+             tok = strtok_r(NULL, ",", &save)) {
+            if (parse_frame(tok, &f[n])) return fail(step, DAN_ERR_ARG);
+            n++;
+        }
+        rc = dan_gw_can_send(&g_gw, f, n, dan_posix_now_us());
+        if (rc == DAN_OK) rc = run();
+        if (rc != DAN_OK) return fail(step, rc);
+        printf("{\"step\": \"cansend\", \"ok\": %s, \"accepted\": %u}\n",
+               g_gw.can_accepted == n ? "true" : "false", g_gw.can_accepted);
+        return g_gw.can_accepted == n ? 0 : 1;
+    }
+    if (!strcmp(name, "candump")) {
+        unsigned long want = 1, timeout_ms = 10000;
+        uint64_t end;
+        size_t got = 0;
+        if (args) sscanf(args, "%lu:%lu", &want, &timeout_ms);
+        end = dan_posix_now_us() + timeout_ms * 1000u;
+        printf("{\"step\": \"candump\", \"frames\": [");
+        while (got < want && dan_posix_now_us() < end) {
+            dan_reader_t r;
+            dan_gw_can_recv_t h;
+            dan_can_frame_t f;
+            rc = dan_gw_can_recv(&g_gw, DAN_GW_CAN_FRAMES_MAX, dan_posix_now_us());
+            if (rc == DAN_OK) rc = run();
+            if (rc != DAN_OK || dan_gw_can_begin(&g_gw, &r, &h) != DAN_OK) continue;
+            for (i = 0; i < h.count; i++) {
+                size_t k;
+                if (dan_gw_can_next(&r, &f) != DAN_OK) break;
+                printf("%s\"%0*X#", got ? ", " : "", (f.flags & DAN_CAN_EXT) ? 8 : 3, (unsigned)f.id);
+                for (k = 0; k < f.dlc; k++) printf("%02X", f.data[k]);
+                printf("\"");
+                got++;
+            }
+            if (h.count == 0) sleep_us(10000);
+        }
+        printf("], \"ok\": %s, \"dropped\": %u}\n", got >= want ? "true" : "false", g_gw.can_rx_dropped);
+        return got >= want ? 0 : 1;
+    }
+    fprintf(stderr, "dan-fcsim: unknown step '%s'\n", step);
+    return 2;
+}
+
+int main(int argc, char **argv)
+{
+    static const uint32_t types[] = {DAN_TYPE_CAN_GW_FIRST};
+    const char *port = NULL;
+    uint32_t latency_ms = 50, gap_ms = 20;
+    bool no_echo = false;
+    dan_master_config_t mc;
+    char err[256];
+    int i, rc = 0;
+    for (i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--port") && i + 1 < argc) {
+            port = argv[++i];
+        } else if (!strcmp(argv[i], "--latency-ms") && i + 1 < argc) {
+            latency_ms = (uint32_t)strtoul(argv[++i], NULL, 0);
+        } else if (!strcmp(argv[i], "--gap-ms") && i + 1 < argc) {
+            gap_ms = (uint32_t)strtoul(argv[++i], NULL, 0);
+        } else if (!strcmp(argv[i], "--no-echo")) {
+            no_echo = true;
+        } else if (!strcmp(argv[i], "--help")) {
+            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] STEP...\n"
+                   "(steps: see the comment at the top of tests/tools/dan-fcsim.c)\n");
+            return 0;
+        } else if (argv[i][0] == '-') {
+            fprintf(stderr, "dan-fcsim: unknown option %s\n", argv[i]);
+            return 2;
+        } else {
+            break;
+        }
+    }
+    if (port == NULL) {
+        fprintf(stderr, "dan-fcsim: --port is required\n");
+        return 2;
+    }
+    signal(SIGPIPE, SIG_IGN);
+    if (dan_posix_open(&g_port, port, 9600, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
+                       sizeof err) != DAN_OK) {
+        fprintf(stderr, "dan-fcsim: %s\n", err);
+        return 2;
+    }
+    dan_master_config_default(&mc);
+    mc.resp_latency_us = latency_ms * 1000u;
+    mc.gap_us = gap_ms * 1000u;
+    mc.retries = 3;
+    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, 9600, dan_posix_now_us()) != DAN_OK) {
+        fprintf(stderr, "dan-fcsim: master init failed\n");
+        return 2;
+    }
+    dan_gw_init(&g_gw, &g_m);
+    for (; i < argc && rc != 2; i++) {
+        int r = do_step(argv[i]);
+        fflush(stdout);
+        if (r == 2) {
+            rc = 2;
+        } else if (r != 0) {
+            rc = 1;
+        }
+    }
+    dan_posix_close(&g_port);
+    return rc;
+}
