@@ -1,0 +1,192 @@
+"""What every subcommand shares: options, exit codes, the port, the master,
+progress and output. A subcommand module defines NAME, HELP,
+add_arguments(parser) and run(ctx) -> exit code (see commands/__init__.py).
+"""
+import argparse
+import json
+import sys
+from typing import Callable, List, Optional, Tuple, Type
+
+from danprobe import registry
+from danprobe.master import DanError, Master, MasterConfig, OperationTimeout
+from danprobe.port import PortError, SerialPort, now
+
+EXIT_OK = 0
+EXIT_FAIL = 1       # the operation failed: no answer, configure failed, port I/O error
+EXIT_USAGE = 2      # bad arguments, or the port cannot be opened (missing, busy, not a tty)
+
+DEFAULT_BAUD = 9600
+DEFAULT_TYPES = "vtx,can-gw"
+
+
+class CliError(Exception):
+    """Ends the command with a one-line message on stderr and exit_code."""
+
+    def __init__(self, message: str, exit_code: int = EXIT_FAIL):
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+# ---- argument types ----
+
+def _int_at_least(minimum: int):
+    def parse(s: str) -> int:
+        try:
+            v = int(s, 0)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {s!r}") from None
+        if v < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}: {s!r}")
+        return v
+    return parse
+
+
+positive_int = _int_at_least(1)
+non_negative_int = _int_at_least(0)
+
+
+def positive_float(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {s!r}") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be positive: {s!r}")
+    return v
+
+
+def type_list(s: str) -> List[registry.PeripheralType]:
+    out = []
+    for name in filter(None, (x.strip() for x in s.split(","))):
+        t = registry.lookup(name)
+        if t is None:
+            names = ", ".join(t.name for t in registry.TYPES)
+            raise argparse.ArgumentTypeError(f"unknown type {name!r} ({names} or a first code)")
+        if t not in out:
+            out.append(t)
+    if not out:
+        raise argparse.ArgumentTypeError("no type given")
+    return out
+
+
+# ---- shared options ----
+
+def add_common_options(p: argparse.ArgumentParser, *, port_required: bool = True,
+                       baud_help: str = "the line's baud rate (default 9600)",
+                       timeout_default: Optional[float] = 30.0,
+                       timeout_help: str = "give up after S seconds (default 30)"):
+    g = p.add_argument_group("common options")
+    g.add_argument("--port", required=port_required, metavar="TTY",
+                   help="serial port: a USB-serial adapter on the DAN wire, or a dan-vbus endpoint")
+    g.add_argument("--baud", type=positive_int, metavar="N", help=baud_help)
+    g.add_argument("--json", action="store_true", help="machine-readable output on stdout")
+    g.add_argument("--timeout", type=positive_float, default=timeout_default, metavar="S",
+                   help=timeout_help)
+    g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
+
+
+def add_gap_option(g):
+    g.add_argument("--gap-ms", type=positive_int, default=20, metavar="N",
+                   help="idle time that ends a partial frame (default 20: USB adapters, ptys)")
+
+
+def add_master_options(p: argparse.ArgumentParser, *, types_default: str = DEFAULT_TYPES):
+    """Options of every command that talks on the bus as its master."""
+    g = p.add_argument_group("bus options")
+    g.add_argument("--types", type=type_list, default=type_list(types_default), metavar="LIST",
+                   help=f"peripheral types to probe, comma-separated names or first codes "
+                        f"(default {types_default}; known: "
+                        f"{', '.join(t.name for t in registry.TYPES)})")
+    g.add_argument("--no-echo", action="store_true",
+                   help="the adapter does not echo our bytes (default: single wire, echo checked)")
+    g.add_argument("--latency-ms", type=positive_int, default=50, metavar="N",
+                   help="reply start window after our request (default 50: USB adapters, ptys)")
+    add_gap_option(g)
+    g.add_argument("--retries", type=non_negative_int, default=2, metavar="N",
+                   help="extra attempts per transaction (default 2)")
+
+
+# ---- the run-time context ----
+
+class Context:
+    def __init__(self, args: argparse.Namespace):
+        self.args = args
+
+    def progress(self, msg: str):
+        if not self.args.quiet:
+            print(f"danprobe: {msg}", file=sys.stderr, flush=True)
+
+    def error(self, msg: str):
+        print(f"danprobe: {msg}", file=sys.stderr, flush=True)
+
+    def open_port(self, baud: int) -> SerialPort:
+        if not self.args.port:
+            raise CliError("--port is required", EXIT_USAGE)
+        try:
+            return SerialPort(self.args.port, baud)
+        except PortError as e:
+            raise CliError(str(e), EXIT_USAGE) from None
+
+    def master(self, port: SerialPort, baud: int) -> Master:
+        a = self.args
+        cfg = MasterConfig(resp_latency_s=a.latency_ms / 1000, gap_s=a.gap_ms / 1000,
+                           retries=a.retries)
+        m = Master(port, a.types, baud, cfg, echo=not a.no_echo, progress=self.progress)
+        m.set_time_limit(a.timeout)
+        return m
+
+    def emit_json(self, obj: dict):
+        print(json.dumps(obj), flush=True)
+
+
+def error_fields(e: Optional[DanError]) -> dict:
+    """result / error / detail of a JSON document, as dan-master names them."""
+    if e is None:
+        return {"result": 0, "error": "", "detail": ""}
+    return {"result": e.code, "error": e.reason, "detail": str(e)}
+
+
+def peers_table(peers) -> str:
+    rows = [("type", "code", "baud", "manufacturer", "model", "hw", "sw", "bauds")]
+    for p in peers:
+        i = p.identity
+        rows.append((p.type.name, f"0x{p.type.first:02X}", str(p.baud), i.manufacturer, i.model,
+                     i.hw_version, i.sw_version, ",".join(map(str, i.bauds))))
+    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
+
+
+def master_operation(ctx: Context, baud: int, op: Callable[[Master], None],
+                     expected: Tuple[Type[DanError], ...] = (DanError,)):
+    """Opens the port, runs op(master) and returns (master, failure, ms):
+    failure is the expected DanError op raised, or None. OperationTimeout
+    and other errors propagate (cli.main reports them)."""
+    with ctx.open_port(baud) as port:
+        m = ctx.master(port, baud)
+        t0 = now()
+        failure = None
+        try:
+            op(m)
+        except OperationTimeout:
+            raise
+        except expected as e:
+            failure = e
+        return m, failure, (now() - t0) * 1000
+
+
+def report(ctx: Context, m: Master, failure: Optional[DanError], ms: float, fields: dict,
+           failure_text: str, human: Callable[[], None]) -> int:
+    """The end of a bus command: the JSON document (command, result, error,
+    detail, ms, port, baud, the command's fields, peers), or the human
+    text; failure_text on stderr and EXIT_FAIL on failure."""
+    a = ctx.args
+    if a.json:
+        ctx.emit_json({"command": a.command, **error_fields(failure), "ms": round(ms, 1),
+                       "port": a.port, "baud": m.baud, **fields,
+                       "peers": [p.as_dict() for p in m.present()]})
+    if failure is not None:
+        ctx.error(failure_text)
+        return EXIT_FAIL
+    if not a.json:
+        human()
+    return EXIT_OK

@@ -1,0 +1,100 @@
+"""A DAN UART over pyserial: raw 8N1, exclusive, non-blocking reads.
+
+POSIX only (select on the port's file descriptor): Linux USB-serial
+adapters and dan-vbus ptys.
+"""
+import errno
+import os
+import select
+import time
+
+import serial
+
+
+class PortError(Exception):
+    """The port cannot be opened or used; the message says why."""
+
+
+def _reason(path: str, e: Exception) -> str:
+    text = str(e)
+    code = getattr(e, "errno", None)
+    if "exclusively lock" in text or code in (errno.EBUSY, errno.EAGAIN, errno.EWOULDBLOCK):
+        return f"{path}: port busy (another program holds it)"
+    if code == errno.EACCES or "Permission denied" in text:
+        return f"{path}: permission denied (on Linux, join the 'dialout' group)"
+    if "Inappropriate ioctl" in text or code == errno.ENOTTY:
+        return f"{path}: not a serial port"
+    return f"{path}: {text}"
+
+
+class SerialPort:
+    def __init__(self, path: str, baud: int):
+        self.path = path
+        if not os.path.exists(path):
+            raise PortError(f"{path}: No such file or directory")
+        try:
+            self.ser = serial.Serial(port=path, baudrate=baud, timeout=0, exclusive=True)
+        except (serial.SerialException, OSError, ValueError) as e:
+            raise PortError(_reason(path, e)) from None
+        self.ser.reset_input_buffer()
+        self._empty_reads = 0
+
+    @property
+    def baud(self) -> int:
+        return self.ser.baudrate
+
+    def set_baud(self, baud: int):
+        try:
+            self.ser.baudrate = baud
+        except (serial.SerialException, OSError, ValueError) as e:
+            raise PortError(f"{self.path}: cannot set {baud} baud: {e}") from None
+
+    def read(self, timeout: float) -> bytes:
+        """Bytes received within timeout seconds (b"" if none)."""
+        fd = self.ser.fileno()
+        try:
+            r, _, _ = select.select([fd], [], [], max(timeout, 0.0))
+            data = os.read(fd, 4096) if r else b""
+        except BlockingIOError:
+            data = b""
+        except OSError as e:
+            raise PortError(f"{self.path}: read failed: {e.strerror}") from None
+        if r and not data:
+            # Readable but empty: spurious on a pty now and then (another
+            # endpoint closing), for good when the device went away.
+            self._empty_reads += 1
+            if self._empty_reads >= 100:
+                raise PortError(f"{self.path}: device disconnected")
+            time.sleep(0.001)
+        elif data:
+            self._empty_reads = 0
+        return data
+
+    def write(self, data: bytes):
+        try:
+            n = self.ser.write(data)
+        except (serial.SerialException, OSError) as e:
+            raise PortError(f"{self.path}: write failed: {e}") from None
+        if n != len(data):
+            raise PortError(f"{self.path}: short write ({n} of {len(data)} bytes)")
+
+    def drain(self):
+        """Waits until every byte written has left the UART."""
+        self.ser.flush()
+
+    def discard_output(self):
+        """Drops bytes not sent yet (after a collision)."""
+        self.ser.reset_output_buffer()
+
+    def close(self):
+        self.ser.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def now() -> float:
+    return time.monotonic()

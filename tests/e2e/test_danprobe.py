@@ -1,0 +1,371 @@
+"""danprobe, the Python host tool: its codec against the shared vectors
+(the same semantics as tests/unit/test_codec.c), then the CLI against
+dan-vbus, dan-testperiph and dan-master."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import serial
+
+from bus_util import start_periph, start_vbus
+from conftest import BIN, VECTORS, wait_for
+from danprobe import registry
+from danprobe.codec import (MAX_FRAME, MAX_PAYLOAD, Decoder, MalformedError, crc8, encode_frame,
+                            uvarint_decode, uvarint_encode, uvarint_size)
+from danprobe.payloads import (Configure, ErrorMessage, Identity, PayloadError,
+                               UnsupportedRequest, decode_ack, encode_ack)
+from danprobe.sniff import Sniffer, read_capture, sniff_capture
+
+TYPES = "test-a,test-b,can-gw,vtx"
+
+
+def vectors(name, sep=" "):
+    for line in (VECTORS / name).read_text().splitlines():
+        if line and not line.startswith("#"):
+            yield line.split(sep)
+
+
+def unhex(s):
+    return b"" if s == "-" else bytes.fromhex(s)
+
+
+# ---- codec: the shared vectors ----
+
+def test_crc8_vectors():
+    assert crc8(b"123456789") == 0xBC
+    rows = list(vectors("crc8.txt"))
+    assert len(rows) >= 5
+    for data, want in rows:
+        assert crc8(bytes.fromhex(data)) == int(want, 16), data
+
+
+def test_uvarint_vectors():
+    n = 0
+    for row in vectors("uvarint.txt"):
+        kind = row[0]
+        if kind == "ok":
+            value, b = int(row[1]), bytes.fromhex(row[2])
+            assert uvarint_decode(b) == (value, len(b))
+            if uvarint_size(value) == len(b):
+                assert uvarint_encode(value) == b
+        elif kind == "truncated":
+            assert uvarint_decode(bytes.fromhex(row[1]))[1] == 0
+        elif kind == "malformed":
+            with pytest.raises(MalformedError):
+                uvarint_decode(bytes.fromhex(row[1]))
+        else:
+            pytest.fail(f"unknown kind {kind}")
+        n += 1
+    assert n >= 20
+    assert uvarint_encode(128) == b"\x80\x01" and uvarint_encode(16384) == b"\x80\x80\x01"
+    with pytest.raises(ValueError):
+        uvarint_encode(1 << 32)
+
+
+def decode_all(wire, chunk=0):
+    """Feeds wire whole (chunk 0) or chunk bytes a call, then lets the line
+    go idle; returns the frames re-encoded, like decode_all() in the C test."""
+    d = Decoder()
+    frames = []
+    step = chunk or max(len(wire), 1)
+    for i in range(0, len(wire), step):
+        frames += d.feed(wire[i:i + step])
+    frames += d.drain()
+    assert not d.busy()
+    return [encode_frame(f.code, f.payload) for f in frames], d
+
+
+def test_frame_vectors():
+    rows = list(vectors("frames.txt"))
+    assert len(rows) >= 10
+    for _, code, payload, wire in rows:
+        code, payload, wire = int(code), unhex(payload), bytes.fromhex(wire)
+        assert encode_frame(code, payload) == wire
+        for chunk in (0, 1):
+            d = Decoder()
+            frames = []
+            step = chunk or len(wire)
+            for i in range(0, len(wire), step):
+                frames += d.feed(wire[i:i + step])
+            assert [(f.code, f.payload, f.start, f.size) for f in frames] == \
+                [(code, payload, 0, len(wire))]
+            assert not d.busy()
+    assert MAX_FRAME == 169
+    with pytest.raises(ValueError):
+        encode_frame(1, bytes(MAX_PAYLOAD + 1))
+    assert len(encode_frame(0xFFFFFFFF, bytes(MAX_PAYLOAD))) == MAX_FRAME
+
+
+def test_stream_vectors():
+    rows = list(vectors("streams.txt"))
+    assert len(rows) >= 8
+    for row in rows:
+        assert row[0] == "stream"
+        wire, want = bytes.fromhex(row[1]), [bytes.fromhex(x) for x in row[2:]]
+        for chunk in (0, 1, 2, 3):
+            got, _ = decode_all(wire, chunk)
+            assert got == want, (row[1], chunk)
+
+
+def test_every_bit_flip_of_the_frame_vectors_rejected():
+    for row in vectors("frames.txt"):
+        wire = bytearray(bytes.fromhex(row[3]))
+        for i in range(len(wire)):
+            for bit in range(8):
+                wire[i] ^= 1 << bit
+                assert decode_all(bytes(wire))[0] == []
+                assert decode_all(bytes(wire), 1)[0] == []
+                wire[i] ^= 1 << bit
+
+
+def test_decoder_counters():
+    d = Decoder()
+    for data in (b"xyz", bytes.fromhex("442000B6"), bytes.fromhex("4420FF7F"),
+                 bytes.fromhex("44FFFFFFFF7F"), bytes.fromhex("442000")):
+        assert d.feed(data) == []
+        assert d.drain() == []
+    assert d.feed(bytes.fromhex("442000B5"))[0].code == 0x20
+    s = d.stats
+    assert (s.garbage, s.crc_errors, s.oversize, s.bad_varint, s.aborted, s.frames) == \
+        (3, 1, 1, 1, 1, 1)
+
+
+def test_payload_vectors():
+    n = 0
+    for f in vectors("payloads.txt", "\t"):
+        kind = f[0]
+        if kind == "identity":
+            want = bytes.fromhex(f[8])
+            ident = Identity(int(f[1]), f[2], f[3], f[4], f[5], int(f[6], 16), int(f[7], 16))
+            assert ident.encode() == want
+            assert Identity.decode(want) == ident
+        elif kind == "configure":
+            want = bytes.fromhex(f[3])
+            c = Configure(int(f[1]), int(f[2]))
+            assert c.encode() == want and Configure.decode(want) == c
+        elif kind == "ack":
+            assert encode_ack(int(f[1])) == bytes.fromhex(f[2])
+            assert decode_ack(bytes.fromhex(f[2])) == int(f[1])
+        elif kind == "error":
+            want = bytes.fromhex(f[4])
+            e = ErrorMessage(int(f[1]), int(f[2]), f[3])
+            assert e.encode() == want and ErrorMessage.decode(want) == e
+        elif kind.startswith("bad_"):
+            decode = {"identity": Identity.decode, "configure": Configure.decode,
+                      "ack": decode_ack, "error": ErrorMessage.decode}[kind[4:]]
+            with pytest.raises(PayloadError):
+                decode(unhex(f[1]))
+        elif kind == "unsupported_configure":
+            with pytest.raises(UnsupportedRequest):
+                Configure.decode(unhex(f[1]))
+        else:
+            pytest.fail(f"unknown kind {kind}")
+        n += 1
+    assert n >= 20
+
+
+def test_code_names():
+    assert registry.code_name(0) == "ERROR"
+    assert registry.code_name(0x60) == "test-a IDENTIFY"
+    assert registry.code_name(0x41) == "can-gw CONFIGURE"
+    assert registry.code_name(0x42) == "can-gw 0x42"
+    assert registry.code_name(0x50) == "0x50"
+    assert registry.lookup("0x40").name == "can-gw" and registry.lookup("nope") is None
+
+
+def test_sniff_capture_counts_errors(tmp_path):
+    """A hand-made capture: a good exchange, a corrupted frame, a collision
+    (decoded as it was on the wire), a partial frame cut by an idle gap."""
+    good = encode_frame(0x61, Configure(0, 57600).encode())
+    ack = encode_frame(0x61, encode_ack(0))
+    jammed = bytearray(good)
+    jammed[4] ^= 0x10
+    bad = bytearray(encode_frame(0x62, b"abc"))
+    bad[-1] ^= 0xFF
+    cap = tmp_path / "bus.cap"
+    cap.write_text("\n".join([
+        "# dan-vbus capture: <time> <source> <baud> <hex> [collision] [noise] [rx=<hex>]",
+        "# 0=/dev/pts/1 1=/dev/pts/2",
+        f"1.000000 0 9600 {good.hex()}",
+        f"1.020000 1 9600 {ack.hex()}",
+        f"1.500000 0 9600 {bad.hex()}",
+        f"1.700000 0 9600 {good.hex()} collision rx={jammed.hex()}",
+        f"2.000000 1 9600 {good[:4].hex()}",
+        f"3.000000 1 115200 {encode_frame(0, ErrorMessage(0x62, 0, 'no').encode()).hex()}",
+    ]) + "\n")
+    sn = Sniffer()
+    events = list(sniff_capture(read_capture(cap), sn))
+    frames = [e for e in events if e.kind == "frame"]
+    assert [(e.name, e.role, e.source) for e in frames] == [
+        ("test-a CONFIGURE", "request", 0), ("test-a CONFIGURE", "response", 1), ("ERROR", "response", 1)]
+    assert frames[0].fields == {"request_type": 0, "baud": 57600}
+    assert frames[1].fields == {"ack": "OK"}
+    assert frames[2].fields["request"] == "test-a 0x62" and frames[2].fields["description"] == "no"
+    assert frames[0].time == 1.0 and frames[2].baud == 115200
+    s = sn.summary()
+    assert s["crc_errors"] == 2 and s["aborted"] == 1 and s["collision_bursts"] == 1
+    assert [e.kind for e in events if e.kind != "frame"] == ["crc_errors", "crc_errors", "aborted"]
+
+
+# ---- the CLI on a virtual bus ----
+
+def danprobe(*args, timeout=120):
+    r = subprocess.run([sys.executable, "-m", "danprobe", *map(str, args)], stdin=subprocess.DEVNULL,
+                       capture_output=True, timeout=timeout)
+    return r.returncode, r.stdout.decode(), r.stderr.decode()
+
+
+def danprobe_json(*args):
+    rc, out, err = danprobe(*args, "--json")
+    assert rc == 0, (rc, out, err)
+    return json.loads(out)
+
+
+def dan_master(port, *steps, types=TYPES):
+    r = subprocess.run([str(BIN / "dan-master"), "--port", port, "--types", types, "--json", *steps],
+                       stdin=subprocess.DEVNULL, capture_output=True, timeout=120)
+    assert r.returncode == 0, (r.stdout, r.stderr)
+    return [json.loads(x) for x in r.stdout.decode().splitlines()]
+
+
+@pytest.fixture
+def bus3(procs, tmp_path):
+    """Master endpoint 0, test-a, test-b, can-gw (no 57600) on 1..3, endpoint 4 spare."""
+    vbus, eps, ctl = start_vbus(procs, tmp_path, 5)
+    for ep, t, mask in ((eps[1], "test-a", "0x0F"), (eps[2], "test-b", "0x0F"),
+                        (eps[3], "can-gw", "0x0B")):
+        start_periph(procs, ep, t, mask)
+    return eps
+
+
+def test_discover_identities(bus3):
+    doc = danprobe_json("discover", "--port", bus3[0], "--types", TYPES, "-q")
+    assert doc["command"] == "discover" and doc["result"] == 0 and doc["baud"] == 9600
+    peers = {p["type"]: p for p in doc["peers"]}
+    assert set(peers) == {"test-a", "test-b", "can-gw"}          # no VTX on this bus
+    assert peers["test-a"]["manufacturer"] == "DAN Project" and peers["test-b"]["model"] == "test-b"
+    assert peers["can-gw"]["baud_mask"] == 0x0B and peers["can-gw"]["bauds"] == [9600, 19200, 38400, 115200]
+    assert all(p["baud"] == 9600 and p["dan_version"] == 1 for p in peers.values())
+    rc, out, err = danprobe("discover", "--port", bus3[0], "--types", "test-a,can-gw")
+    assert rc == 0
+    assert "test-a" in out and "can-gw" in out and "DAN Project" in out and "test-b" not in out
+    assert "probing" in err                                      # progress on stderr
+
+
+def test_discover_after_configure_finds_higher_baud(bus3):
+    """Peripherals keep their baud when the master restarts: discovery finds
+    them at 38400 (set by dan-master) and danprobe's configure is seen by
+    dan-master the same way."""
+    dan_master(bus3[0], "discover", "configure:38400")
+    doc = danprobe_json("discover", "--port", bus3[0], "--types", TYPES, "-q")
+    assert {p["baud"] for p in doc["peers"]} == {38400} and len(doc["peers"]) == 3
+    assert doc["baud"] == 38400
+    doc = danprobe_json("configure", "--port", bus3[0], "--types", TYPES, "-q")
+    assert doc["result"] == 0 and doc["target"] == 115200 and doc["baud"] == 115200
+    disc = dan_master(bus3[0], "discover")[0]
+    assert {p["baud"] for p in disc["peers"]} == {115200} and len(disc["peers"]) == 3
+
+
+def test_configure_then_sniff_capture(bus3, tmp_path):
+    rc, out, err = danprobe("configure", "--port", bus3[0], "--types", TYPES, "--baud", "115200")
+    assert rc == 0, err
+    assert "bus at 115200 baud" in out
+    doc = danprobe_json("discover", "--port", bus3[0], "--types", "test-a", "-q")
+    assert doc["peers"][0]["baud"] == 115200
+    # an unsupported target is refused up front: can-gw has no 57600
+    rc, out, err = danprobe("configure", "--port", bus3[0], "--types", TYPES, "--baud", "57600", "-q")
+    assert rc == 1 and "can-gw does not support 57600" in err
+
+    rc, out, err = danprobe("sniff", "--capture", tmp_path / "bus.cap", "--json")
+    assert rc == 0, err
+    events = [json.loads(x) for x in out.splitlines()]
+    summary = events.pop()
+    assert summary["event"] == "summary" and summary["crc_errors"] == 0
+    frames = [e for e in events if e["event"] == "frame"]
+    conf_req = [e for e in frames if e["name"].endswith("CONFIGURE") and e["role"] == "request"]
+    conf_rsp = [e for e in frames if e["name"].endswith("CONFIGURE") and e["role"] == "response"]
+    assert {e["name"] for e in conf_req} == {"test-a CONFIGURE", "test-b CONFIGURE", "can-gw CONFIGURE"}
+    assert all(e["fields"] == {"request_type": 0, "baud": 115200} and e["source"] == 0
+               and e["baud"] == 9600 for e in conf_req)
+    assert len(conf_rsp) == 3 and all(e["fields"] == {"ack": "OK"} for e in conf_rsp)
+    assert {e["source"] for e in conf_rsp} == {1, 2, 3}
+    ids = [e for e in frames if e["name"] == "test-b IDENTIFY" and e["role"] == "response"]
+    assert ids and ids[0]["fields"]["model"] == "test-b" and ids[0]["source"] == 2
+    assert any(e["baud"] == 115200 and e["name"] == "test-a IDENTIFY" for e in frames)
+    assert all(e["gap_ms"] is None or e["gap_ms"] >= 0 for e in frames)
+    assert summary["frames_by_name"]["vtx IDENTIFY"] >= 2         # probed, never answered
+    # the human form, and --count
+    rc, out, err = danprobe("sniff", "--capture", tmp_path / "bus.cap", "--count", "2")
+    lines = out.splitlines()
+    assert rc == 0 and len(lines) == 3 and lines[-1].startswith("summary:")
+    assert "test-a IDENTIFY (0x60) request" in lines[0] and "manufacturer='DAN Project'" in lines[1]
+
+
+def test_live_sniff_while_dan_master_runs(bus3, procs):
+    """The sniffer only listens on a spare endpoint while dan-master talks."""
+    sn = procs.start([sys.executable, "-m", "danprobe", "sniff", "--port", bus3[4], "--json",
+                      "--count", "8", "--timeout", "60"], name="danprobe-sniff")
+    wait_for(lambda: "listening" in sn.log_path.read_text(), timeout=30, what="sniffer ready")
+    dan_master(bus3[0], "discover", "request:0x62:616263", types="test-a,test-b,can-gw")
+    out, _ = sn.communicate(timeout=60)
+    assert sn.returncode == 0, sn.log_path.read_text()
+    events = [json.loads(x) for x in out.decode().splitlines()]
+    frames = [e for e in events if e["event"] == "frame"]
+    assert [(e["name"], e["role"]) for e in frames] == [
+        ("test-a IDENTIFY", "request"), ("test-a IDENTIFY", "response"),
+        ("test-b IDENTIFY", "request"), ("test-b IDENTIFY", "response"),
+        ("can-gw IDENTIFY", "request"), ("can-gw IDENTIFY", "response"),
+        ("test-a 0x62", "request"), ("test-a 0x62", "response")]
+    assert frames[3]["fields"]["model"] == "test-b" and frames[5]["fields"]["baud_mask"] == 0x0B
+    assert frames[6]["payload"] == "616263" and frames[7]["payload"] == "636261"
+    assert all(e["source"] is None and e["baud"] == 9600 for e in frames)
+    assert events[-1]["event"] == "summary" and events[-1]["frames"] == 8
+    assert events[-1]["crc_errors"] == 0
+
+
+def test_silent_busy_and_missing_ports(procs, tmp_path):
+    vbus, eps, ctl = start_vbus(procs, tmp_path, 2)
+    rc, out, err = danprobe("discover", "--port", eps[0], "--types", "test-a")
+    assert rc == 1 and "no peripheral answered" in err
+    rc, out, err = danprobe("discover", "--port", eps[0], "--types", "test-a", "--json", "-q")
+    doc = json.loads(out)
+    assert rc == 1 and doc["result"] == -9 and doc["peers"] == []
+    rc, out, err = danprobe("sniff", "--port", eps[0], "--timeout", "0.5", "-q")
+    assert rc == 1 and "no DAN frame heard" in err
+    with serial.Serial(eps[1], 9600, exclusive=True):
+        rc, out, err = danprobe("discover", "--port", eps[1])
+        assert rc == 2 and "busy" in err
+    rc, out, err = danprobe("discover", "--port", tmp_path / "nope")
+    assert rc == 2 and "No such file or directory" in err
+    rc, out, err = danprobe("sniff", "--port", "/dev/null")
+    assert rc == 2 and "not a serial port" in err
+    rc, out, err = danprobe("sniff", "--capture", tmp_path / "nope.cap")
+    assert rc == 2 and "nope.cap" in err
+
+
+@pytest.mark.parametrize("args, message", [
+    ([], "required"),
+    (["frobnicate"], "invalid choice"),
+    (["discover"], "--port"),
+    (["discover", "--port", "/dev/null", "--types", "bogus"], "unknown type"),
+    (["configure", "--port", "/dev/null", "--baud", "fast"], "not a number"),
+    (["discover", "--port", "/dev/null", "--timeout", "0"], "must be positive"),
+    (["sniff"], "--port or --capture"),
+    (["sniff", "--port", "/dev/null", "--capture", "x"], "not both"),
+    (["sniff", "--capture", "x", "--count", "0"], "at least 1"),
+])
+def test_bad_arguments(args, message):
+    rc, out, err = danprobe(*args)
+    assert rc == 2 and message in err, (rc, err)
+
+
+def test_help():
+    script = Path(sys.executable).parent / "danprobe"
+    if script.exists():                                         # the console script (make venv)
+        r = subprocess.run([str(script), "--help"], capture_output=True, timeout=60)
+        assert r.returncode == 0 and b"discover" in r.stdout
+    for cmd in ("discover", "configure", "sniff"):
+        rc, out, err = danprobe(cmd, "--help")
+        assert rc == 0 and "--port" in out and "--json" in out and "--timeout" in out
