@@ -57,7 +57,7 @@ BINS     := $(patsubst host_tools/c/%.c,$(BUILD)/bin/%,$(TOOL_SRC)) \
 UNITS    := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(UNIT_SRC))
 ALL_LIBS  = $(if $(GWL_SRC),$(LIBGWL)) $(if $(GW_SRC),$(LIBGW)) $(if $(PORT_SRC),$(LIBPOSIX)) $(LIB)
 
-.PHONY: objects all test unit unit-run pytest cross install clean deps-build deps-test deps-cross venv
+.PHONY: demo objects all test unit unit-run pytest cross install clean deps-build deps-test deps-cross venv
 .DELETE_ON_ERROR:
 
 all: deps-build $(ALL_LIBS) $(BINS)
@@ -175,6 +175,11 @@ unit-run: unit
 pytest: all venv firmware
 	CI=$${CI:-} $(VENV)/bin/python -m pytest -q tests/e2e
 
+# The one-command demo: a DAN bus, the gateway and four DroneCAN ESCs on
+# virtual wires, driven by danprobe.
+demo: all venv
+	$(VENV)/bin/python host_tools/demo.py
+
 test: deps-test deps-firmware
 	$(MAKE) --no-print-directory unit-run
 	$(MAKE) --no-print-directory BUILD=build/asan SAN=1 unit-run
@@ -183,6 +188,11 @@ test: deps-test deps-firmware
 # ---- firmware (Cortex-M4 under QEMU), size budget, portability -------------
 
 include examples/fc_firmware/firmware.mk
+
+# ---- benchmarks (make bench, make soak) and fuzzing (make fuzz) -------------
+
+include tests/bench/bench.mk
+include tests/fuzz/fuzz.mk
 
 # ---- cross build ------------------------------------------------------------
 

@@ -1,0 +1,29 @@
+# Benchmarks (not part of `make test`). Included by the Makefile; uses its
+# BUILD, CC, VENV, ALL_LIBS, deps-test, venv and all.
+#
+#   make bench                 one table of ratios; build/bench/results.json
+#                              (+ a timestamped copy), delta vs the previous run
+#   make bench BENCH_ARGS='--only esc,parser --seconds 10'
+#   make bench SOAK=600        the full ESC loop for 600 s: RSS and counters
+#   make soak [SOAK=300]       the same (default 300 s)
+
+BENCH_DIR   := $(BUILD)/bench
+BENCH_CFLAGS = -std=c99 -Wall -Wextra -Werror -O2 -g -Iinclude -Iperipherals/can_gateway -D_GNU_SOURCE
+BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway
+SOAK        ?=
+BENCH_ARGS  ?=
+
+.PHONY: bench soak bench-build
+
+$(BENCH_DIR)/bench_%: tests/bench/bench_%.c $(ALL_LIBS)
+	@mkdir -p $(@D)
+	$(CC) $(BENCH_CFLAGS) -o $@ $^ -lm
+
+bench-build: deps-test all venv $(BENCH_BINS)
+
+bench: bench-build
+	$(VENV)/bin/python tests/bench/run_bench.py --build $(BUILD) --out $(BENCH_DIR) \
+	  $(if $(SOAK),--soak $(SOAK)) $(BENCH_ARGS)
+
+soak: bench-build
+	$(VENV)/bin/python tests/bench/run_bench.py --build $(BUILD) --out $(BENCH_DIR) --soak $(or $(SOAK),300)

@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""Writes the fuzz seed corpora (tests/fuzz/corpus/<target>/) from the shared
+test vectors in tests/vectors/. Deterministic: file names are the SHA-1 of
+the content, so rerunning changes nothing. Input layouts: tests/fuzz/targets.c.
+
+    python3 tests/fuzz/gen_corpus.py [OUTDIR]
+"""
+import hashlib
+import struct
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+VEC = ROOT / "tests" / "vectors"
+
+GW_CODES = {"esc_cmd": 0x42, "esc_telem": 0x43, "telem": 0x42, "arm": 0x44, "config": 0x45,
+            "stats": 0x46, "nodes": 0x47, "node_info": 0x48, "tun_open": 0x49, "tun_xfer": 0x4A,
+            "can_send": 0x4B, "can_recv": 0x4C, "can_filter": 0x4D}
+DSDL_SEL = {"node_status": 0, "get_node_info_rsp": 1, "get_node_info_req": 1, "raw_command": 2,
+            "esc_status": 3, "esc_status_extended": 4, "arming_status": 5,
+            "tunnel_targetted": 6, "tunnel_broadcast": 7}
+
+
+def lines(name):
+    for line in (VEC / name).read_text().splitlines():
+        if line.strip() and not line.startswith("#"):
+            yield line
+
+
+def can_frames(spec):
+    """'1401550A#01..' items -> [(id, ext, data)]"""
+    out = []
+    for item in spec.split():
+        i, d = item.split("#")
+        out.append((int(i, 16), len(i) == 8, bytes.fromhex(d)))
+    return out
+
+
+def can_record(fid, ext, data, flags_hi=0):
+    return struct.pack("<IBB", fid, (1 if ext else 0) | flags_hi, len(data)) + data.ljust(8, b"\0")
+
+
+def main():
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "tests" / "fuzz" / "corpus"
+    seeds = {}
+
+    def add(target, data):
+        seeds.setdefault(target, set()).add(bytes(data))
+
+    # frame decoder: whole frames and streams, fed at once and byte by byte
+    for line in lines("frames.txt"):
+        wire = bytes.fromhex(line.split()[-1])
+        add("frame", b"\x10\x00" + wire)
+        add("frame", b"\x00\x80" + wire)
+    for line in lines("streams.txt"):
+        stream = bytes.fromhex(line.split()[1])
+        add("frame", b"\x10\x00" + stream)
+        add("frame", b"\x02\x55" + stream)
+    # common payloads
+    sel = {"identity": 0, "bad_identity": 0, "configure": 1, "bad_configure": 1,
+           "unsupported_configure": 1, "ack": 2, "bad_ack": 2, "error": 3, "bad_error": 3}
+    for line in lines("payloads.txt"):
+        f = line.split("\t")
+        hx = f[-1].strip()
+        add("payloads", bytes([sel[f[0]]]) + (b"" if hx == "-" else bytes.fromhex(hx)))
+    # gateway requests (handlers) and responses (client)
+    script = bytearray()
+    for line in lines("gateway.txt"):
+        head, hx = line.split(" : ")
+        msg, d = head.split()[:2]
+        payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
+        code = GW_CODES[msg]
+        if d == "req":
+            req = bytes([((code - 0x40) << 2), len(payload)]) + payload
+            add("gw_handlers", req)
+            script += req
+        else:
+            add("gw_client", bytes([code - 0x42, 0]) + payload)
+    # a session: identify, configure, the requests, CAN traffic, time passing
+    dc = [can_frames(l.split(" : ")[1]) for l in lines("dronecan.txt")]
+    can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
+    add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
+    add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
+    # DroneCAN reassembly: each vector's frames, and all of them interleaved
+    for fr in dc:
+        add("dronecan_rx", b"\x0a" + b"".join(can_record(i, e, d) for (i, e, d) in fr))
+    add("dronecan_rx", b"\x0a" + b"".join(can_record(i, e, d, 0x10) for fr in dc for (i, e, d) in fr))
+    # DSDL payloads (transfer CRC and tail bytes removed)
+    for line in lines("dronecan.txt"):
+        name = line.split()[0]
+        fr = can_frames(line.split(" : ")[1])
+        payload = b"".join(d[:-1] for (_, _, d) in fr)
+        if len(fr) > 1:
+            payload = payload[2:]
+        add("dsdl", bytes([DSDL_SEL[name]]) + payload)
+    # SLCAN lines
+    for fr in dc[:6]:
+        for (i, e, d) in fr:
+            add("slcan", (f"T{i:08X}" if e else f"t{i:03X}").encode() + f"{len(d)}".encode() + d.hex().encode())
+    for s in (b"t1230", b"t12381122334455667788", b"r7FF2", b"R1FFFFFFF8", b"T0000000100ABCD",
+              b"z", b"Z", b"", b"t1AB2010203ff", b"x"):
+        add("slcan", s)
+
+    for target, items in sorted(seeds.items()):
+        d = out / target
+        d.mkdir(parents=True, exist_ok=True)
+        for data in sorted(items):
+            (d / hashlib.sha1(data).hexdigest()).write_bytes(data)
+        print(f"{target}: {len(items)} seeds")
+
+
+if __name__ == "__main__":
+    main()
