@@ -3,22 +3,44 @@
 
 #include "dan/gateway.h"
 
+/* The master's reply check: a gateway reply must carry a matching seal, so
+ * a reply corrupted past the frame CRC is retried, never decoded. */
+static int check_seal(void *user, uint32_t code, const uint8_t *p, size_t len)
+{
+    (void)user;
+    if (!dan_gw_sealed_code(code)) {
+        return DAN_OK;
+    }
+    return dan_gw_unseal(code, DAN_GW_RESPONSE, p, len) < 0 ? DAN_ERR_MALFORMED : DAN_OK;
+}
+
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m)
 {
     memset(gw, 0, sizeof *gw);
     gw->m = m;
+    if (m != NULL) {
+        dan_master_set_reply_check(m, check_seal, gw);
+    }
     gw->telem_next = DAN_GW_NONE;
     gw->last_telem = DAN_GW_NONE;
 }
 
-/* Starts a transaction with the payload in buf. */
+/* Starts a transaction with the payload in buf, sealed. */
 static int start(dan_gw_t *gw, uint32_t code, const uint8_t *buf, int len, uint64_t now_us)
 {
+    uint8_t sealed[DAN_MAX_PAYLOAD];
     int rc;
     if (len < 0) {
         return len;
     }
-    rc = dan_master_request(gw->m, code, buf, (size_t)len, now_us);
+    if ((size_t)len > 0u) {
+        memcpy(sealed, buf, (size_t)len);
+    }
+    len = dan_gw_seal(code, DAN_GW_REQUEST, sealed, (size_t)len, sizeof sealed);
+    if (len < 0) {
+        return len;
+    }
+    rc = dan_master_request(gw->m, code, sealed, (size_t)len, now_us);
     if (rc == DAN_OK) {
         gw->code = code;
     }
@@ -280,6 +302,12 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
     if (rc != DAN_OK || code == 0u) {
         return gw->result = rc;
     }
+    rc = dan_gw_unseal(code, DAN_GW_RESPONSE, p, len); /* checked by the master already */
+    if (rc < 0) {
+        return gw->result = rc;
+    }
+    len = (size_t)rc;
+    rc = DAN_OK;
     switch (code) {
     case DAN_GW_CODE_ESC_CMD:
     case DAN_GW_CODE_ESC_TELEM:
@@ -366,10 +394,15 @@ int dan_gw_poll(dan_gw_t *gw, uint64_t now_us)
 static int resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
 {
     const dan_master_t *m = gw->m;
+    int n;
     if (m->resp_code != code || dan_master_result(m) != DAN_OK) {
         return DAN_ERR_NOTFOUND;
     }
-    dan_reader_init(r, m->resp, m->resp_len);
+    n = dan_gw_unseal(code, DAN_GW_RESPONSE, m->resp, m->resp_len);
+    if (n < 0) {
+        return n;
+    }
+    dan_reader_init(r, m->resp, (size_t)n);
     return DAN_OK;
 }
 

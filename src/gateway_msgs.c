@@ -2,6 +2,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "dan/codes.h"
 #include "dan/gateway_msgs.h"
 
 static int finish_reader(const dan_reader_t *r)
@@ -605,4 +606,73 @@ bool dan_gw_filter_match(const dan_gw_filter_t *e, const dan_can_frame_t *f)
         return false;
     }
     return ((f->id ^ e->id) & e->mask & DAN_CAN_EFF_MASK) == 0u;
+}
+
+/* ---- the seal ---- */
+
+bool dan_gw_sealed_code(uint32_t code)
+{
+    return code >= DAN_GW_CODE_ESC_CMD && code <= DAN_TYPE_CAN_GW_LAST;
+}
+
+static uint16_t crc16_step(uint16_t crc, uint8_t byte)
+{
+    int i;
+    crc = (uint16_t)(crc ^ (uint16_t)((unsigned)byte << 8));
+    for (i = 0; i < 8; i++) {
+        crc = (uint16_t)((crc & 0x8000u) ? (unsigned)(crc << 1) ^ 0x1021u : (unsigned)(crc << 1));
+    }
+    return crc;
+}
+
+uint16_t dan_gw_check(uint32_t code, uint8_t dir, const uint8_t *p, size_t len)
+{
+    uint8_t c[DAN_UVARINT_MAX_BYTES];
+    int n = dan_uvarint_encode(code, c, sizeof c), i;
+    uint16_t crc = 0xFFFFu;
+    size_t k;
+    for (i = 0; i < n; i++) {
+        crc = crc16_step(crc, c[i]);
+    }
+    crc = crc16_step(crc, dir);
+    for (k = 0; k < len; k++) {
+        crc = crc16_step(crc, p[k]);
+    }
+    return crc;
+}
+
+int dan_gw_seal(uint32_t code, uint8_t dir, uint8_t *p, size_t len, size_t cap)
+{
+    uint16_t c;
+    if (cap < DAN_GW_SEAL_SIZE || len > cap - DAN_GW_SEAL_SIZE) {
+        return DAN_ERR_OVERFLOW;
+    }
+    c = dan_gw_check(code, dir, p, len);
+    p[len] = (uint8_t)(c & 0xFFu);
+    p[len + 1u] = (uint8_t)(c >> 8);
+    return (int)(len + DAN_GW_SEAL_SIZE);
+}
+
+int dan_gw_unseal(uint32_t code, uint8_t dir, const uint8_t *p, size_t len)
+{
+    uint16_t c;
+    if (p == NULL || len < DAN_GW_SEAL_SIZE) {
+        return DAN_ERR_MALFORMED;
+    }
+    len -= DAN_GW_SEAL_SIZE;
+    c = dan_gw_check(code, dir, p, len);
+    if (p[len] != (uint8_t)(c & 0xFFu) || p[len + 1u] != (uint8_t)(c >> 8)) {
+        return DAN_ERR_MALFORMED;
+    }
+    return (int)len;
+}
+
+const char *dan_gw_stat_name(unsigned i)
+{
+    static const char *const names[DAN_GW_STAT_COUNT] = {
+        "dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
+        "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers", "dc_crc_errors",
+        "dc_errors", "esc_cmds", "failsafes", "failsafe_active", "tun_dropped", "raw_dropped",
+        "nodes", "bad_checks"};
+    return (i < DAN_GW_STAT_COUNT) ? names[i] : NULL;
 }

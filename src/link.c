@@ -122,8 +122,10 @@ void dan_link_rx(dan_link_t *l, const uint8_t *data, size_t len, uint64_t now_us
     if (l->state == DAN_LINK_TX && l->port.echo) {
         while (i < len && l->echo_pos < l->tx_len) {
             if (data[i] != l->tx[l->echo_pos]) {
-                /* Someone else drove the wire at the same time. */
+                /* Someone else drove the wire at the same time. The rest
+                 * of our frame may still reach our decoder: remember it. */
                 l->stats.collisions++;
+                l->echo_late_us = now_us;
                 end_tx(l, DAN_LINK_TX_FAILED, now_us);
                 break;
             }

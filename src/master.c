@@ -109,6 +109,12 @@ static bool port_supports(const dan_master_t *m, uint32_t baud)
     return m->link.port.max_baud == 0u || baud <= m->link.port.max_baud;
 }
 
+void dan_master_set_reply_check(dan_master_t *m, dan_reply_check_fn fn, void *user)
+{
+    m->reply_check = fn;
+    m->reply_check_user = user;
+}
+
 uint32_t dan_master_best_baud(const dan_master_t *m)
 {
     uint16_t mask = DAN_BAUD_MASK_DEFINED;
@@ -187,6 +193,9 @@ static void txn_start(dan_master_t *m, uint32_t code, const uint8_t *payload, si
 /* An attempt failed (timeout or collision): retry or give up. */
 static void txn_attempt_failed(dan_master_t *m, int why, uint64_t now_us)
 {
+    if (m->link.state == DAN_LINK_TX_DONE) {
+        dan_link_ack(&m->link); /* failed from on_frame, before a poll */
+    }
     if (m->attempts_left > 0u) {
         m->attempts_left--;
     }
@@ -217,6 +226,12 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
         return;
     }
     if (f->code == m->req_code) {
+        if (m->reply_check != NULL &&
+            m->reply_check(m->reply_check_user, f->code, f->payload, f->len) != DAN_OK) {
+            m->stats.bad_replies++;
+            txn_attempt_failed(m, DAN_ERR_MALFORMED, now_us);
+            return;
+        }
         memcpy(m->resp, f->payload, f->len);
         m->resp_len = f->len;
         m->resp_code = f->code;

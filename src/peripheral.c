@@ -104,6 +104,12 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
     dan_periph_t *p = (dan_periph_t *)owner;
     const dan_ptype_t *t = find_type(p, f->code);
     size_t i;
+    if (dan_link_is_late_echo(&p->link, f, now_us)) {
+        /* Our own reply, heard after a collision broke its echo: a reply
+         * has the request's code, so it must never be served as one. */
+        p->stats.own_echoes++;
+        return;
+    }
     if (t == NULL || f->code == DAN_CODE_ERROR) {
         p->stats.unknown++;
         return;

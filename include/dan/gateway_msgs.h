@@ -164,8 +164,12 @@ enum {
     DAN_GW_STAT_TUN_DROPPED,       /* tunnel bytes dropped (both ways) */
     DAN_GW_STAT_RAW_DROPPED,       /* raw frames dropped (receive ring full) */
     DAN_GW_STAT_NODES,             /* nodes in the table */
+    DAN_GW_STAT_BAD_CHECKS,        /* requests whose seal did not match (dropped) */
     DAN_GW_STAT_COUNT
 };
+
+/* The counter's name as in docs/PROTOCOL.md ("dan_frames"), or NULL. */
+const char *dan_gw_stat_name(unsigned i);
 
 int dan_gw_msg_stats_encode(const uint32_t *v, size_t n, uint8_t *out, size_t cap);
 /* Fills v[0..cap) (unknown trailing counters skipped, missing ones 0);
@@ -338,6 +342,30 @@ static inline int32_t dan_gw_off_diff(uint32_t a, uint32_t b)
 {
     return (int32_t)(a - b); /* two's complement on every target we build for */
 }
+
+/*
+ * The seal. crc8 alone accepts about one in 256 frames corrupted by a
+ * collision, and a gateway message moves throttle, arming and tunnel bytes:
+ * every gateway message (codes 0x42-0x4F, requests and responses) ends with
+ * a u16 (little endian) check, CRC-16/CCITT-FALSE (poly 0x1021, init
+ * 0xFFFF) over the code's uvarint bytes, one direction byte (0 request,
+ * 1 response: a reply has its request's code and must never pass for one)
+ * and the payload before the check. The message codecs above work on the
+ * inner payload; the client and the gateway node seal and unseal at the
+ * transport (docs/PROTOCOL.md 7).
+ */
+#define DAN_GW_SEAL_SIZE 2u
+#define DAN_GW_REQUEST  0u
+#define DAN_GW_RESPONSE 1u
+
+/* True for the codes that carry a seal. */
+bool dan_gw_sealed_code(uint32_t code);
+uint16_t dan_gw_check(uint32_t code, uint8_t dir, const uint8_t *p, size_t len);
+/* Appends the check to p (len bytes, cap room): the new length, or
+ * DAN_ERR_OVERFLOW. dir: DAN_GW_REQUEST or DAN_GW_RESPONSE. */
+int dan_gw_seal(uint32_t code, uint8_t dir, uint8_t *p, size_t len, size_t cap);
+/* Verifies a sealed payload: the inner length, or DAN_ERR_MALFORMED. */
+int dan_gw_unseal(uint32_t code, uint8_t dir, const uint8_t *p, size_t len);
 
 #ifdef __cplusplus
 }

@@ -89,7 +89,7 @@ typedef struct {
     uint32_t char_us;         /* one character time at baud */
     uint32_t gap_us;          /* 0 = default: max(DAN_GAP_CHARS * C, DAN_GAP_MIN_US) */
     uint32_t echo_timeout_us; /* echo must be complete by T_end + this (0 = gap) */
-    uint64_t echo_late_us;    /* when our echo last went missing (0: never) */
+    uint64_t echo_late_us;    /* when our echo last went missing or broke (0: never) */
     dan_decoder_t dec;
     uint8_t tx[DAN_MAX_FRAME];
     size_t tx_len;
@@ -133,15 +133,16 @@ int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t l
 dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us);
 /* Acknowledges TX_DONE / TX_FAILED, back to IDLE. */
 void dan_link_ack(dan_link_t *l);
-/* How long after an echo timeout a copy of our own frame is taken for our
- * late echo (a slow USB adapter, a stalled host), not for a reply. */
+/* How long after an echo timeout or a collision a copy of our own frame is
+ * taken for our own echo (late, or the tail of a frame a collision broke),
+ * never for a frame from someone else. */
 #ifndef DAN_ECHO_LATE_HOLD_US
 #define DAN_ECHO_LATE_HOLD_US 1000000u
 #endif
 
 /* True if f is a copy of the frame in our TX buffer and our echo went
- * missing less than DAN_ECHO_LATE_HOLD_US ago: it is our own echo arriving
- * late, never a reply. */
+ * missing or broke (collision) less than DAN_ECHO_LATE_HOLD_US ago: it is
+ * our own echo, never a reply or a request. */
 bool dan_link_is_late_echo(const dan_link_t *l, const dan_frame_t *f, uint64_t now_us);
 /* Expected end of the current transmission on the wire. */
 uint64_t dan_link_tx_end_us(const dan_link_t *l);

@@ -71,7 +71,13 @@ typedef struct {
     uint32_t lbt_waits;         /* transmissions delayed by a busy line */
     uint32_t busy_failures;     /* line never went idle */
     uint32_t recoveries;        /* configure verification failed and was recovered */
+    uint32_t bad_replies;       /* replies refused by the reply check (retried) */
 } dan_master_stats_t;
+
+/* An optional check of a reply's payload beyond the frame CRC (e.g. the
+ * gateway's seal): return DAN_OK to accept; anything else makes the
+ * attempt fail and the transaction retry, as for a collision. */
+typedef int (*dan_reply_check_fn)(void *user, uint32_t code, const uint8_t *payload, size_t len);
 
 typedef enum {
     DAN_MASTER_OP_NONE = 0,
@@ -113,6 +119,8 @@ typedef struct {
     bool done;
     int result;
     uint32_t rng;
+    dan_reply_check_fn reply_check;
+    void *reply_check_user;
     dan_master_stats_t stats;
 } dan_master_t;
 
@@ -156,6 +164,9 @@ int dan_master_discover(dan_master_t *m, uint64_t now_us);
  * each peer at the new baud. If a step fails, it recovers to a working
  * baud (9600) and the result tells what failed. */
 int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us);
+
+/* Installs a reply check (NULL: none). */
+void dan_master_set_reply_check(dan_master_t *m, dan_reply_check_fn fn, void *user);
 
 /* The highest baud every present peer and the port support (9600 if none). */
 uint32_t dan_master_best_baud(const dan_master_t *m);

@@ -70,6 +70,7 @@ typedef struct {
     uint32_t configures;
     uint32_t nacks;             /* CONFIGURE answered ACK-FAIL */
     uint32_t baud_changes;
+    uint32_t own_echoes;        /* copies of our own reply ignored (after a collision) */
 } dan_periph_stats_t;
 
 typedef struct {

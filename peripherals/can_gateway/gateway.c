@@ -832,14 +832,10 @@ static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len,
     return emit(resp, dan_gw_msg_config_rsp_encode(&c, resp->buf, resp->cap));
 }
 
-static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len,
-                   dan_writer_t *resp, const char **err, uint64_t now_us)
+void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
 {
-    dan_gw_node_t *g = touch(user, now_us);
-    uint32_t v[DAN_GW_STAT_COUNT];
     size_t i;
-    (void)code; (void)req; (void)len; (void)err;
-    memset(v, 0, sizeof v);
+    memset(v, 0, sizeof(uint32_t) * DAN_GW_STAT_COUNT);
     if (g->periph != NULL) {
         const dan_periph_t *p = g->periph;
         v[DAN_GW_STAT_DAN_FRAMES] = p->link.dec.stats.frames;
@@ -863,9 +859,19 @@ static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len,
     v[DAN_GW_STAT_FAILSAFE_ACTIVE] = g->failsafe ? 1u : 0u;
     v[DAN_GW_STAT_TUN_DROPPED] = g->stats.tun_dropped;
     v[DAN_GW_STAT_RAW_DROPPED] = g->stats.raw_dropped;
+    v[DAN_GW_STAT_BAD_CHECKS] = g->stats.bad_checks;
     for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
         v[DAN_GW_STAT_NODES] += g->nodes[i].e.node_id != 0u;
     }
+}
+
+static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len,
+                   dan_writer_t *resp, const char **err, uint64_t now_us)
+{
+    dan_gw_node_t *g = touch(user, now_us);
+    uint32_t v[DAN_GW_STAT_COUNT];
+    (void)code; (void)req; (void)len; (void)err;
+    dan_gw_node_counters(g, v);
     return emit(resp, dan_gw_msg_stats_encode(v, DAN_GW_STAT_COUNT, resp->buf, resp->cap));
 }
 
@@ -1153,13 +1159,48 @@ static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t le
     return DAN_OK;
 }
 
-static const dan_handler_t handlers[] = {
+static const dan_handler_t inner_handlers[] = {
     {DAN_GW_CODE_ESC_CMD, h_esc_cmd},       {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
     {DAN_GW_CODE_ARM, h_arm},               {DAN_GW_CODE_CONFIG, h_config},
     {DAN_GW_CODE_STATS, h_stats},           {DAN_GW_CODE_NODES, h_nodes},
     {DAN_GW_CODE_NODE_INFO, h_node_info},   {DAN_GW_CODE_TUN_OPEN, h_tun_open},
     {DAN_GW_CODE_TUN_XFER, h_tun_xfer},     {DAN_GW_CODE_CAN_SEND, h_can_send},
     {DAN_GW_CODE_CAN_RECV, h_can_recv},     {DAN_GW_CODE_CAN_FILTER, h_can_filter},
+};
+
+/* Every gateway message is sealed (dan/gateway_msgs.h): check the request's
+ * seal before anything acts on it, and seal the response. A request whose
+ * seal fails was corrupted past the frame CRC (a collision): it is dropped
+ * without a reply, like a bad CRC, and the master retries. */
+static int h_sealed(void *user, uint32_t code, const uint8_t *req, size_t len,
+                    dan_writer_t *resp, const char **err, uint64_t now_us)
+{
+    dan_gw_node_t *g = (dan_gw_node_t *)user;
+    int n = dan_gw_unseal(code, DAN_GW_REQUEST, req, len), rc;
+    size_t i;
+    if (n < 0) {
+        g->stats.bad_checks++;
+        return DAN_PERIPH_NO_REPLY;
+    }
+    for (i = 0; i < sizeof inner_handlers / sizeof inner_handlers[0]; i++) {
+        if (inner_handlers[i].code == code) {
+            rc = inner_handlers[i].fn(user, code, req, (size_t)n, resp, err, now_us);
+            if (rc == DAN_OK && !resp->error && resp->buf != NULL) {
+                dan_put_u16(resp, dan_gw_check(code, DAN_GW_RESPONSE, resp->buf, resp->len));
+            }
+            return rc;
+        }
+    }
+    return DAN_PERIPH_NO_REPLY;
+}
+
+static const dan_handler_t handlers[] = {
+    {DAN_GW_CODE_ESC_CMD, h_sealed},   {DAN_GW_CODE_ESC_TELEM, h_sealed},
+    {DAN_GW_CODE_ARM, h_sealed},       {DAN_GW_CODE_CONFIG, h_sealed},
+    {DAN_GW_CODE_STATS, h_sealed},     {DAN_GW_CODE_NODES, h_sealed},
+    {DAN_GW_CODE_NODE_INFO, h_sealed}, {DAN_GW_CODE_TUN_OPEN, h_sealed},
+    {DAN_GW_CODE_TUN_XFER, h_sealed},  {DAN_GW_CODE_CAN_SEND, h_sealed},
+    {DAN_GW_CODE_CAN_RECV, h_sealed},  {DAN_GW_CODE_CAN_FILTER, h_sealed},
 };
 
 void dan_gw_node_ptype(dan_gw_node_t *g, dan_ptype_t *t)

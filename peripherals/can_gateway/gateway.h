@@ -107,6 +107,7 @@ typedef struct {
     uint32_t nodes_dropped;     /* node table full */
     uint32_t info_requests;     /* GetNodeInfo requests sent */
     uint32_t dan_requests;      /* gateway requests handled */
+    uint32_t bad_checks;        /* requests whose seal failed (dropped) */
 } dan_gw_node_stats_t;
 
 typedef struct {
@@ -189,6 +190,8 @@ int dan_gw_node_init(dan_gw_node_t *g, const dan_gw_node_config_t *cfg, uint64_t
 void dan_gw_node_ptype(dan_gw_node_t *g, dan_ptype_t *t);
 /* The peripheral engine whose counters STATS reports (may be NULL). */
 void dan_gw_node_attach(dan_gw_node_t *g, const dan_periph_t *p);
+/* The STATS counters (DAN_GW_STAT_*, names: dan_gw_stat_name()). */
+void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT]);
 
 /* A frame received from the CAN bus. */
 void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);

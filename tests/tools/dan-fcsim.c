@@ -424,20 +424,15 @@ static int do_step(char *step)
         return 0;
     }
     if (!strcmp(name, "stats")) {
-        static const char *names[DAN_GW_STAT_COUNT] = {
-            "dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
-            "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers", "dc_crc_errors",
-            "dc_errors", "esc_cmds", "failsafes", "failsafe_active", "tun_dropped", "raw_dropped",
-            "nodes"};
         rc = dan_gw_stats(&g_gw, dan_posix_now_us());
         if (rc == DAN_OK) rc = run();
         if (rc != DAN_OK) return fail(step, rc);
         printf("{\"step\": \"stats\", \"ok\": true");
         for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
-            printf(", \"%s\": %u", names[i], g_gw.stats[i]);
+            printf(", \"%s\": %u", dan_gw_stat_name((unsigned)i), g_gw.stats[i]);
         }
-        printf(", \"master_timeouts\": %u, \"master_retries\": %u}\n", g_m.stats.timeouts,
-               g_m.stats.retries);
+        printf(", \"master_timeouts\": %u, \"master_retries\": %u, \"master_bad_replies\": %u}\n",
+               g_m.stats.timeouts, g_m.stats.retries, g_m.stats.bad_replies);
         return 0;
     }
     if (!strcmp(name, "tunnel")) {

@@ -368,6 +368,19 @@ static void advance(uint64_t us)
 }
 
 /* Completes the client's transaction in flight. */
+/* Starts a hand-built request, sealed as the client would. */
+static int request_sealed(uint32_t code, const uint8_t *payload, size_t n)
+{
+    uint8_t buf[DAN_MAX_PAYLOAD];
+    int len;
+    if (n > 0) {
+        memcpy(buf, payload, n);
+    }
+    len = dan_gw_seal(code, DAN_GW_REQUEST, buf, n, sizeof buf);
+    assert_true(len > 0);
+    return dan_master_request(&R->m, code, buf, (size_t)len, R->bus.now);
+}
+
 static int finish(void)
 {
     int r = sim_run_master(&R->bus, &R->m, 3000000);
@@ -512,8 +525,8 @@ static void test_esc_command_raw_command(void **state)
     (void)state;
     assert_int_equal(dan_gw_esc_command(&R->gw, v4, 4, R->bus.now), DAN_OK);
     assert_int_equal(dan_gw_esc_command(&R->gw, v4, 4, R->bus.now), DAN_ERR_BUSY);
-    /* the request is the 12-byte frame */
-    assert_int_equal(R->m.link.tx_len, 12);
+    /* the request is a 14-byte frame: 12 plus the seal */
+    assert_int_equal(R->m.link.tx_len, 14);
     assert_int_equal(finish(), DAN_OK);
     c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_non_null(c);
@@ -818,9 +831,9 @@ static void test_tunnel_targetted_retries(void **state)
         x.wr_offset = R->gw.tun[1].wr_offset + 10u;
         x.data = out;
         x.len = 4;
-        assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_TUN_XFER, req,
-                                            (size_t)dan_gw_msg_tun_xfer_req_encode(&x, req, sizeof req),
-                                            R->bus.now), DAN_OK);
+        assert_int_equal(request_sealed(DAN_GW_CODE_TUN_XFER, req,
+                                        (size_t)dan_gw_msg_tun_xfer_req_encode(&x, req, sizeof req)),
+                         DAN_OK);
         assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     }
 }
@@ -1164,18 +1177,18 @@ static void test_malformed(void **state)
     (void)state;
     advance(1000);
     errs = R->p.stats.errors_sent;
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_ESC_CMD, bad_esc, 3, R->bus.now), DAN_OK);
+    assert_int_equal(request_sealed(DAN_GW_CODE_ESC_CMD, bad_esc, 3), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     assert_int_equal(R->m.remote_error.code, DAN_GW_CODE_ESC_CMD);
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_ESC_CMD, NULL, 0, R->bus.now), DAN_OK);
+    assert_int_equal(request_sealed(DAN_GW_CODE_ESC_CMD, NULL, 0), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_CONFIG, bad_cfg, 2, R->bus.now), DAN_OK);
+    assert_int_equal(request_sealed(DAN_GW_CODE_CONFIG, bad_cfg, 2), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_CAN_FILTER, bad_filter, 2, R->bus.now), DAN_OK);
+    assert_int_equal(request_sealed(DAN_GW_CODE_CAN_FILTER, bad_filter, 2), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_CAN_SEND, bad_send, 7, R->bus.now), DAN_OK);
+    assert_int_equal(request_sealed(DAN_GW_CODE_CAN_SEND, bad_send, 7), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_ESC_TELEM, NULL, 0, R->bus.now), DAN_OK);
+    assert_int_equal(request_sealed(DAN_GW_CODE_ESC_TELEM, NULL, 0), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     assert_int_equal(R->p.stats.errors_sent - errs, 6);
     assert_int_equal(R->g.stats.esc_cmds, 0);
@@ -1187,13 +1200,100 @@ static void test_malformed(void **state)
     assert_true(R->gw.stats[DAN_GW_STAT_CAN_TX] >= 1);
 }
 
+/* A request corrupted past the frame CRC (its seal does not match) never
+ * acts: no RawCommand, no reply, counted; the master's retry (here: the
+ * next request) works. Likewise a corrupted reply is refused by the
+ * client's check and the master retries. */
+static void test_bad_seal_dropped(void **state)
+{
+    static const int16_t v[4] = {0, 100, 200, 300};
+    uint8_t buf[DAN_MAX_PAYLOAD];
+    int n;
+    size_t from, nf;
+    (void)state;
+    advance(1000);
+    n = dan_gw_msg_esc_cmd_encode(v, 4, buf, sizeof buf);
+    n = dan_gw_seal(DAN_GW_CODE_ESC_CMD, DAN_GW_REQUEST, buf, (size_t)n, sizeof buf);
+    buf[1] ^= 0x40; /* one value corrupted, frame CRC recomputed by the master */
+    nf = R->nframes;
+    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_ESC_CMD, buf, (size_t)n, R->bus.now), DAN_OK);
+    assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_TIMEOUT);
+    assert_int_equal(R->g.stats.bad_checks, 3); /* every attempt dropped */
+    assert_int_equal(R->g.stats.esc_cmds, 0);
+    from = 0;
+    assert_null(find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from));
+    (void)nf;
+    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->g.stats.esc_cmds, 1);
+    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.stats[DAN_GW_STAT_BAD_CHECKS], 3);
+    /* the client refuses a reply with a bad seal: the master counts it */
+    assert_int_equal(dan_gw_unseal(DAN_GW_CODE_STATS, DAN_GW_RESPONSE, R->m.resp, R->m.resp_len) > 0, 1);
+    R->m.resp[0] ^= 1;
+    assert_int_equal(R->m.reply_check(R->m.reply_check_user, DAN_GW_CODE_STATS, R->m.resp, R->m.resp_len),
+                     DAN_ERR_MALFORMED);
+}
+
+/* The seal against its vectors; every single-bit flip of a sealed payload
+ * is caught by the seal alone (CRC-16 detects all of them). */
+static void test_sealed_vectors(void **state)
+{
+    vec_file_t v;
+    int count = 0;
+    (void)state;
+    vec_open(&v, "gateway_sealed.txt");
+    while (vec_next(&v)) {
+        char *f[6];
+        uint8_t inner[DAN_MAX_PAYLOAD], sealed[DAN_MAX_PAYLOAD], want[DAN_MAX_PAYLOAD], frame[DAN_MAX_FRAME],
+            out[DAN_MAX_FRAME];
+        size_t il, sl, fl, i, bit;
+        uint32_t code;
+        uint8_t dir;
+        assert_int_equal(vec_split(v.line, ' ', f, 6), 6);
+        assert_string_equal(f[0], "sealed");
+        code = (uint32_t)strtoul(f[1], NULL, 10);
+        dir = (strcmp(f[2], "rsp") == 0) ? DAN_GW_RESPONSE : DAN_GW_REQUEST;
+        il = vec_hex(f[3], inner, sizeof inner);
+        sl = vec_hex(f[4], want, sizeof want);
+        fl = vec_hex(f[5], frame, sizeof frame);
+        assert_true(dan_gw_sealed_code(code));
+        memcpy(sealed, inner, il);
+        assert_int_equal(dan_gw_seal(code, dir, sealed, il, sizeof sealed), (int)sl);
+        assert_memory_equal(sealed, want, sl);
+        assert_int_equal(dan_gw_unseal(code, dir, want, sl), (int)il);
+        assert_int_equal(dan_frame_encode(code, sealed, sl, out, sizeof out), (int)fl);
+        assert_memory_equal(out, frame, fl);
+        /* bound to its code and its direction: a reply never passes for a request */
+        assert_int_equal(dan_gw_unseal(code + 1u, dir, want, sl), DAN_ERR_MALFORMED);
+        assert_int_equal(dan_gw_unseal(code, (uint8_t)(dir ^ 1u), want, sl), DAN_ERR_MALFORMED);
+        for (i = 0; i < sl; i++) {
+            for (bit = 0; bit < 8; bit++) {
+                want[i] ^= (uint8_t)(1u << bit);
+                assert_int_equal(dan_gw_unseal(code, dir, want, sl), DAN_ERR_MALFORMED);
+                want[i] ^= (uint8_t)(1u << bit);
+            }
+        }
+        count++;
+    }
+    vec_close(&v);
+    assert_true(count >= 8);
+    assert_int_equal(dan_gw_seal(0x42, DAN_GW_REQUEST, (uint8_t *)"", 0, 1), DAN_ERR_OVERFLOW);
+    assert_int_equal(dan_gw_unseal(0x42, DAN_GW_REQUEST, (const uint8_t *)"x", 1), DAN_ERR_MALFORMED);
+    assert_false(dan_gw_sealed_code(DAN_CODE_CAN_GW_IDENTIFY));
+    assert_false(dan_gw_sealed_code(DAN_CODE_CAN_GW_CONFIGURE));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_vectors),
         cmocka_unit_test(test_codec_limits),
+        cmocka_unit_test(test_sealed_vectors),
         cmocka_unit_test_setup_teardown(test_discover_and_identity, setup, teardown),
         cmocka_unit_test_setup_teardown(test_esc_command_raw_command, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_bad_seal_dropped, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arming, setup, teardown),

@@ -177,26 +177,21 @@ static void write_stats(gwd_t *d)
 {
     char tmp[512];
     FILE *f;
-    const dan_gw_node_stats_t *s = &d->node.stats;
+    uint32_t v[DAN_GW_STAT_COUNT];
+    unsigned i;
     snprintf(tmp, sizeof tmp, "%s.tmp", d->stats_file);
     f = fopen(tmp, "w");
     if (f == NULL) {
         return;
     }
-    fprintf(f,
-            "{\"dan_frames\": %u, \"dan_crc_errors\": %u, \"dan_unknown\": %u, "
-            "\"dan_errors_sent\": %u, \"dan_requests\": %u, \"can_tx\": %u, \"can_rx\": %u, "
-            "\"can_tx_dropped\": %u, \"can_errors\": %u, \"dc_transfers\": %u, "
-            "\"dc_crc_errors\": %u, \"esc_cmds\": %u, \"failsafes\": %u, "
-            "\"failsafe_active\": %d, \"tun_dropped\": %u, \"raw_dropped\": %u, "
-            "\"can_up\": %d, \"baud\": %u}\n",
-            d->periph.link.dec.stats.frames, d->periph.link.dec.stats.crc_errors,
-            d->periph.stats.unknown, d->periph.stats.errors_sent, d->periph.stats.requests,
-            s->can_tx, s->can_rx, s->can_tx_dropped, s->can_errors, d->node.rx.stats.transfers,
-            d->node.rx.stats.crc_errors, s->esc_cmds, s->failsafes, d->node.failsafe ? 1 : 0,
-            s->tun_dropped, s->raw_dropped, d->can_up ? 1 : 0, dan_periph_baud(&d->periph));
+    dan_gw_node_counters(&d->node, v);
+    fputc('{', f);
+    for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
+        fprintf(f, "\"%s\": %u, ", dan_gw_stat_name(i), v[i]);
+    }
+    fprintf(f, "\"can_up\": %d, \"baud\": %u}\n", d->can_up ? 1 : 0, dan_periph_baud(&d->periph));
     fclose(f);
-    (void)rename(tmp, d->stats_file);
+    (void)rename(tmp, d->stats_file); /* readers never see a half-written file */
 }
 
 static gwd_t g_d; /* large (tunnel buffers): static storage, used only by main */
