@@ -280,8 +280,21 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
             if (plen > len - i) {
                 plen = len - i;
             }
-            n = dan_frame_encode(DAN_TYPE_CAN_GW_FIRST + (uint32_t)((op >> 2) % 16u), data + i, plen,
-                                 frame, sizeof frame);
+            {
+                /* op 1: sealed as a client would, so the handlers behind
+                 * the seal are reached; op 0: as is (the seal check). */
+                uint32_t code = DAN_TYPE_CAN_GW_FIRST + (uint32_t)((op >> 2) % 16u);
+                uint8_t body[DAN_MAX_PAYLOAD];
+                int bl = (int)plen;
+                memcpy(body, data + i, plen);
+                if (op % 4u == 1u && dan_gw_sealed_code(code)) {
+                    bl = dan_gw_seal(code, DAN_GW_REQUEST, body, plen, sizeof body);
+                    if (bl < 0) {
+                        bl = (int)plen;
+                    }
+                }
+                n = dan_frame_encode(code, body, (size_t)bl, frame, sizeof frame);
+            }
             FUZZ_CHECK(n > 0);
             i += plen;
             /* the line was idle long enough for any reply to have left */
