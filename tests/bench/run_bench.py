@@ -341,6 +341,25 @@ def dan_frame(code, payload):
     return b"D" + body + bytes([crc])
 
 
+def gw_seal(code, direction, payload):
+    """The gateway seal (docs/PROTOCOL.md 7): CRC-16/CCITT-FALSE over the
+    code's uvarint, a direction byte (0 request) and the payload, LE."""
+    data = bytearray()
+    v = code
+    while v >= 0x80:
+        data.append((v & 0x7F) | 0x80)
+        v >>= 7
+    data.append(v)
+    data.append(direction)
+    data += payload
+    crc = 0xFFFF
+    for b in data:
+        crc ^= b << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
+    return bytes(payload) + bytes([crc & 0xFF, crc >> 8])
+
+
 def open_raw(path, baud):
     import serial  # pyserial from the venv
     return serial.Serial(str(path), baud, timeout=0)
@@ -380,7 +399,7 @@ def bench_latency(build, samples=60):
             fc = open_raw(tmp / "dan0", BAUD)
             mon = slcan_open(tmp / "can1")
             src = slcan_open(tmp / "can2")
-            req = dan_frame(0x42, PROBE_ESC)
+            req = dan_frame(0x42, gw_seal(0x42, 0, PROBE_ESC))
             gw_lat, vbus_hop, hub_hop = [], [], []
             for i in range(samples):
                 # gateway: the request's last byte leaves the wire -> RawCommand read from the hub
