@@ -615,13 +615,16 @@ bool dan_gw_sealed_code(uint32_t code)
     return code >= DAN_GW_CODE_ESC_CMD && code <= DAN_TYPE_CAN_GW_LAST;
 }
 
+/* CRC-16/CCITT-FALSE a nibble at a time: a 32-byte table instead of 512
+ * (flash matters on an FC), about 4x fewer steps than bit by bit. */
+static const uint16_t crc16_nibble[16] = {
+    0x0000, 0x1021, 0x2042, 0x3063, 0x4084, 0x50A5, 0x60C6, 0x70E7,
+    0x8108, 0x9129, 0xA14A, 0xB16B, 0xC18C, 0xD1AD, 0xE1CE, 0xF1EF};
+
 static uint16_t crc16_step(uint16_t crc, uint8_t byte)
 {
-    int i;
-    crc = (uint16_t)(crc ^ (uint16_t)((unsigned)byte << 8));
-    for (i = 0; i < 8; i++) {
-        crc = (uint16_t)((crc & 0x8000u) ? (unsigned)(crc << 1) ^ 0x1021u : (unsigned)(crc << 1));
-    }
+    crc = (uint16_t)((unsigned)(crc << 4) ^ crc16_nibble[((crc >> 12) ^ (byte >> 4)) & 0xFu]);
+    crc = (uint16_t)((unsigned)(crc << 4) ^ crc16_nibble[((crc >> 12) ^ byte) & 0xFu]);
     return crc;
 }
 
