@@ -4,7 +4,7 @@ import os
 import sys
 from typing import List, Optional
 
-from danprobe import __version__
+from danprobe import __version__, gateway
 from danprobe.commands import COMMANDS
 from danprobe.commands.common import EXIT_FAIL, EXIT_USAGE, CliError, Context
 from danprobe.master import DanError, OperationTimeout
@@ -17,7 +17,9 @@ be opened (missing, busy, not a serial port); 130 interrupted."""
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="danprobe", description="DAN v1 bus tool: discover, configure and sniff a DAN wire.",
+        prog="danprobe",
+        description="DAN v1 bus tool: discover, configure and sniff a DAN wire; drive the "
+                    "CAN-over-DAN gateway (ESCs, nodes, tunnels, raw CAN, SLCAN).",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"danprobe {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
@@ -31,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[List[str]] = None) -> int:
     args = build_parser().parse_args(argv)     # exits 2 on bad arguments
+    gateway.register_names()                   # sniff names and decodes the gateway's codes
     ctx = Context(args)
     try:
         return args.run(ctx)

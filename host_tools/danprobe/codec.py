@@ -22,17 +22,19 @@ class MalformedError(ValueError):
 
 # ---- crc8_dvb_s2: polynomial 0xD5, init 0, no reflection, no final XOR ----
 
-def _crc8_table() -> Tuple[int, ...]:
+def crc_table(poly: int, bits: int) -> Tuple[int, ...]:
+    """Byte table of an MSB-first CRC of `bits` bits (no reflection)."""
+    top, mask = 1 << (bits - 1), (1 << bits) - 1
     table = []
     for v in range(256):
-        c = v
+        c = v << (bits - 8)
         for _ in range(8):
-            c = ((c << 1) ^ 0xD5) & 0xFF if c & 0x80 else (c << 1) & 0xFF
+            c = ((c << 1) ^ poly) & mask if c & top else (c << 1) & mask
         table.append(c)
     return tuple(table)
 
 
-_CRC8_TABLE = _crc8_table()
+_CRC8_TABLE = crc_table(0xD5, 8)
 
 
 def crc8(data, crc: int = 0) -> int:

@@ -26,7 +26,7 @@ DISCOVERY_BAUDS = (9600, 115200, 57600, 38400, 19200)
 TURNAROUND_CHARS = 2    # a peripheral replies no sooner than this after our last byte
 GAP_CHARS = 10          # libdan's inter-byte gap: max(10 C, 2 ms)
 GAP_MIN_S = 0.002
-ECHO_LATE_HOLD_S = 1.0  # after an echo timeout, a copy of our frame is its late echo
+ECHO_LATE_HOLD_S = 1.0  # after an echo timeout or a collision, a copy of our frame is our echo
 
 
 def char_s(baud: int) -> float:
@@ -79,6 +79,11 @@ class EchoTimeout(Collision):
     collision (libdan does the same)."""
 
 
+class BadReply(Malformed):
+    """A reply the reply check refused (the gateway's seal did not match):
+    the attempt fails and is retried, as for a collision."""
+
+
 class Unsupported(DanError):
     code, reason = -8, "unsupported"
 
@@ -119,7 +124,7 @@ class Link:
         self.deadline: Optional[float] = None   # of the current operation
         self._tx: Optional[bytes] = None        # our frame while its echo is pending
         self.last_tx = b""                      # the last frame we sent
-        self.echo_late_at: Optional[float] = None   # when our echo last went missing
+        self.echo_late_at: Optional[float] = None   # when our echo last went missing or broke
         self._echo_pos = 0
         self._tx_failed = False
         self._tx_end = 0.0
@@ -197,6 +202,7 @@ class Link:
             while i < len(data) and self._echo_pos < len(self._tx):
                 if data[i] != self._tx[self._echo_pos]:
                     self.stats.collisions += 1      # someone else drove the wire
+                    self.echo_late_at = t           # the rest of our frame may still come
                     self._end_tx(failed=True)
                     break
                 self._echo_pos += 1
@@ -275,6 +281,7 @@ class MasterStats:
     lbt_waits: int = 0        # transmissions delayed by a busy line
     busy_failures: int = 0    # the line never went idle
     recoveries: int = 0       # configure failed and was recovered
+    bad_replies: int = 0      # replies refused by the reply check (retried)
 
 
 @dataclass
@@ -306,6 +313,11 @@ class Master:
         self.rng = random.Random(os.getpid() if self.cfg.seed is None else self.cfg.seed)
         self.progress = progress or (lambda msg: None)
         self.wait_until = 0.0       # not before: backoff, or settling after a baud switch
+        # An optional check of a reply's payload beyond the frame CRC (the
+        # gateway's seal): reply_check(code, payload) -> bool; False makes
+        # the attempt fail and the transaction retry (libdan's
+        # dan_master_set_reply_check()).
+        self.reply_check: Optional[Callable[[int, bytes], bool]] = None
 
     @property
     def baud(self) -> int:
@@ -329,6 +341,10 @@ class Master:
 
     def _port_supports(self, baud: int) -> bool:
         return self.cfg.max_baud == 0 or baud <= self.cfg.max_baud
+
+    def switch_baud(self, baud: int):
+        """Talks at baud from now on (the caller knows the bus is there)."""
+        self._switch_baud(baud)
 
     def _switch_baud(self, baud: int):
         if self.link.baud != baud:
@@ -367,6 +383,9 @@ class Master:
                     self.stats.stray += 1       # our own request, echoed late: not its reply
                     continue
                 if f.code == code:
+                    if self.reply_check is not None and not self.reply_check(code, f.payload):
+                        self.stats.bad_replies += 1
+                        raise BadReply(f"reply to 0x{code:02X} failed its check")
                     return f.payload
                 if f.code == CODE_ERROR:
                     try:
@@ -389,8 +408,8 @@ class Master:
 
     def request(self, code: int, payload: bytes = b"", attempts: Optional[int] = None) -> bytes:
         """One transaction: sends code with payload and returns the payload
-        of the reply with the same code. Retries timeouts and collisions;
-        an error frame for our code raises RemoteError at once."""
+        of the reply with the same code. Retries timeouts, collisions and
+        replies the reply check refused; an error frame for our code raises RemoteError at once."""
         attempts = attempts or self.cfg.retries + 1
         frame = encode_frame(code, payload)
         self.stats.transactions += 1
@@ -406,7 +425,7 @@ class Master:
                     code, t_end + TURNAROUND_CHARS * self.link.char + self.cfg.resp_latency_s)
                 self.stats.ok += 1
                 return reply
-            except (DanTimeout, Collision) as e:
+            except (DanTimeout, Collision, BadReply) as e:
                 failure = e
             attempts -= 1
             if attempts <= 0:
@@ -433,6 +452,30 @@ class Master:
 
     # ---- discovery ----
 
+    def _probe(self, peers: List[Peer], baud: int):
+        """IDENTIFY each of peers at baud; the ones answering are present there."""
+        self._switch_baud(baud)
+        self.progress(f"probing {', '.join(p.type.name for p in peers)} at {baud} baud")
+        for p in peers:
+            try:
+                p.identity = Identity.decode(self._identify(p, self.cfg.discovery_attempts))
+            except OperationTimeout:
+                raise
+            except (DanError, PayloadError):
+                continue
+            p.present, p.baud = True, baud
+            self.progress(f"found {p.type.name} at {baud} baud: {p.identity.manufacturer} "
+                          f"{p.identity.model}")
+
+    def probe(self, baud: int) -> List[Peer]:
+        """A quick look at one baud (a bus believed to be there): IDENTIFY
+        every type at baud only. Returns the peers that answered (maybe
+        none) and leaves the bus at baud."""
+        for p in self.peers:
+            p.present, p.identity = False, None
+        self._probe(self.peers, baud)
+        return self.present()
+
     def discover(self) -> List[Peer]:
         """IDENTIFY every type at 9600, then the missing ones at the other
         discovery bauds. Leaves the bus at the baud of the first peer
@@ -443,18 +486,7 @@ class Master:
             missing = [p for p in self.peers if not p.present]
             if not missing or (i > 0 and not self.cfg.scan_all_bauds):
                 break
-            self._switch_baud(baud)
-            self.progress(f"probing {', '.join(p.type.name for p in missing)} at {baud} baud")
-            for p in missing:
-                try:
-                    p.identity = Identity.decode(self._identify(p, self.cfg.discovery_attempts))
-                except OperationTimeout:
-                    raise
-                except (DanError, PayloadError):
-                    continue
-                p.present, p.baud = True, baud
-                self.progress(f"found {p.type.name} at {baud} baud: {p.identity.manufacturer} "
-                              f"{p.identity.model}")
+            self._probe(missing, baud)
         found = self.present()
         if not found:
             raise NotFound("no peripheral answered")

@@ -81,6 +81,10 @@ class Reader:
     def u16(self, what: str = "uint16") -> int:
         return struct.unpack("<H", self.raw(2, what))[0]
 
+    def u24(self, what: str = "uint24") -> int:
+        b = self.raw(3, what)
+        return b[0] | b[1] << 8 | b[2] << 16
+
     def u32(self, what: str = "uint32") -> int:
         return struct.unpack("<I", self.raw(4, what))[0]
 
@@ -112,6 +116,12 @@ class Writer:
 
     def u16(self, v: int) -> "Writer":
         self.buf += struct.pack("<H", v)
+        return self
+
+    def u24(self, v: int) -> "Writer":
+        if not 0 <= v <= 0xFFFFFF:
+            raise ValueError(f"uint24 out of range: {v}")
+        self.buf += struct.pack("<I", v)[:3]
         return self
 
     def u32(self, v: int) -> "Writer":

@@ -94,7 +94,7 @@ def code_name(code: int) -> str:
     return f"{t.name} {m.name if m else f'0x{code:02X}'}"
 
 
-def _empty(payload: bytes) -> dict:
+def describe_empty(payload: bytes) -> dict:
     if payload:
         raise MalformedError(f"expected an empty payload, got {len(payload)} byte(s)")
     return {}
@@ -124,7 +124,7 @@ def _error(payload: bytes) -> dict:
 
 register_message(CODE_ERROR, "ERROR", response=_error)
 for _t in TYPES:
-    register_message(_t.identify, "IDENTIFY", request=_empty, response=_identity)
+    register_message(_t.identify, "IDENTIFY", request=describe_empty, response=_identity)
     register_message(_t.configure, "CONFIGURE", request=_configure, response=_ack)
 
 REQUEST, RESPONSE = "request", "response"

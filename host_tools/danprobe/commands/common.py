@@ -4,11 +4,12 @@ add_arguments(parser) and run(ctx) -> exit code (see commands/__init__.py).
 """
 import argparse
 import json
+import signal
 import sys
-from typing import Callable, List, Optional, Tuple, Type
+from typing import Callable, Iterable, List, Optional, Tuple, Type
 
-from danprobe import registry
-from danprobe.master import DanError, Master, MasterConfig, OperationTimeout
+from danprobe import gateway, registry
+from danprobe.master import DanError, DanTimeout, Master, MasterConfig, NotFound, OperationTimeout
 from danprobe.port import PortError, SerialPort, now
 
 EXIT_OK = 0
@@ -146,14 +147,19 @@ def error_fields(e: Optional[DanError]) -> dict:
     return {"result": e.code, "error": e.reason, "detail": str(e)}
 
 
+def format_table(rows) -> str:
+    """Left-aligned columns: rows[0] is the header; every cell a string."""
+    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
+
+
 def peers_table(peers) -> str:
     rows = [("type", "code", "baud", "manufacturer", "model", "hw", "sw", "bauds")]
     for p in peers:
         i = p.identity
         rows.append((p.type.name, f"0x{p.type.first:02X}", str(p.baud), i.manufacturer, i.model,
                      i.hw_version, i.sw_version, ",".join(map(str, i.bauds))))
-    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
-    return "\n".join("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip() for r in rows)
+    return format_table(rows)
 
 
 def master_operation(ctx: Context, baud: int, op: Callable[[Master], None],
@@ -190,3 +196,129 @@ def report(ctx: Context, m: Master, failure: Optional[DanError], ms: float, fiel
     if not a.json:
         human()
     return EXIT_OK
+
+
+# ---- the CAN-over-DAN gateway commands ----
+
+GATEWAY_TYPE = registry.lookup("can-gw")
+
+
+def add_gateway_options(p: argparse.ArgumentParser, *, long_running: bool = False):
+    """The options of every gateway command: the common and bus options
+    (--types defaults to can-gw alone), --bus-baud and --configure."""
+    add_common_options(
+        p, baud_help="the baud the bus is at, if known: the gateway is tried there first "
+                     "(one IDENTIFY), then by discovery from 9600 (default: discovery)",
+        timeout_help=("give up finding the gateway after S seconds; then fail once it has "
+                      "not answered for S seconds (default 30)") if long_running else
+                     "give up after S seconds (default 30)")
+    add_master_options(p, types_default=GATEWAY_TYPE.name)
+    g = p.add_argument_group("gateway options")
+    g.add_argument("--bus-baud", dest="baud", type=positive_int, metavar="N",
+                   help="the same as --baud")
+    g.add_argument("--configure", action="store_true",
+                   help="first move the bus to the best baud of every peripheral found "
+                        "(--types; 115200 for the gateway alone)")
+
+
+def find_gateway(ctx: Context, m: Master):
+    """The gateway's Peer: IDENTIFY at --baud if given, else (or if it did
+    not answer there) discovery; then --configure. The bus is left at the
+    gateway's baud. Raises NotFound if no gateway answered."""
+    a = ctx.args
+    peer = next(p for p in m.peers if p.type == GATEWAY_TYPE)
+    if a.baud:
+        m.probe(a.baud)
+    if not peer.present:
+        try:
+            m.discover()
+        except NotFound:
+            pass
+    if not peer.present:
+        others = ", ".join(f"{p.type.name} at {p.baud}" for p in m.present())
+        raise NotFound("no CAN gateway answered" + (f" ({others} did)" if others else "") +
+                       " at " + ", ".join(map(str, sorted({a.baud or 9600, 9600, 19200, 38400,
+                                                           57600, 115200}))) + " baud")
+    m.switch_baud(peer.baud)
+    if a.configure:
+        m.configure()
+    ctx.progress(f"gateway at {m.baud} baud ({peer.identity.manufacturer} {peer.identity.model} "
+                 f"{peer.identity.sw_version})")
+    return peer
+
+
+def gateway_operation(ctx: Context, op: Callable[[Master, gateway.GatewayClient], None]):
+    """Opens the port, finds the gateway and runs op(master, client); returns
+    (master, failure, ms) like master_operation()."""
+    a = ctx.args
+    if GATEWAY_TYPE not in a.types:
+        a.types = [*a.types, GATEWAY_TYPE]
+
+    def run(m: Master):
+        find_gateway(ctx, m)
+        op(m, gateway.GatewayClient(m))
+    return master_operation(ctx, a.baud or DEFAULT_BAUD, run)
+
+
+def gateway_report(ctx: Context, m: Master, failure: Optional[DanError], ms: float, fields: dict,
+                   human: Callable[[], None]) -> int:
+    """report() for a one-shot gateway command."""
+    return report(ctx, m, failure, ms, fields, f"{ctx.args.command}: {failure}", human)
+
+
+class StopSignals:
+    """While active, SIGINT and SIGTERM only set .stop: a long-running
+    command ends its loop and cleans up (tunnel closed, zero throttle sent,
+    filter restored) before it exits."""
+
+    def __init__(self):
+        self.stop = False
+        self._old = {}
+
+    def _handler(self, signum, frame):
+        self.stop = True
+
+    def __enter__(self) -> "StopSignals":
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+
+class Watchdog:
+    """Counts failed transactions of a long-running command; raises once the
+    gateway has not answered for `seconds`."""
+
+    def __init__(self, seconds: Optional[float]):
+        self.seconds = seconds
+        self.last_ok = now()
+        self.failures = 0
+
+    def ok(self):
+        self.last_ok = now()
+
+    def failed(self, e: DanError):
+        self.failures += 1
+        if self.seconds is not None and now() - self.last_ok > self.seconds:
+            raise DanTimeout(f"the gateway has not answered for {self.seconds:g} s (last: {e})")
+
+
+def long_running(m: Master, ctx: Context) -> Tuple[StopSignals, Watchdog]:
+    """After the gateway was found: no overall time limit any more."""
+    m.set_time_limit(None)
+    return StopSignals(), Watchdog(ctx.args.timeout)
+
+
+def telemetry_table(records: Iterable[gateway.TelemRecord]) -> str:
+    rows = [("esc", "node", "rpm", "voltage", "current", "temp", "power", "errors", "age")]
+    for t in sorted(records, key=lambda r: r.esc_index):
+        if t.flags & gateway.TELEM_STATUS:
+            rows.append((str(t.esc_index), str(t.node_id), str(t.rpm), f"{t.voltage:.2f} V",
+                         f"{t.current:.2f} A", f"{t.temperature - 273.15:.1f} C",
+                         f"{t.power_pct} %", str(t.error_count), f"{t.age_ms} ms"))
+        else:
+            rows.append((str(t.esc_index), str(t.node_id)) + ("-",) * 7)
+    return format_table(rows)
