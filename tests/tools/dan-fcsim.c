@@ -3,7 +3,7 @@
  * client (dan/gateway.h) over the POSIX port, driven by a script; every
  * step prints one JSON line on stdout.
  *
- *   dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] STEP...
+ *   dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N] STEP...
  *
  * Steps:
  *   discover                      find the gateway (9600 first, then the others)
@@ -147,11 +147,26 @@ static int parse_values(char *s, int16_t *v, size_t *n)
 }
 
 /* ESC commands for ms at hz; values may ramp (to != NULL). */
+/* --recover N: after N ESC exchanges failed in a row, discover and
+ * configure again (the gateway was power-cycled: back at 9600), as an FC
+ * should; 0 = never. */
+static uint32_t g_recover;
+
+static int recover_bus(void)
+{
+    int rc = dan_master_discover(&g_m, dan_posix_now_us());
+    if (rc == DAN_OK) rc = run();
+    if (rc == DAN_OK && dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST) == NULL) rc = DAN_ERR_NOTFOUND;
+    if (rc == DAN_OK) rc = dan_master_configure(&g_m, 0, dan_posix_now_us());
+    if (rc == DAN_OK) rc = run();
+    return rc;
+}
+
 static int esc_run(const char *step, const int16_t *from, const int16_t *to, size_t n,
                    uint32_t ms, uint32_t hz)
 {
     uint64_t start = dan_posix_now_us(), end = start + (uint64_t)ms * 1000u, next = start;
-    uint32_t count = 0, errors = 0, telem = 0;
+    uint32_t count = 0, errors = 0, telem = 0, in_row = 0, recoveries = 0;
     int16_t v[DAN_GW_ESC_MAX];
     int rc;
     size_t i;
@@ -176,8 +191,15 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
         }
         if (rc != DAN_OK) {
             errors++;
+            if (g_recover > 0u && ++in_row >= g_recover) {
+                in_row = 0;
+                if (recover_bus() == DAN_OK) {
+                    recoveries++;
+                }
+            }
         } else {
             count++;
+            in_row = 0;
             telem += g_gw.last_telem != DAN_GW_NONE;
         }
     } while (dan_posix_now_us() < end);
@@ -185,9 +207,10 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
         double secs = (double)(dan_posix_now_us() - start) / 1e6;
         printf("{\"step\": \"%s\", \"ok\": %s, \"exchanges\": %u, \"errors\": %u, "
                "\"telemetry_records\": %u, \"seconds\": %.3f, \"rate\": %.1f, \"esc_seen\": %u, "
-               "\"flags\": %u, \"baud\": %u, ",
+               "\"flags\": %u, \"baud\": %u, \"recoveries\": %u, ",
                step, errors == 0 ? "true" : "false", count, errors, telem, secs,
-               secs > 0 ? count / secs : 0.0, g_gw.esc_seen, g_gw.gw_flags, dan_master_baud(&g_m));
+               secs > 0 ? count / secs : 0.0, g_gw.esc_seen, g_gw.gw_flags, dan_master_baud(&g_m),
+               recoveries);
         print_all_telem();
         printf("}\n");
     }
@@ -551,8 +574,10 @@ int main(int argc, char **argv)
             gap_ms = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--no-echo")) {
             no_echo = true;
+        } else if (!strcmp(argv[i], "--recover") && i + 1 < argc) {
+            g_recover = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--help")) {
-            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] STEP...\n"
+            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N] STEP...\n"
                    "(steps: see the comment at the top of tests/tools/dan-fcsim.c)\n");
             return 0;
         } else if (argv[i][0] == '-') {
