@@ -544,6 +544,14 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     fz_master.resp_code = code;
     memcpy(fz_master.resp, data, n);
     fz_master.resp_len = n;
+    if ((seed & 0x80u) != 0u) {
+        /* sealed as the gateway would, so the decoders behind the seal are
+         * reached; otherwise as is (the seal check) */
+        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, sizeof fz_master.resp);
+        if (sl > 0) {
+            fz_master.resp_len = (size_t)sl;
+        }
+    }
     dan_gw_init(&gw, &fz_master);
     gw.code = code;
     gw.port = (uint8_t)(seed % DAN_GW_TUNNELS);
