@@ -37,6 +37,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from danprobe.codec import encode_frame      # the host tool's codec (same venv)
+from danprobe.gateway import REQUEST, seal
+
 ROOT = Path(__file__).resolve().parents[2]
 BAUD = 115200
 C_US = (10_000_000 + BAUD - 1) // BAUD          # one character, as libdan rounds it
@@ -331,35 +334,6 @@ def bench_gateway_instr(build):
 PROBE_ESC = bytes.fromhex("04000019800cb004")    # 4 channels 0,100,200,300
 
 
-def dan_frame(code, payload):
-    body = bytes([code, len(payload)]) + payload
-    crc = 0
-    for x in body:
-        crc ^= x
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0xD5) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return b"D" + body + bytes([crc])
-
-
-def gw_seal(code, direction, payload):
-    """The gateway seal (docs/PROTOCOL.md 7): CRC-16/CCITT-FALSE over the
-    code's uvarint, a direction byte (0 request) and the payload, LE."""
-    data = bytearray()
-    v = code
-    while v >= 0x80:
-        data.append((v & 0x7F) | 0x80)
-        v >>= 7
-    data.append(v)
-    data.append(direction)
-    data += payload
-    crc = 0xFFFF
-    for b in data:
-        crc ^= b << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
-    return bytes(payload) + bytes([crc & 0xFF, crc >> 8])
-
-
 def open_raw(path, baud):
     import serial  # pyserial from the venv
     return serial.Serial(str(path), baud, timeout=0)
@@ -399,7 +373,7 @@ def bench_latency(build, samples=60):
             fc = open_raw(tmp / "dan0", BAUD)
             mon = slcan_open(tmp / "can1")
             src = slcan_open(tmp / "can2")
-            req = dan_frame(0x42, gw_seal(0x42, 0, PROBE_ESC))
+            req = encode_frame(0x42, seal(0x42, REQUEST, PROBE_ESC))
             gw_lat, vbus_hop, hub_hop = [], [], []
             for i in range(samples):
                 # gateway: the request's last byte leaves the wire -> RawCommand read from the hub
