@@ -60,7 +60,7 @@ ALL_LIBS  = $(if $(GWL_SRC),$(LIBGWL)) $(if $(GW_SRC),$(LIBGW)) $(if $(PORT_SRC)
 .PHONY: demo objects all test unit unit-run pytest cross install clean deps-build deps-test deps-cross venv
 .DELETE_ON_ERROR:
 
-all: deps-build $(ALL_LIBS) $(BINS)
+all: deps-build $(ALL_LIBS) $(BINS) venv
 
 # ---- dependencies -------------------------------------------------------
 
