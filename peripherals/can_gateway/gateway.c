@@ -160,6 +160,28 @@ size_t dan_gw_node_tx_pending(const dan_gw_node_t *g)
     return (size_t)g->q_urgent.len + g->q_bulk.len;
 }
 
+/* Removes our own unsent broadcasts of one data type from q. Throttle,
+ * arming and our status are states: only the newest matters, and an old
+ * one waiting behind a stalled bus must never go out after a newer one
+ * (nor crowd out the failsafe's zeros). A transfer cut in the middle is
+ * dropped by its receivers, which then take the new one. */
+static void txq_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid)
+{
+    size_t i, kept = 0, n = q->len;
+    for (i = 0; i < n; i++) {
+        dan_can_frame_t f = q->f[(q->head + i) % DAN_GW_NODE_TXQ];
+        dan_dc_transfer_t id;
+        bool ours = (f.flags & DAN_CAN_EXT) != 0u && dan_dc_parse_id(f.id, &id) == DAN_OK &&
+                    id.transfer_type == DAN_DC_TRANSFER_BROADCAST && id.data_type_id == dtid &&
+                    id.source_node == g->cfg.node_id;
+        if (!ours) {
+            q->f[(q->head + kept) % DAN_GW_NODE_TXQ] = f;
+            kept++;
+        }
+    }
+    q->len = (uint16_t)kept;
+}
+
 /* Queues one transfer whole, or drops it whole (counted). */
 static int send_transfer(dan_gw_node_t *g, dan_gw_node_txq_t *q, dan_dc_transfer_t *t)
 {
@@ -213,6 +235,7 @@ static void send_raw_command(dan_gw_node_t *g, const int16_t *v, size_t n)
     if (v != NULL) {
         memcpy(m.cmd, v, n * sizeof v[0]);
     }
+    txq_drop_own(g, &g->q_urgent, DAN_DC_ESC_RAW_COMMAND_ID); /* latest wins */
     (void)broadcast(g, &g->q_urgent, DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_ESC_RAW_COMMAND_SIGNATURE,
                     DAN_DC_PRIORITY_HIGH, buf, dan_dc_esc_raw_command_encode(&m, buf, sizeof buf));
 }
@@ -221,7 +244,10 @@ static void send_arming(dan_gw_node_t *g, uint64_t now_us)
 {
     dan_dc_arming_status_t m;
     uint8_t buf[DAN_DC_ARMING_STATUS_MAX_SIZE];
-    m.status = g->arming;
+    /* The failsafe holds DISARMED until ESC commands resume; an ARM
+     * received meanwhile takes effect then. */
+    m.status = g->failsafe ? (uint8_t)DAN_DC_ARMING_STATUS_DISARMED : g->arming;
+    txq_drop_own(g, &g->q_urgent, DAN_DC_ARMING_STATUS_ID);
     (void)broadcast(g, &g->q_urgent, DAN_DC_ARMING_STATUS_ID, DAN_DC_ARMING_STATUS_SIGNATURE,
                     DAN_DC_PRIORITY_MEDIUM, buf, dan_dc_arming_status_encode(&m, buf, sizeof buf));
     g->arming_due_us = now_us + arming_period_us(g);
@@ -243,6 +269,7 @@ static void send_node_status(dan_gw_node_t *g, uint64_t now_us)
     dan_dc_node_status_t s;
     uint8_t buf[DAN_DC_NODE_STATUS_MAX_SIZE];
     own_status(g, &s, now_us);
+    txq_drop_own(g, &g->q_urgent, DAN_DC_NODE_STATUS_ID);
     (void)broadcast(g, &g->q_urgent, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE,
                     DAN_DC_PRIORITY_LOW, buf, dan_dc_node_status_encode(&s, buf, sizeof buf));
 }
@@ -360,7 +387,7 @@ static void answer_node_info(dan_gw_node_t *g, const dan_dc_transfer_t *req, uin
     t.priority = req->priority;
     t.destination_node = req->source_node;
     t.transfer_id = req->transfer_id;
-    (void)send_transfer(g, &g->q_urgent, &t);
+    (void)send_transfer(g, &g->q_bulk, &t);
 }
 
 static void on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
@@ -523,7 +550,7 @@ static void request_info(dan_gw_node_t *g, dan_gw_node_slot_t *n, uint64_t now_u
     t.priority = DAN_DC_PRIORITY_LOW;
     t.destination_node = n->e.node_id;
     t.transfer_id = n->info_tid;
-    if (send_transfer(g, &g->q_urgent, &t) == DAN_OK) {
+    if (send_transfer(g, &g->q_bulk, &t) == DAN_OK) {
         n->info_tid = (uint8_t)((n->info_tid + 1u) & DAN_DC_TRANSFER_ID_MASK);
         g->stats.info_requests++;
     }
@@ -725,7 +752,12 @@ static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len,
     send_raw_command(g, v, n);
     g->stats.esc_cmds++;
     g->esc_active = true;
-    g->failsafe = false;
+    if (g->failsafe) {
+        g->failsafe = false;
+        if (g->arming != DAN_DC_ARMING_STATUS_DISARMED) {
+            send_arming(g, now_us); /* an ARM received during the failsafe */
+        }
+    }
     g->esc_n = (uint8_t)n;
     g->last_cmd_us = now_us;
     /* the next ESC seen after the last one reported */
@@ -1038,7 +1070,7 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
     dan_gw_can_send_t s;
     dan_can_frame_t f[DAN_GW_CAN_FRAMES_MAX];
     size_t i;
-    (void)code;
+    uint16_t digest;
     dan_reader_init(&r, req, len);
     if (dan_gw_msg_can_send_req_get(&r, &s) != DAN_OK) {
         *err = "bad CAN send";
@@ -1050,23 +1082,28 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
             return DAN_ERR_MALFORMED;
         }
     }
-    if (!g->send_seq_valid || s.seq != g->send_seq) {
-        /* all or nothing, so a refused request can simply be sent again */
+    /* A retry repeats seq and frames; an FC that rebooted may reuse a seq
+     * with other frames: those are new. The digest tells them apart. */
+    digest = dan_gw_check(code, DAN_GW_REQUEST, req, len);
+    if (!g->send_seq_valid || s.seq != g->send_seq || digest != g->send_digest) {
+        /* all or nothing, so a refused request can simply be sent again;
+         * raw frames queue behind throttle and arming (the bulk queue) */
         g->send_accepted = 0;
-        if (txq_free(&g->q_urgent) >= s.count) {
+        if (txq_free(&g->q_bulk) >= s.count) {
             for (i = 0; i < s.count; i++) {
-                txq_push(&g->q_urgent, &f[i]);
+                txq_push(&g->q_bulk, &f[i]);
             }
             g->stats.can_tx += s.count;
             g->send_accepted = s.count;
             g->send_seq = s.seq;
+            g->send_digest = digest;
             g->send_seq_valid = true;
         } else {
             g->stats.can_tx_dropped += s.count;
         }
     }
     s.count = g->send_accepted;
-    s.queue_free = (uint32_t)txq_free(&g->q_urgent);
+    s.queue_free = (uint32_t)txq_free(&g->q_bulk);
     return emit(resp, dan_gw_msg_can_send_rsp_encode(&s, resp->buf, resp->cap));
 }
 
@@ -1184,7 +1221,11 @@ static int h_sealed(void *user, uint32_t code, const uint8_t *req, size_t len,
     }
     for (i = 0; i < sizeof inner_handlers / sizeof inner_handlers[0]; i++) {
         if (inner_handlers[i].code == code) {
+            /* the handlers fill pages to the capacity: keep the seal's room */
+            size_t cap = resp->cap;
+            resp->cap = (cap > DAN_GW_SEAL_SIZE) ? cap - DAN_GW_SEAL_SIZE : 0u;
             rc = inner_handlers[i].fn(user, code, req, (size_t)n, resp, err, now_us);
+            resp->cap = cap;
             if (rc == DAN_OK && !resp->error && resp->buf != NULL) {
                 dan_put_u16(resp, dan_gw_check(code, DAN_GW_RESPONSE, resp->buf, resp->len));
             }

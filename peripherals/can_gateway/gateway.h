@@ -169,6 +169,7 @@ typedef struct {
     dan_gw_filter_t filters[DAN_GW_FILTERS_MAX];
     uint8_t nfilters;
     bool send_seq_valid;
+    uint16_t send_digest;       /* of the last accepted CAN_SEND (retry check) */
     uint8_t send_seq;           /* last CAN_SEND seq accepted */
     uint8_t send_accepted;
     dan_can_frame_t raw[DAN_GW_NODE_RAW_RX];

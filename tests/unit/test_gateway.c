@@ -1285,6 +1285,170 @@ static void test_sealed_vectors(void **state)
     assert_false(dan_gw_sealed_code(DAN_CODE_CAN_GW_CONFIGURE));
 }
 
+/* Runs the client's transaction and the gateway without draining CAN: the
+ * CAN bus is stalled (nothing acknowledges, or the adapter is slow). */
+static int finish_stalled(void)
+{
+    int r = sim_run_master(&R->bus, &R->m, 3000000);
+    assert_int_not_equal(r, 1);
+    dan_gw_node_poll(&R->g, R->bus.now);
+    return dan_gw_complete(&R->gw, R->bus.now);
+}
+
+/* CAN stalls while the FC keeps commanding: only the newest throttle waits
+ * to go out, never a stale one, and the failsafe's zeros always fit and are
+ * the last throttle on the bus (found by review: the queue once held 126
+ * old frames, the zeros were dropped and a stale 6000 went out last). */
+static void test_stalled_can_latest_throttle_wins(void **state)
+{
+    int16_t v[8];
+    size_t k, i, from, n_cmd = 0;
+    cap_t *c, *last = NULL;
+    dan_dc_esc_raw_command_t rc;
+    dan_dc_arming_status_t as;
+    (void)state;
+    advance(1000);
+    for (k = 0; k < 60; k++) {
+        for (i = 0; i < 8; i++) {
+            v[i] = (int16_t)(6000 + k);
+        }
+        assert_int_equal(dan_gw_esc_command(&R->gw, v, 8, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+    }
+    assert_true(dan_gw_node_tx_pending(&R->g) <= 8u); /* one RawCommand (3 frames) + states */
+    /* the FC stops; the failsafe fires while CAN is still stalled */
+    for (k = 0; k < 700; k++) {
+        sim_run_for(&R->bus, 1000);
+        dan_gw_node_poll(&R->g, R->bus.now);
+    }
+    assert_true(R->g.failsafe);
+    /* the bus comes back: what goes out is zeros and DISARMED, no stale throttle */
+    from = R->ncap;
+    drain();
+    while ((c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
+        assert_int_equal(rc.count, 8);
+        for (i = 0; i < 8; i++) {
+            assert_int_equal(rc.cmd[i], 0);
+        }
+        n_cmd++;
+    }
+    assert_true(n_cmd >= 1);
+    from = 0;
+    while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        last = c;
+    }
+    assert_non_null(last);
+    assert_int_equal(dan_dc_arming_status_decode(&as, last->payload, last->len), DAN_OK);
+    assert_int_equal(as.status, DAN_DC_ARMING_STATUS_DISARMED);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
+    /* and the daemon's shutdown failsafe on a stalled bus: zeros fit too */
+    for (k = 0; k < 5; k++) {
+        assert_int_equal(dan_gw_esc_command(&R->gw, v, 8, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+    }
+    dan_gw_node_failsafe(&R->g, R->bus.now);
+    from = R->ncap;
+    drain();
+    n_cmd = 0;
+    while ((c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
+        assert_int_equal(rc.cmd[0], 0);
+        n_cmd++;
+    }
+    assert_int_equal(n_cmd, 1);
+}
+
+/* Telemetry and node pages fill the payload, and the seal still fits
+ * (found by review: a full page became "response too large"). */
+static void test_full_pages_leave_room_for_the_seal(void **state)
+{
+    uint8_t buf[8];
+    size_t i;
+    dan_dc_esc_status_extended_t x;
+    (void)state;
+    /* ESCs one by one, with and without StatusExtended, so page sizes sweep
+     * across the payload's end; after each, every page must come back */
+    for (i = 0; i < 20; i++) {
+        uint8_t first = 0;
+        int pages = 0, seen = 0;
+        esc_status((uint8_t)(30 + i), (uint8_t)i, 12.0f, 1.0f, 300.0f, (int32_t)i * 7000);
+        if (i % 7 != 6) { /* runs of six 26-byte records fill a page to 159 */
+            memset(&x, 0, sizeof x);
+            x.esc_index = (uint8_t)i;
+            x.status_flags = 0x7FFFF;
+            inject((uint8_t)(30 + i), DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
+                   DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+        }
+        do {
+            dan_reader_t r;
+            dan_gw_telem_hdr_t h;
+            assert_int_equal(dan_gw_telemetry(&R->gw, first, R->bus.now), DAN_OK);
+            assert_int_equal(finish(), DAN_OK);
+            assert_true(R->m.resp_len <= DAN_MAX_PAYLOAD);
+            dan_reader_init(&r, R->m.resp, R->m.resp_len);
+            assert_int_equal(dan_gw_msg_telem_hdr_get(&r, &h), DAN_OK);
+            seen += h.count;
+            first = R->gw.telem_next;
+            pages++;
+        } while (first != DAN_GW_NONE && pages < 20);
+        assert_int_equal(seen, (int)i + 1);
+    }
+}
+
+/* An FC that rebooted reuses CAN_SEND sequence numbers: the same seq with
+ * other frames is new, not a retry (found by review). */
+static void test_can_send_seq_reuse_after_reboot(void **state)
+{
+    dan_can_frame_t a, b;
+    size_t nf;
+    (void)state;
+    advance(1000);
+    memset(&a, 0, sizeof a);
+    a.id = 0x123;
+    a.dlc = 1;
+    a.data[0] = 1;
+    b = a;
+    b.data[0] = 2;
+    assert_int_equal(dan_gw_can_send(&R->gw, &a, 1, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    nf = R->nframes;
+    dan_gw_init(&R->gw, &R->m); /* the FC reboots: its seq starts over */
+    assert_int_equal(dan_gw_can_send(&R->gw, &b, 1, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.can_accepted, 1);
+    assert_true(R->nframes > nf); /* b went out */
+}
+
+/* ARM during the failsafe is accepted, but ArmingStatus stays DISARMED
+ * until ESC commands resume (found by review: it broadcast ARMED next to
+ * the failsafe's zeros). */
+static void test_arm_during_failsafe(void **state)
+{
+    static const int16_t v[4] = {100, 100, 100, 100};
+    size_t from;
+    cap_t *c, *last = NULL;
+    (void)state;
+    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    advance(700000);
+    assert_true(R->g.failsafe);
+    from = R->ncap;
+    assert_int_equal(dan_gw_arm(&R->gw, true, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    advance(1200000);
+    while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        assert_int_equal(c->payload[0], DAN_DC_ARMING_STATUS_DISARMED);
+    }
+    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        last = c;
+    }
+    assert_non_null(last);
+    assert_int_equal(last->payload[0], 255); /* armed again, at once */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1294,6 +1458,10 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_discover_and_identity, setup, teardown),
         cmocka_unit_test_setup_teardown(test_esc_command_raw_command, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bad_seal_dropped, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_stalled_can_latest_throttle_wins, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_full_pages_leave_room_for_the_seal, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_can_send_seq_reuse_after_reboot, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_arm_during_failsafe, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arming, setup, teardown),
