@@ -361,13 +361,15 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
         rc = dan_gw_can_begin(gw, &r, &q);
         if (rc == DAN_OK) {
             skip = dan_gw_off_diff(q.seq, gw->can_rx_next);
-            if (skip < 0) {
-                rc = DAN_ERR_MALFORMED;
+            if (skip < 0 || skip > (int32_t)DAN_GW_CAN_RESYNC) {
+                /* Not where we left off: the gateway restarted (its
+                 * sequence starts elsewhere each boot). Follow it. */
+                gw->can_rx_resyncs++;
             } else {
                 gw->can_rx_lost += (uint32_t)skip;
-                gw->can_rx_next = q.seq + q.count;
-                gw->can_rx_dropped = q.dropped;
             }
+            gw->can_rx_next = q.seq + q.count;
+            gw->can_rx_dropped = q.dropped;
         }
         break;
     }

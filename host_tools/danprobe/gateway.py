@@ -227,6 +227,9 @@ def decode_esc_cmd(payload) -> List[int]:
 # ---- telemetry (ESC_CMD and ESC_TELEM responses) ----
 
 @dataclass
+CAN_RESYNC = 4096  # a CAN_RECV sequence jump beyond this: the gateway restarted
+
+
 class TelemRecord:
     esc_index: int = 0
     node_id: int = 0
@@ -902,6 +905,7 @@ class GatewayClient:
         self.can_rx_next: Optional[int] = None  # next raw frame sequence number wanted
         self.can_rx_dropped = 0
         self.can_rx_lost = 0
+        self.can_rx_resyncs = 0
         self.decode_errors = 0
         self._rng = random.Random(seed)
 
@@ -1071,9 +1075,12 @@ class GatewayClient:
         q = self._call(CODE_CAN_RECV, req.encode(), CanRecvResponse.decode)
         if not first:
             skip = off_diff(q.first_seq, self.can_rx_next)
-            if skip < 0:
-                raise self._malformed(CODE_CAN_RECV, "frames older than what we acknowledged")
-            self.can_rx_lost += skip
+            if skip < 0 or skip > CAN_RESYNC:
+                # not where we left off: the gateway restarted (its sequence
+                # starts elsewhere each boot); follow it, as the C client does
+                self.can_rx_resyncs += 1
+            else:
+                self.can_rx_lost += skip
         self.can_rx_next = (q.first_seq + len(q.frames)) & 0xFFFFFFFF
         self.can_rx_dropped = q.dropped
         return q.frames

@@ -75,10 +75,17 @@ typedef struct {
     uint32_t can_rx_next;      /* next raw frame sequence number wanted */
     uint32_t can_rx_dropped;
     uint32_t can_rx_lost;      /* frames skipped (dropped at the gateway) */
+    uint32_t can_rx_resyncs;   /* the gateway's sequence jumped (it restarted) */
     uint8_t can_accepted;      /* of the last CAN_SEND */
     uint32_t can_queue_free;
     uint32_t decode_errors;    /* responses that did not decode */
 } dan_gw_t;
+
+/* A CAN_RECV sequence more than this ahead of (or behind) ours means the
+ * gateway restarted: the client follows it instead of counting losses. */
+#ifndef DAN_GW_CAN_RESYNC
+#define DAN_GW_CAN_RESYNC 4096u
+#endif
 
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
 

@@ -68,6 +68,7 @@ int dan_gw_node_init(dan_gw_node_t *g, const dan_gw_node_config_t *cfg, uint64_t
     }
     memset(g, 0, sizeof *g);
     g->cfg = *cfg;
+    g->raw_first = cfg->raw_seq_start;
     if (g->cfg.name == NULL) {
         g->cfg.name = DAN_GW_NODE_NAME;
     }

@@ -90,6 +90,10 @@ typedef struct {
     uint8_t hw_major, hw_minor;
     uint8_t unique_id[16];
     const char *name;           /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
+    uint32_t raw_seq_start;     /* first raw-frame sequence number: give each boot a
+                                   different one (the daemon uses the clock), so a
+                                   client's acknowledgement from before a restart
+                                   never discards new frames */
 } dan_gw_node_config_t;
 
 void dan_gw_node_config_default(dan_gw_node_config_t *c);

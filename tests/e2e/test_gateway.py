@@ -6,6 +6,7 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
 import json
 import os
+import sys
 import struct
 import threading
 import time
@@ -276,3 +277,23 @@ def test_raw_frames_filtered(rig):
     assert rc == 0, out
     assert step(out, "candump")[0]["frames"] == ["1AB#0102", "155#"]
     del lines
+
+
+def test_uart_lost_failsafe_and_exit(procs, tmp_path):
+    """The DAN UART goes away (USB unplug, pty closed): the daemon notices
+    the hangup (a tty at VMIN=0 then reads 0 bytes forever), sends the
+    failsafe and exits 1 instead of spinning (found by review)."""
+    import pty
+    m, s = pty.openpty()
+    path = os.ttyname(s)
+    os.close(s)
+    hub = procs.start([sys.executable, ROOT / "host_tools" / "slcan_hub.py", "-n", "1", "--link",
+                       tmp_path / "can"], name="slcan_hub")
+    assert hub.stdout.readline().startswith(b"READY")
+    gw = procs.start([BIN / "dan-gatewayd", "--uart", path, "--can", f"slcan:{tmp_path}/can0"],
+                     name="dan-gatewayd")
+    wait_for(lambda: b"DroneCAN node" in gw.log_path.read_bytes(), 20, what="gateway start")
+    os.close(m)
+    assert gw.wait(20) == 1
+    log = gw.log_path.read_text()
+    assert "UART lost" in log and "failsafe sent" in log

@@ -1449,6 +1449,52 @@ static void test_arm_during_failsafe(void **state)
     assert_int_equal(last->payload[0], 255); /* armed again, at once */
 }
 
+/* The gateway restarts while the FC reads raw frames: its sequence starts
+ * elsewhere; the client follows it (counted) instead of refusing every
+ * reply until the FC reboots, and nothing new is lost (found by review). */
+static void test_can_recv_follows_gateway_restart(void **state)
+{
+    dan_gw_filter_t f;
+    dan_gw_node_config_t gc;
+    dan_reader_t r;
+    dan_gw_can_recv_t h;
+    dan_can_frame_t raw;
+    int n;
+    (void)state;
+    memset(&raw, 0, sizeof raw);
+    f.id = 0;
+    f.mask = 0; /* everything */
+    advance(1000);
+    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, &f, 1, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    raw.id = 0x123;
+    raw.flags = 0;
+    raw.dlc = 1;
+    raw.data[0] = 1;
+    dan_gw_node_rx_can(&R->g, &raw, R->bus.now);
+    assert_int_equal(dan_gw_can_recv(&R->gw, 11, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_true(R->gw.can_rx_next > 0u);
+    /* power cycle: a new sequence start */
+    dan_gw_node_config_default(&gc);
+    gc.raw_seq_start = 0x80000000u;
+    assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);
+    dan_gw_node_attach(&R->g, &R->p);
+    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, &f, 1, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    for (n = 0; n < 3; n++) {
+        raw.data[0] = (uint8_t)(2 + n);
+        dan_gw_node_rx_can(&R->g, &raw, R->bus.now);
+    }
+    assert_int_equal(dan_gw_can_recv(&R->gw, 11, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.can_rx_resyncs, 1);
+    assert_int_equal(dan_gw_can_begin(&R->gw, &r, &h), DAN_OK);
+    assert_int_equal(h.seq, 0x80000000u);
+    assert_int_equal(h.count, 3); /* the new frames, none discarded */
+    assert_int_equal(R->gw.can_rx_next, 0x80000000u + h.count);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1462,6 +1508,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_full_pages_leave_room_for_the_seal, setup, teardown),
         cmocka_unit_test_setup_teardown(test_can_send_seq_reuse_after_reboot, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arm_during_failsafe, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_can_recv_follows_gateway_restart, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arming, setup, teardown),

@@ -135,3 +135,8 @@ void dan_canif_close(dan_canif_t *c)
     c->kind = DAN_CANIF_NONE;
     c->fd = -1;
 }
+
+int dan_canif_rx_pending(const dan_canif_t *c)
+{
+    return c->rx_pos < c->rx_len;
+}

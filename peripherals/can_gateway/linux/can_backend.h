@@ -105,6 +105,10 @@ int dan_canif_flush(dan_canif_t *c);
 
 /* Closes (SLCAN: sends C and restores the old termios). Safe to call
  * twice and on a never-opened, zeroed struct. */
+/* True when received bytes wait in the backend's buffer (e.g. after the
+ * open handshake): call dan_canif_recv() without waiting for POLLIN. */
+int dan_canif_rx_pending(const dan_canif_t *c);
+
 void dan_canif_close(dan_canif_t *c);
 
 /* ---- SLCAN line codec: pure functions, no I/O ---- */

@@ -254,7 +254,7 @@ static void restore_and_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
         if (c->have_old_tio)
-            tcsetattr(c->fd, TCSANOW, &c->old_tio);
+            tcsetattr(c->fd, TCSADRAIN, &c->old_tio);
         close(c->fd);
     }
     c->fd = -1;
@@ -503,6 +503,13 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
         c->stats.errors++;
         return DAN_ERR_IO;
     }
+    /* The last read's bytes are parsed now: the fd may not become readable
+     * again for a while, and complete frames must not wait for it. */
+    while (c->rx_pos < c->rx_len) {
+        char b = (char)c->rxbuf[c->rx_pos++];
+        if (feed(c, b, f) == 1)
+            return 1;
+    }
     return 0;
 }
 
@@ -518,9 +525,22 @@ void dan_canif_slcan_close(dan_canif_t *c)
             deadline.tv_sec++;
             deadline.tv_nsec -= 1000000000L;
         }
+        /* The last frames written are the failsafe's: let them leave the
+         * tty and reach the bus before the channel closes (adapters may
+         * drop frames still queued on C). A line cut short gets its end so
+         * "C" is not glued to it. */
+        if (c->tx_len > 0) {
+            (void)write_all(c->fd, "\r", 1, &deadline);
+        }
         c->tx_len = 0;
+        (void)tcdrain(c->fd);
+        {
+            struct timespec settle = {0, 20000000L}; /* the adapter sends them on CAN */
+            (void)nanosleep(&settle, NULL);
+        }
         if (write_all(c->fd, "C\r", 2, &deadline) == 0)
             (void)wait_ack(c, &deadline);
+        (void)tcdrain(c->fd);
     }
     restore_and_close(c);
 }

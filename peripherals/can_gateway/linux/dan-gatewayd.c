@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <syslog.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "dan/peripheral.h"
@@ -283,6 +284,8 @@ int main(int argc, char **argv)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGTERM, &sa, NULL);
     sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGHUP, &sa, NULL);  /* a dropped SSH session: stop with the failsafe too */
+    sigaction(SIGQUIT, &sa, NULL);
     signal(SIGPIPE, SIG_IGN);
 
     if (dan_posix_open(&d->uart, uart, baud, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO,
@@ -303,6 +306,12 @@ int main(int argc, char **argv)
     }
     d->can_up = true;
     now = dan_posix_now_us();
+    {
+        /* a different raw-frame sequence each boot (see raw_seq_start) */
+        struct timespec ts;
+        clock_gettime(CLOCK_REALTIME, &ts);
+        nc.raw_seq_start = (uint32_t)ts.tv_sec * 2654435761u ^ (uint32_t)ts.tv_nsec ^ (uint32_t)getpid();
+    }
     if (dan_gw_node_init(&d->node, &nc, now) != DAN_OK) {
         logmsg(LOG_ERR, "bad node configuration");
         return 2;
@@ -332,8 +341,8 @@ int main(int argc, char **argv)
         if (t2 < next) next = t2;
         if (!d->can_up && d->reopen_us < next) next = d->reopen_us;
         if (d->stats_file && d->stats_due_us < next) next = d->stats_due_us;
-        if (next <= now) {
-            timeout_ms = 0;
+        if (next <= now || (d->can_up && dan_canif_rx_pending(&d->can))) {
+            timeout_ms = 0; /* due now, or received CAN bytes wait parsed */
         } else {
             uint64_t ms = (next - now + 999u) / 1000u;
             timeout_ms = ms > 100u ? 100 : (int)ms;
@@ -364,6 +373,11 @@ int main(int argc, char **argv)
             while ((n = dan_posix_read(&d->uart, buf, sizeof buf)) > 0) {
                 dan_periph_rx(&d->periph, buf, (size_t)n, now);
             }
+            /* With VMIN=0 a hung-up tty (USB unplug, pty closed) reads 0
+             * bytes forever: POLLHUP/POLLERR with nothing read is a loss. */
+            if (n == 0 && (pf[0].revents & (POLLHUP | POLLERR | POLLNVAL)) != 0) {
+                n = -1;
+            }
             if (n < 0) {
                 logmsg(LOG_ERR, "%s: UART lost", uart);
                 dan_gw_node_failsafe(&d->node, now);
@@ -371,7 +385,8 @@ int main(int argc, char **argv)
                 break;
             }
         }
-        if (r > 0 && nfd > 1 && d->can_up && (pf[1].revents & (POLLIN | POLLHUP | POLLERR))) {
+        if (d->can_up && ((r > 0 && nfd > 1 && (pf[1].revents & (POLLIN | POLLHUP | POLLERR))) ||
+                          dan_canif_rx_pending(&d->can))) {
             can_read(d, now);
         }
         dan_periph_poll(&d->periph, now);
