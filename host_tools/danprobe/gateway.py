@@ -46,6 +46,7 @@ CODE_TUN_OPEN = 0x49
 CODE_TUN_XFER = 0x4A
 CODE_CAN_SEND = 0x4B
 CODE_CAN_RECV = 0x4C
+CAN_RESYNC = 4096  # a CAN_RECV sequence jump beyond this: the gateway restarted
 CODE_CAN_FILTER = 0x4D
 
 # ---- limits ----
@@ -227,9 +228,6 @@ def decode_esc_cmd(payload) -> List[int]:
 # ---- telemetry (ESC_CMD and ESC_TELEM responses) ----
 
 @dataclass
-CAN_RESYNC = 4096  # a CAN_RECV sequence jump beyond this: the gateway restarted
-
-
 class TelemRecord:
     esc_index: int = 0
     node_id: int = 0
