@@ -245,9 +245,7 @@ static void send_arming(dan_gw_node_t *g, uint64_t now_us)
 {
     dan_dc_arming_status_t m;
     uint8_t buf[DAN_DC_ARMING_STATUS_MAX_SIZE];
-    /* The failsafe holds DISARMED until ESC commands resume; an ARM
-     * received meanwhile takes effect then. */
-    m.status = g->failsafe ? (uint8_t)DAN_DC_ARMING_STATUS_DISARMED : g->arming;
+    m.status = g->arming;
     txq_drop_own(g, &g->q_urgent, DAN_DC_ARMING_STATUS_ID);
     (void)broadcast(g, &g->q_urgent, DAN_DC_ARMING_STATUS_ID, DAN_DC_ARMING_STATUS_SIGNATURE,
                     DAN_DC_PRIORITY_MEDIUM, buf, dan_dc_arming_status_encode(&m, buf, sizeof buf));
@@ -504,6 +502,12 @@ void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now
     g->stats.can_rx++;
     if (f->flags & DAN_CAN_ERR) {
         g->stats.can_errors++;
+        /* Bus-off: nothing we send arrives; tell the FC (flags bit2). */
+        if ((f->id & DAN_CAN_ERRCLASS_BUSOFF) != 0u) {
+            g->can_ok = false;
+        } else if ((f->id & DAN_CAN_ERRCLASS_RESTARTED) != 0u) {
+            g->can_ok = true;
+        }
         return;
     }
     raw_in(g, f);
@@ -753,12 +757,7 @@ static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len,
     send_raw_command(g, v, n);
     g->stats.esc_cmds++;
     g->esc_active = true;
-    if (g->failsafe) {
-        g->failsafe = false;
-        if (g->arming != DAN_DC_ARMING_STATUS_DISARMED) {
-            send_arming(g, now_us); /* an ARM received during the failsafe */
-        }
-    }
+    g->failsafe = false;
     g->esc_n = (uint8_t)n;
     g->last_cmd_us = now_us;
     /* the next ESC seen after the last one reported */
@@ -834,6 +833,8 @@ static int h_arm(void *user, uint32_t code, const uint8_t *req, size_t len,
         *err = "missing arming status";
         return DAN_ERR_MALFORMED;
     }
+    /* During a failsafe too: an explicit ARM comes from a live master that
+     * chose it; the zeros keep repeating until ESC commands resume. */
     if (req[0] != g->arming) {
         g->arming = req[0];
         send_arming(g, now_us); /* at once on a change */

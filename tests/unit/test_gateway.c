@@ -1420,14 +1420,16 @@ static void test_can_send_seq_reuse_after_reboot(void **state)
     assert_true(R->nframes > nf); /* b went out */
 }
 
-/* ARM during the failsafe is accepted, but ArmingStatus stays DISARMED
- * until ESC commands resume (found by review: it broadcast ARMED next to
- * the failsafe's zeros). */
+/* ARM during the failsafe: the master is alive and chose it, so ARMED is
+ * broadcast at once, and the zero throttle keeps repeating until ESC
+ * commands resume (the failsafe's guarantee). */
 static void test_arm_during_failsafe(void **state)
 {
     static const int16_t v[4] = {100, 100, 100, 100};
-    size_t from;
+    size_t from, i;
     cap_t *c, *last = NULL;
+    dan_dc_esc_raw_command_t rc;
+    int zeros = 0;
     (void)state;
     assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
@@ -1438,15 +1440,20 @@ static void test_arm_during_failsafe(void **state)
     assert_int_equal(finish(), DAN_OK);
     advance(1200000);
     while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
-        assert_int_equal(c->payload[0], DAN_DC_ARMING_STATUS_DISARMED);
-    }
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
         last = c;
     }
     assert_non_null(last);
-    assert_int_equal(last->payload[0], 255); /* armed again, at once */
+    assert_int_equal(last->payload[0], 255);
+    assert_true(R->g.failsafe); /* still: no ESC command yet */
+    from = 0;
+    while ((c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
+        for (i = 0; i < rc.count && rc.cmd[0] == 0; i++) {
+            assert_int_equal(rc.cmd[i], 0);
+        }
+        zeros += rc.cmd[0] == 0;
+    }
+    assert_true(zeros >= 3); /* repeated at the arming rate while armed */
 }
 
 /* The gateway restarts while the FC reads raw frames: its sequence starts
@@ -1495,6 +1502,27 @@ static void test_can_recv_follows_gateway_restart(void **state)
     assert_int_equal(R->gw.can_rx_next, 0x80000000u + h.count);
 }
 
+/* A controller that goes bus-off delivers nothing we send: the FC sees the
+ * CAN-up flag drop, and come back when the controller restarts. */
+static void test_bus_off_reported(void **state)
+{
+    dan_can_frame_t e;
+    (void)state;
+    advance(1000);
+    assert_true((dan_gw_node_flags(&R->g) & DAN_GW_FLAG_CAN_OK) != 0u);
+    memset(&e, 0, sizeof e);
+    e.flags = DAN_CAN_ERR;
+    e.id = DAN_CAN_ERRCLASS_BUSOFF;
+    dan_gw_node_rx_can(&R->g, &e, R->bus.now);
+    assert_int_equal(dan_gw_node_flags(&R->g) & DAN_GW_FLAG_CAN_OK, 0);
+    assert_int_equal(dan_gw_arm(&R->gw, false, R->bus.now), DAN_OK); /* any reply with flags */
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.gw_flags & DAN_GW_FLAG_CAN_OK, 0);
+    e.id = DAN_CAN_ERRCLASS_RESTARTED;
+    dan_gw_node_rx_can(&R->g, &e, R->bus.now);
+    assert_true((dan_gw_node_flags(&R->g) & DAN_GW_FLAG_CAN_OK) != 0u);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1509,6 +1537,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_can_send_seq_reuse_after_reboot, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arm_during_failsafe, setup, teardown),
         cmocka_unit_test_setup_teardown(test_can_recv_follows_gateway_restart, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_bus_off_reported, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arming, setup, teardown),

@@ -353,14 +353,17 @@ int main(int argc, char **argv)
         if (d->can_up) {
             pf[1].fd = dan_canif_fd(&d->can);
             pf[1].events = POLLIN;
-            if (dan_canif_tx_pending(&d->can) || dan_gw_node_tx_pending(&d->node) > 0u) {
+            /* POLLOUT only for a line the backend has half written: a raw
+             * CAN socket reports writable even with its queue full
+             * (ENOBUFS), which would spin. Queued frames retry on a timer. */
+            if (dan_canif_tx_pending(&d->can)) {
                 pf[1].events |= POLLOUT;
             }
             pf[1].revents = 0;
             nfd = 2;
         }
-        if (dan_gw_node_tx_pending(&d->node) > 0u && d->can_up && timeout_ms > 5) {
-            timeout_ms = 5;
+        if (dan_gw_node_tx_pending(&d->node) > 0u && d->can_up && timeout_ms > 2) {
+            timeout_ms = 2;
         }
         r = poll(pf, nfd, timeout_ms);
         if (r < 0 && errno != EINTR) {
