@@ -676,6 +676,6 @@ const char *dan_gw_stat_name(unsigned i)
         "dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
         "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers", "dc_crc_errors",
         "dc_errors", "esc_cmds", "failsafes", "failsafe_active", "tun_dropped", "raw_dropped",
-        "nodes", "bad_checks"};
+        "nodes", "bad_checks", "nodes_dropped"};
     return (i < DAN_GW_STAT_COUNT) ? names[i] : NULL;
 }

@@ -80,7 +80,7 @@ ARMING_RATE_RANGE = (1, 50)
 STAT_NAMES = ("dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
               "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers",
               "dc_crc_errors", "dc_errors", "esc_cmds", "failsafes", "failsafe_active",
-              "tun_dropped", "raw_dropped", "nodes", "bad_checks")
+              "tun_dropped", "raw_dropped", "nodes", "bad_checks", "nodes_dropped")
 
 # node table info_state
 INFO_NONE, INFO_PENDING, INFO_VALID, INFO_FAILED = 0, 1, 2, 3

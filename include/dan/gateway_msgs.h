@@ -165,6 +165,7 @@ enum {
     DAN_GW_STAT_RAW_DROPPED,       /* raw frames dropped (receive ring full) */
     DAN_GW_STAT_NODES,             /* nodes in the table */
     DAN_GW_STAT_BAD_CHECKS,        /* requests whose seal did not match (dropped) */
+    DAN_GW_STAT_NODES_DROPPED,     /* new nodes with no room in the table */
     DAN_GW_STAT_COUNT
 };
 

@@ -307,6 +307,17 @@ static void on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_
     if (n == NULL) {
         n = find_node(g, 0);
         if (n == NULL) {
+            /* Full: a node silent past DroneCAN's offline timeout gives
+             * its slot to the new one (the longest silent first). */
+            size_t i;
+            for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+                dan_gw_node_slot_t *c = &g->nodes[i];
+                if (now_us - c->seen_us > DAN_GW_NODE_OFFLINE_US && (n == NULL || c->seen_us < n->seen_us)) {
+                    n = c;
+                }
+            }
+        }
+        if (n == NULL) {
             g->stats.nodes_dropped++;
             return;
         }
@@ -894,6 +905,7 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_TUN_DROPPED] = g->stats.tun_dropped;
     v[DAN_GW_STAT_RAW_DROPPED] = g->stats.raw_dropped;
     v[DAN_GW_STAT_BAD_CHECKS] = g->stats.bad_checks;
+    v[DAN_GW_STAT_NODES_DROPPED] = g->stats.nodes_dropped;
     for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
         v[DAN_GW_STAT_NODES] += g->nodes[i].e.node_id != 0u;
     }

@@ -1,7 +1,9 @@
 /*
  * The CAN-over-DAN gateway node: a DAN peripheral (type block 0x40) on one
  * side, a DroneCAN node on the other. Portable C99, no allocation, no
- * globals, no clock: time comes in as now_us.
+ * globals, no clock: time comes in as now_us, a monotonic 64-bit microsecond
+ * count (a port with a 32-bit counter must extend it: deadlines are compared
+ * as absolute times and a wrapped 32-bit count would stop the timers).
  *
  *     dan_gw_node_init(&gwn, &cfg, now);
  *     dan_gw_node_ptype(&gwn, &ptype);               // block 0x40 handlers
@@ -53,6 +55,11 @@ extern "C" {
 /* ---- configuration (override with -D) ---- */
 #ifndef DAN_GW_NODE_MAX_NODES
 #define DAN_GW_NODE_MAX_NODES 32u      /* node table entries */
+#endif
+/* A node silent this long is offline (DroneCAN's OFFLINE_TIMEOUT is 3 s);
+ * when the table is full, its slot goes to a new node. */
+#ifndef DAN_GW_NODE_OFFLINE_US
+#define DAN_GW_NODE_OFFLINE_US 3000000u
 #endif
 #ifndef DAN_GW_NODE_TUNNELS
 #define DAN_GW_NODE_TUNNELS 4u         /* tunnel ports */

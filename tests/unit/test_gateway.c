@@ -1523,6 +1523,38 @@ static void test_bus_off_reported(void **state)
     assert_true((dan_gw_node_flags(&R->g) & DAN_GW_FLAG_CAN_OK) != 0u);
 }
 
+/* A full node table gives the slot of a node silent past the offline
+ * timeout to a new one; with every node alive, new ones are counted. */
+static void test_node_table_full(void **state)
+{
+    dan_dc_node_status_t ns;
+    uint8_t buf[DAN_DC_NODE_STATUS_MAX_SIZE];
+    size_t i;
+    int n;
+    (void)state;
+    memset(&ns, 0, sizeof ns);
+    ns.uptime_sec = 5;
+    n = dan_dc_node_status_encode(&ns, buf, sizeof buf);
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        inject((uint8_t)(40 + i), DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE,
+               DAN_DC_TRANSFER_BROADCAST, 0, buf, n);
+    }
+    inject(100, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf, n);
+    assert_int_equal(R->g.stats.nodes_dropped, 1); /* all alive: no room */
+    advance(3500000);                               /* all silent past the offline timeout */
+    inject(100, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf, n);
+    assert_int_equal(R->g.stats.nodes_dropped, 1);
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        if (R->g.nodes[i].e.node_id == 100u) {
+            break;
+        }
+    }
+    assert_true(i < DAN_GW_NODE_MAX_NODES);
+    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.stats[DAN_GW_STAT_NODES_DROPPED], 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1538,6 +1570,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_arm_during_failsafe, setup, teardown),
         cmocka_unit_test_setup_teardown(test_can_recv_follows_gateway_restart, setup, teardown),
         cmocka_unit_test_setup_teardown(test_bus_off_reported, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_node_table_full, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
         cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
         cmocka_unit_test_setup_teardown(test_arming, setup, teardown),
