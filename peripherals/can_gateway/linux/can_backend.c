@@ -29,12 +29,19 @@ static unsigned long parse_baud(const char *s)
 
 int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen)
 {
+    return dan_canif_open_ms(c, spec, DAN_SLCAN_OPEN_TIMEOUT_MS, err, errlen);
+}
+
+int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, char *err,
+                      size_t errlen)
+{
     if (err && errlen)
         err[0] = '\0';
     if (!c || !spec)
         return set_err(err, errlen, DAN_ERR_ARG, "no interface given", "can");
     memset(c, 0, sizeof *c);
     c->fd = -1;
+    c->open_timeout_ms = timeout_ms ? timeout_ms : DAN_SLCAN_OPEN_TIMEOUT_MS;
 
     if (strncmp(spec, "socketcan:", 10) == 0) {
         const char *ifname = spec + 10;

@@ -68,6 +68,7 @@ typedef struct {
     int line_overflow;          /* dropping bytes until the next terminator */
     uint8_t rxbuf[256];
     size_t rx_pos, rx_len;      /* unparsed bytes: rxbuf[rx_pos..rx_len) */
+    unsigned open_timeout_ms;   /* SLCAN handshake bound (dan_canif_open_ms) */
     char txbuf[2 * DAN_SLCAN_FORMAT_MAX];
     size_t tx_len;              /* bytes of a partly written line */
     char name[64];              /* device or interface, for messages */
@@ -84,6 +85,11 @@ typedef struct {
  * DAN_ERR_IO, DAN_ERR_TIMEOUT (no answer), DAN_ERR_REMOTE (BEL).
  * c is overwritten: it must not hold an open interface (close it first). */
 int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen);
+/* The same with the SLCAN handshake bounded by timeout_ms instead of
+ * DAN_SLCAN_OPEN_TIMEOUT_MS: a daemon retrying a silent adapter from its
+ * poll loop keeps the loop responsive with a short one. */
+int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, char *err,
+                      size_t errlen);
 
 /* File descriptor to poll, or -1 when closed. */
 int dan_canif_fd(const dan_canif_t *c);

@@ -310,8 +310,8 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
     tcflush(fd, TCIOFLUSH);
 
     clock_gettime(CLOCK_MONOTONIC, &deadline);
-    deadline.tv_sec += DAN_SLCAN_OPEN_TIMEOUT_MS / 1000;
-    deadline.tv_nsec += (long)(DAN_SLCAN_OPEN_TIMEOUT_MS % 1000) * 1000000L;
+    deadline.tv_sec += (time_t)(c->open_timeout_ms / 1000u);
+    deadline.tv_nsec += (long)(c->open_timeout_ms % 1000u) * 1000000L;
     if (deadline.tv_nsec >= 1000000000L) {
         deadline.tv_sec++;
         deadline.tv_nsec -= 1000000000L;
@@ -353,9 +353,8 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
                         r == DAN_ERR_REMOTE
                             ? "adapter refused S8 (1 Mbit/s) with BEL"
                             : r == DAN_ERR_TIMEOUT
-                                  ? "no answer from adapter to S8 within "
-                                    "1000 ms (not an SLCAN adapter, or wrong "
-                                    "baud?)"
+                                  ? "no answer from adapter to S8 in time "
+                                    "(not an SLCAN adapter, or wrong baud?)"
                                   : "I/O error during S8 (set bitrate)",
                         0);
         }
@@ -364,7 +363,7 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
         c->kind = DAN_CANIF_NONE;
         return fail(err, errlen, r, path,
                     r == DAN_ERR_TIMEOUT
-                        ? "no answer from adapter to C within 1000 ms "
+                        ? "no answer from adapter to C in time "
                           "(not an SLCAN adapter, or wrong baud?)"
                         : "I/O error during C (close channel)",
                     0);

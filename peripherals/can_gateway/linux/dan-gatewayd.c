@@ -401,7 +401,9 @@ int main(int argc, char **argv)
                    d->node.cfg.esc_timeout_ms);
         }
         if (!d->can_up && now >= d->reopen_us) {
-            if (dan_canif_open(&d->can, d->can_spec, err, sizeof err) == DAN_OK) {
+            /* A short handshake: DAN requests wait meanwhile (at most
+             * 100 ms a second while an adapter is present but silent). */
+            if (dan_canif_open_ms(&d->can, d->can_spec, 100u, err, sizeof err) == DAN_OK) {
                 d->can_up = true;
                 dan_gw_node_can_state(&d->node, true);
                 logmsg(LOG_INFO, "CAN %s reopened", d->can_spec);
