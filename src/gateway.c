@@ -14,6 +14,13 @@ static int check_seal(void *user, uint32_t code, const uint8_t *p, size_t len)
     return dan_gw_unseal(code, DAN_GW_RESPONSE, p, len) < 0 ? DAN_ERR_MALFORMED : DAN_OK;
 }
 
+/* The inner length of a reply the master accepted: check_seal() verified
+ * its seal already, so only its two bytes are dropped here. */
+static size_t inner_len(size_t len)
+{
+    return (len >= DAN_GW_SEAL_SIZE) ? len - DAN_GW_SEAL_SIZE : 0u;
+}
+
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m)
 {
     memset(gw, 0, sizeof *gw);
@@ -302,12 +309,7 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
     if (rc != DAN_OK || code == 0u) {
         return gw->result = rc;
     }
-    rc = dan_gw_unseal(code, DAN_GW_RESPONSE, p, len); /* checked by the master already */
-    if (rc < 0) {
-        return gw->result = rc;
-    }
-    len = (size_t)rc;
-    rc = DAN_OK;
+    len = inner_len(len);
     switch (code) {
     case DAN_GW_CODE_ESC_CMD:
     case DAN_GW_CODE_ESC_TELEM:
@@ -396,15 +398,10 @@ int dan_gw_poll(dan_gw_t *gw, uint64_t now_us)
 static int resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
 {
     const dan_master_t *m = gw->m;
-    int n;
     if (m->resp_code != code || dan_master_result(m) != DAN_OK) {
         return DAN_ERR_NOTFOUND;
     }
-    n = dan_gw_unseal(code, DAN_GW_RESPONSE, m->resp, m->resp_len);
-    if (n < 0) {
-        return n;
-    }
-    dan_reader_init(r, m->resp, (size_t)n);
+    dan_reader_init(r, m->resp, inner_len(m->resp_len));
     return DAN_OK;
 }
 

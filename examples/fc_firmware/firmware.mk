@@ -32,7 +32,7 @@ DEBS_FW   := gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qe
 DEBS_RV   := gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf
 
 # The gateway client is linked (and its phase built) once it is in the tree.
-FW_GW_SRC := $(if $(and $(wildcard include/dan/gateway.h),$(wildcard src/gateway.c)),$(wildcard src/gateway.c src/gateway_msgs.c))
+FW_GW_SRC := $(if $(and $(wildcard include/dan/gateway.h),$(wildcard src/gateway.c)),$(wildcard src/gateway.c src/gateway_msgs.c src/crc16.c))
 FW_DEFS   := $(if $(FW_GW_SRC),-DFW_WITH_GATEWAY)
 
 FW_CFLAGS  = $(FW_ARCH) -Os -g $(FW_WARN) -ffunction-sections -fdata-sections \

@@ -41,6 +41,12 @@ uint8_t dan_crc8(uint8_t crc, const uint8_t *data, size_t len);
 /* One byte step, for byte-at-a-time callers. */
 uint8_t dan_crc8_byte(uint8_t crc, uint8_t byte);
 
+/* ---- CRC-16/CCITT-FALSE: poly 0x1021, no reflection, no xorout ---- */
+
+/* CRC of len bytes continuing from crc (start with 0xFFFF; check("123456789")
+ * = 0x29B1). The gateway seal and DroneCAN transfers both use it. */
+uint16_t dan_crc16_ccitt(uint16_t crc, const uint8_t *data, size_t len);
+
 /* ---- uvarint: 7 bits a byte, low group first, 0x80 = more follows ---- */
 
 /* Writes v at out (cap bytes). Returns bytes written (1..5), or

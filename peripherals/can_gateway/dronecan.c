@@ -81,16 +81,7 @@ int dan_dc_parse_id(uint32_t id, dan_dc_transfer_t *t)
 
 uint16_t dan_dc_crc16(uint16_t crc, const uint8_t *data, size_t len)
 {
-    size_t i;
-    for (i = 0; i < len; i++) {
-        unsigned b;
-        crc = (uint16_t)(crc ^ (uint16_t)((unsigned)data[i] << 8));
-        for (b = 0; b < 8u; b++) {
-            crc = (uint16_t)((crc & 0x8000u) != 0u ? ((unsigned)crc << 1) ^ 0x1021u
-                                                   : (unsigned)crc << 1);
-        }
-    }
-    return crc;
+    return dan_crc16_ccitt(crc, data, len); /* the same CRC as libdan's */
 }
 
 uint16_t dan_dc_crc16_signature(uint64_t signature)

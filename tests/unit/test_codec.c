@@ -77,6 +77,8 @@ static void test_crc8_check(void **state)
 {
     (void)state;
     assert_int_equal(dan_crc8(0, (const uint8_t *)"123456789", 9), 0xBC);
+    /* and the CRC-16/CCITT-FALSE check value */
+    assert_int_equal(dan_crc16_ccitt(0xFFFFu, (const uint8_t *)"123456789", 9), 0x29B1);
     /* byte-at-a-time equals bulk */
     {
         const uint8_t *s = (const uint8_t *)"123456789";
