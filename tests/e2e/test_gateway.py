@@ -15,7 +15,7 @@ import pytest
 
 from conftest import BIN, ROOT, wait_for
 
-dronecan = pytest.importorskip("dronecan")
+import dronecan
 U = dronecan.uavcan
 
 GW_NODE = 10
@@ -36,15 +36,18 @@ class Rig:
     def __init__(self, procs, tmp, ncan=3, gw_args=()):
         for b in ("dan-vbus", "dan-gatewayd", "dan-fcsim", "dan-cantool"):
             if not (BIN / b).exists():
-                pytest.skip(f"{b} not built")
+                pytest.fail(f"{b} not built: run make test (it builds everything)")
         self.procs, self.tmp = procs, tmp
         self.vbus = procs.start([BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan"])
         ready_line(self.vbus, "dan-vbus")
         self.hub = procs.start(["python3", ROOT / "host_tools" / "slcan_hub.py", "-n", str(ncan),
                                 "--link", tmp / "can"], name="slcan_hub")
         ready_line(self.hub, "slcan_hub")
+        # Generous reply windows (here and in fcsim): a loaded 2-core host
+        # can stall a process that long; these tests check behaviour, not speed.
         self.gwd = procs.start([BIN / "dan-gatewayd", "--uart", tmp / "dan1",
-                                "--can", f"slcan:{tmp / 'can0'}", "--verbose", *gw_args],
+                                "--can", f"slcan:{tmp / 'can0'}", "--verbose",
+                                "--reply-window-ms", "200", *gw_args],
                                stdout=None)
         self.nodes = []
         self.stop = threading.Event()
@@ -77,7 +80,7 @@ class Rig:
         self.threads.append(t)
 
     def fcsim(self, *steps, timeout=120):
-        p = self.procs.start([BIN / "dan-fcsim", "--port", self.tmp / "dan0", *steps])
+        p = self.procs.start([BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *steps])
         out, _ = p.communicate(timeout=timeout)
         lines = [json.loads(l) for l in out.decode().splitlines() if l.strip()]
         return p.returncode, lines
@@ -134,7 +137,7 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
                       "esc:1,2,3,4,5,6,7,-8@1000@50",
                       "esc:0,100,200,300@3000@0",
                       "telemetry", "nodes", "stats")
-    assert rc == 0, out
+    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
     assert step(out, "configure")[0]["baud"] == 115200
     # exact values on the bus, 4 and 8 channels
     cmds = [c for _, c in raw]
@@ -222,7 +225,7 @@ def test_tunnel_64k_both_ways(rig):
     src.write_bytes(data)
     rc, out = r.fcsim("discover", "configure", "tunnel:0:targetted:30:2:115200",
                       f"xfer:0:{src}:{dst}:{len(data)}:150000", "stats", timeout=170)
-    assert rc == 0, out
+    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
     assert bytes(got) == data
     assert dst.read_bytes() == bytes(b ^ 0x5A for b in data)
     x = step(out, "xfer")[0]
@@ -249,7 +252,7 @@ def test_tunnel_broadcast(rig):
     src.write_bytes(data)
     rc, out = r.fcsim("discover", "configure", "tunnel:0:broadcast:2:7",
                       f"xfer:0:{src}:{dst}:1200:30000")
-    assert rc == 0, out
+    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
     wait_for(lambda: len(got) >= len(data), 20, what="broadcast tunnel data")
     assert bytes(got) == data
     assert dst.read_bytes()[:1200] == b"".join(sent)[:1200]
@@ -264,7 +267,7 @@ def test_raw_frames_filtered(rig):
     time.sleep(0.5)
     rc, out = r.fcsim("discover", "configure", "filter:100/700",
                       "cansend:123#DEADBEEF,1ABCDE01#0102030405060708", "sleep:200")
-    assert rc == 0, out
+    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
     o, _ = rec.communicate(timeout=40)
     lines = o.decode().split()
     assert "123#DEADBEEF" in o.decode()
@@ -274,7 +277,7 @@ def test_raw_frames_filtered(rig):
                          "1AB#0102", "2AB#0304", "155#"])
     assert snd.wait(20) == 0
     rc, out = r.fcsim("discover", "candump:2:10000")
-    assert rc == 0, out
+    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
     assert step(out, "candump")[0]["frames"] == ["1AB#0102", "155#"]
     del lines
 
