@@ -24,6 +24,8 @@ import time
 
 import dronecan
 
+import pydronecan_nodes
+
 
 class Esc:
     def __init__(self, idx, port, node_id, args, log):
@@ -35,7 +37,7 @@ class Esc:
         info.software_version.major = 1
         info.hardware_version.major = 1
         info.hardware_version.unique_id = bytes([0xE5, idx] + [node_id] * 14)
-        self.node = dronecan.make_node("slcan:" + port, node_id=node_id, bitrate=1000000, node_info=info)
+        self.node = pydronecan_nodes.make_node(port, node_id, node_info=info)
         self.node.add_handler(dronecan.uavcan.equipment.esc.RawCommand, self.on_cmd)
         self.node.add_handler(dronecan.uavcan.equipment.safety.ArmingStatus, self.on_arming)
         self.node.health = dronecan.uavcan.protocol.NodeStatus().HEALTH_OK

@@ -7,12 +7,19 @@ a process behind whatever happens.
 import os
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "host_tools"))
+import pydronecan_nodes  # noqa: E402
+
+# Before any pydronecan node exists: their I/O children start with spawn,
+# never forked from this multi-threaded test process (issue 16).
+pydronecan_nodes.use_spawn()
 BIN = ROOT / "build" / "bin"
 VECTORS = ROOT / "tests" / "vectors"
 

@@ -17,6 +17,8 @@ import pytest
 from bus_util import periph_stats, read_capture, start_periph, start_vbus, vbus_stats
 from conftest import ROOT
 
+import pydronecan_nodes
+
 FW_ELF = os.environ.get("DAN_FW_ELF", str(ROOT / "build" / "fw" / "fc_firmware.elf"))
 QEMU = shutil.which("qemu-system-arm")
 RUN_TIMEOUT = 180   # seconds: QEMU on a loaded 2-core machine
@@ -153,7 +155,7 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
                 name="dan-gatewayd", stdout=subprocess.DEVNULL)
     start_periph(procs, eps[2], "test-a,test-b")
 
-    esc = dronecan.make_node("slcan:" + str(tmp_path / "can1"), node_id=20, bitrate=1000000)
+    esc = pydronecan_nodes.make_node(tmp_path / "can1", 20)
     raw, arming = [], []
     esc.add_handler(U.equipment.esc.RawCommand, lambda e: raw.append(list(e.message.cmd)))
     esc.add_handler(U.equipment.safety.ArmingStatus, lambda e: arming.append(e.message.status))

@@ -16,6 +16,7 @@ import pytest
 from conftest import BIN, ROOT, wait_for
 
 import dronecan
+import pydronecan_nodes
 U = dronecan.uavcan
 
 GW_NODE = 10
@@ -59,8 +60,7 @@ class Rig:
         info.software_version.major = 2
         info.software_version.minor = 7
         info.hardware_version.major = 1
-        n = dronecan.make_node("slcan:" + str(self.tmp / f"can{k}"), node_id=node_id,
-                               bitrate=1000000, node_info=info)
+        n = pydronecan_nodes.make_node(self.tmp / f"can{k}", node_id, node_info=info)
         self.nodes.append(n)
         return n
 

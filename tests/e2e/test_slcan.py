@@ -20,6 +20,7 @@ import pytest
 from conftest import BIN, ROOT, wait_for
 
 import dronecan
+import pydronecan_nodes
 
 HUB = ROOT / "host_tools" / "slcan_hub.py"
 CANTOOL = BIN / "dan-cantool"
@@ -83,7 +84,7 @@ def hub(procs, tmp_path):
 
 
 def make_node(path, node_id, **kw):
-    return dronecan.make_node("slcan:" + path, node_id=node_id, bitrate=1000000, **kw)
+    return pydronecan_nodes.make_node(path, node_id, **kw)
 
 
 def spin_until(nodes, pred, timeout=15.0, what="condition"):
