@@ -1,12 +1,16 @@
 # DAN: libdan, the CAN-over-DAN gateway, tools and tests.
 #
-#   make            build libdan, the POSIX port, the tools and the gateway
-#   make test       install test dependencies, run C unit tests (plain and
-#                   ASan+UBSan) and the Python end-to-end tests
-#   make cross      compile src/ for Cortex-M4 and print section sizes
-#   make install    PREFIX=/usr/local DESTDIR= ; headers, libdan.a, dan.pc
-#
-# Missing Debian packages are installed with apt-get (sudo when not root).
+#   make            build libdan, the POSIX port, the peripheral types' libraries,
+#                   the tools and the gateway daemon. Installs nothing: a missing
+#                   package is named and the build stops.
+#   make deps       install what building, testing and the demo need (Debian
+#                   packages with apt-get, sudo when not root; .venv from PyPI)
+#   make demo       deps, then the demo on a virtual bus
+#   make test       deps, then C unit tests (plain and ASan+UBSan), the style
+#                   check (C and Python) and the end-to-end tests
+#   make style      the style check alone; make format rewrites the files
+#   make cross      compile the portable sources for Cortex-M4, print sizes
+#   make install    PREFIX=/usr/local DESTDIR= ; headers, libraries, .pc files
 
 BUILD   ?= build
 PREFIX  ?= /usr/local
@@ -17,154 +21,179 @@ PYTHON  ?= python3
 VENV    := .venv
 VERSION := 0.1.0
 
-WARN     := -std=c99 -Wall -Wextra -Werror -Wconversion -Wshadow
-OPT      ?= -O2 -g
-SAN      ?=
+# The one set of warning flags, for every C file of the project.
+WARN := -std=c99 -Wall -Wextra -Werror -Wconversion -Wshadow
+OPT  ?= -O2 -g
+SAN  ?=
 ifeq ($(SAN),1)
-OPT      := -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
-LDSAN    := -fsanitize=address,undefined
-endif
-CFLAGS_ALL  = $(WARN) $(OPT) -Iinclude -MMD -MP $(EXTRA_CFLAGS)
-# POSIX code (ports, tools, daemons) may use POSIX and Linux interfaces.
-CFLAGS_POSIX = $(CFLAGS_ALL) -D_GNU_SOURCE
-
-# libgpiod (v1 API) drives a direction pin; built only when present.
-HAVE_GPIOD := $(shell pkg-config --exists libgpiod 2>/dev/null && echo 1)
-ifeq ($(HAVE_GPIOD),1)
-GPIOD_CFLAGS := -DDAN_HAVE_GPIOD $(shell pkg-config --cflags libgpiod)
-GPIOD_LIBS   := $(shell pkg-config --libs libgpiod)
+OPT   := -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+LDSAN := -fsanitize=address,undefined
 endif
 
-LIB_SRC   := $(wildcard src/*.c)
-PORT_SRC  := $(wildcard src/port/*.c)
-GW_SRC    := $(wildcard peripherals/can_gateway/*.c)
-GWD_MAIN  := $(wildcard peripherals/can_gateway/linux/dan-gatewayd.c)
-GWL_SRC   := $(filter-out $(GWD_MAIN),$(wildcard peripherals/can_gateway/linux/*.c))
+# ---- what is built -----------------------------------------------------------
+
+# libdan core: what every peripheral type uses.
+CORE_SRC := $(wildcard src/*.c)
+PORT_SRC := $(wildcard src/port/*.c)
+
+# Peripheral types: one folder each under peripherals/, public headers in
+# its include/ (dan/<type>/...). The CAN gateway type:
+GW_DIR        := peripherals/can_gateway
+GW_CLIENT_SRC := $(GW_DIR)/gw_msgs.c $(GW_DIR)/gw_client.c $(GW_DIR)/f16.c
+GW_NODE_SRC   := $(wildcard $(GW_DIR)/gw_node*.c) $(GW_DIR)/dronecan.c $(GW_DIR)/dsdl.c \
+                 $(GW_DIR)/dsdl_bits.c
+GW_LINUX_SRC  := $(filter-out $(GW_DIR)/linux/dan-gatewayd.c,$(wildcard $(GW_DIR)/linux/*.c))
+GWD_MAIN      := $(GW_DIR)/linux/dan-gatewayd.c
+
 TOOL_SRC  := $(wildcard host_tools/c/*.c)
 TTOOL_SRC := $(wildcard tests/tools/*.c)
 UNIT_SRC  := $(wildcard tests/unit/test_*.c)
 UNIT_HELP := $(filter-out $(UNIT_SRC),$(wildcard tests/unit/*.c))
 
+# Everything an MCU build compiles: no POSIX, no allocation.
+PORTABLE_SRC := $(CORE_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC)
+
+INCLUDES := -Iinclude $(patsubst %,-I%,$(wildcard peripherals/*/include))
+CFLAGS_ALL   = $(WARN) $(OPT) $(INCLUDES) -MMD -MP $(EXTRA_CFLAGS)
+# POSIX code (the port, tools, daemons, tests) may use POSIX and Linux.
+CFLAGS_POSIX = $(CFLAGS_ALL) -D_GNU_SOURCE $(GPIOD_CFLAGS)
+
+# libgpiod (v1 API) drives a direction pin. GPIOD=0 builds without it.
+GPIOD ?= 1
+ifeq ($(GPIOD),1)
+GPIOD_CFLAGS := -DDAN_HAVE_GPIOD
+GPIOD_LIBS   := -lgpiod
+endif
+
 obj = $(patsubst %.c,$(BUILD)/obj/%.o,$(1))
 
-LIB      := $(BUILD)/libdan.a
-LIBPOSIX := $(BUILD)/libdan_posix.a
-LIBGW    := $(BUILD)/libdan_gateway.a
-LIBGWL   := $(BUILD)/libdan_gwlinux.a
-BINS     := $(patsubst host_tools/c/%.c,$(BUILD)/bin/%,$(TOOL_SRC)) \
-            $(patsubst tests/tools/%.c,$(BUILD)/bin/%,$(TTOOL_SRC)) \
-            $(if $(GWD_MAIN),$(BUILD)/bin/dan-gatewayd)
-UNITS    := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(UNIT_SRC))
-ALL_LIBS  = $(if $(GWL_SRC),$(LIBGWL)) $(if $(GW_SRC),$(LIBGW)) $(if $(PORT_SRC),$(LIBPOSIX)) $(LIB)
+LIB        := $(BUILD)/libdan.a
+LIBPOSIX   := $(BUILD)/libdan_posix.a
+LIBGW      := $(BUILD)/libdan_can_gw.a
+LIBGWNODE  := $(BUILD)/libdan_can_gw_node.a
+LIBGWLINUX := $(BUILD)/libdan_can_gw_linux.a
+ALL_LIBS   := $(LIBGWLINUX) $(LIBGWNODE) $(LIBGW) $(LIBPOSIX) $(LIB)
+BINS       := $(patsubst host_tools/c/%.c,$(BUILD)/bin/%,$(TOOL_SRC)) \
+              $(patsubst tests/tools/%.c,$(BUILD)/bin/%,$(TTOOL_SRC)) \
+              $(BUILD)/bin/dan-gatewayd
+UNITS      := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(UNIT_SRC))
 
-.PHONY: demo objects all test unit unit-run pytest cross install clean deps-build deps-test deps-cross venv
+.PHONY: all demo objects test unit unit-run pytest style format cross install clean \
+        deps deps-build deps-test check-deps venv
 .DELETE_ON_ERROR:
 
-all: deps-build $(ALL_LIBS) $(BINS) venv
+all: check-deps $(ALL_LIBS) $(BINS)
 
-# ---- dependencies -------------------------------------------------------
+# ---- dependencies --------------------------------------------------------------
 
-DEBS_BUILD := gcc make pkg-config libgpiod-dev
-DEBS_TEST  := libcmocka-dev python3-venv valgrind
-DEBS_CROSS := gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi
+DEBS_BUILD := gcc make pkg-config $(if $(filter 1,$(GPIOD)),libgpiod-dev)
+DEBS_TEST  := libcmocka-dev python3-venv valgrind clang-format
+
+# $(call missing_debs,pkgs): the shell word list of pkgs not installed.
+missing_debs = $$(for p in $(1); do \
+  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'install ok installed' || echo $$p; done)
 
 # $(call ensure_debs,pkgs): install the Debian packages that are missing.
 define ensure_debs
-@missing=""; \
-if command -v dpkg-query >/dev/null 2>&1; then \
-  for p in $(1); do \
-    dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q 'install ok installed' || missing="$$missing $$p"; \
-  done; \
-else \
-  echo "note: not a Debian system; make sure these are installed:$(foreach p,$(1), $(p))"; \
-fi; \
+@if ! command -v dpkg-query >/dev/null 2>&1; then \
+  echo "note: not a Debian system; make sure these are installed:$(foreach p,$(1), $(p))"; exit 0; fi; \
+missing="$(call missing_debs,$(1))"; missing=$$(echo $$missing); \
 if [ -n "$$missing" ]; then \
-  echo "installing Debian packages:$$missing"; \
+  echo "installing Debian packages: $$missing"; \
   if [ "$$(id -u)" = 0 ]; then SUDO=""; \
   elif command -v sudo >/dev/null 2>&1; then SUDO="sudo"; \
-  else echo "error: missing packages:$$missing; install them as root (apt-get install$$missing)" >&2; exit 1; fi; \
+  else echo "error: missing packages: $$missing; install them as root (apt-get install $$missing)" >&2; exit 1; fi; \
   export DEBIAN_FRONTEND=noninteractive; \
   { $$SUDO apt-get install -y --no-install-recommends $$missing || \
     { $$SUDO apt-get update && $$SUDO apt-get install -y --no-install-recommends $$missing; }; } \
-  || { echo "error: could not install:$$missing (apt-get failed; install them by hand)" >&2; exit 1; }; \
+  || { echo "error: could not install: $$missing (apt-get failed; install them by hand)" >&2; exit 1; }; \
 fi
 endef
+
+# Plain make only looks: it names what is missing and stops.
+check-deps:
+	@if command -v dpkg-query >/dev/null 2>&1; then \
+	  missing="$(call missing_debs,$(DEBS_BUILD))"; missing=$$(echo $$missing); \
+	  if [ -n "$$missing" ]; then \
+	    echo "error: missing Debian packages: $$missing" >&2; \
+	    echo "       run 'make deps' (installs them) or 'apt-get install $$missing'$(if $(filter 1,$(GPIOD)),; GPIOD=0 builds without libgpiod)" >&2; \
+	    exit 1; fi; fi
 
 deps-build:
 	$(call ensure_debs,$(DEBS_BUILD))
 deps-test: deps-build
 	$(call ensure_debs,$(DEBS_TEST))
-deps-cross:
-	$(call ensure_debs,$(DEBS_CROSS))
+deps: deps-test deps-firmware venv
 
-# Python venv for the host tool and the end-to-end tests.
-$(VENV)/.stamp: host_tools/requirements-test.txt $(wildcard host_tools/pyproject.toml)
+# Python venv for danprobe, the host tools and the end-to-end tests.
+$(VENV)/.stamp: host_tools/requirements-test.txt host_tools/pyproject.toml
 	@$(PYTHON) -c 'import ensurepip' 2>/dev/null || $(MAKE) --no-print-directory deps-test
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/pip install --quiet --disable-pip-version-check -r host_tools/requirements-test.txt
-	@if [ -f host_tools/pyproject.toml ]; then \
-	  $(VENV)/bin/pip install --quiet --disable-pip-version-check -e host_tools; fi
+	$(VENV)/bin/pip install --quiet --disable-pip-version-check -e host_tools
 	@touch $@
 venv: $(VENV)/.stamp
 
-# ---- libraries and programs ----------------------------------------------
+# ---- libraries and programs ------------------------------------------------------
 
-$(BUILD)/obj/src/%.o: src/%.c
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_ALL) -c $< -o $@
 $(BUILD)/obj/src/port/%.o: src/port/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_POSIX) $(GPIOD_CFLAGS) -c $< -o $@
-$(BUILD)/obj/peripherals/can_gateway/%.o: peripherals/can_gateway/%.c
+	$(CC) $(CFLAGS_POSIX) -c $< -o $@
+$(BUILD)/obj/$(GW_DIR)/linux/%.o: $(GW_DIR)/linux/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_ALL) -Iperipherals/can_gateway -c $< -o $@
-$(BUILD)/obj/peripherals/can_gateway/linux/%.o: peripherals/can_gateway/linux/%.c
-	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_POSIX) $(GPIOD_CFLAGS) -Iperipherals/can_gateway -c $< -o $@
-$(BUILD)/obj/host_tools/c/%.o: host_tools/c/%.c
+	$(CC) $(CFLAGS_POSIX) -c $< -o $@
+$(BUILD)/obj/host_tools/%.o: host_tools/%.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_POSIX) -c $< -o $@
 $(BUILD)/obj/tests/%.o: tests/%.c
 	@mkdir -p $(@D)
-	$(CC) $(CFLAGS_POSIX) -Iperipherals/can_gateway -Itests/unit -c $< -o $@
+	$(CC) $(CFLAGS_POSIX) -I$(GW_DIR)/linux -Itests/unit -c $< -o $@
+# Portable sources (the core, the peripheral types): no POSIX.
+$(BUILD)/obj/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_ALL) -c $< -o $@
 
 # Naming every object here keeps them from being treated as intermediate
 # files (deleted after linking, and not rebuilt when a header changes).
-objects: $(call obj,$(LIB_SRC) $(PORT_SRC) $(GW_SRC) $(GWD_MAIN) $(GWL_SRC) $(TOOL_SRC) $(TTOOL_SRC) $(UNIT_SRC) $(UNIT_HELP))
+objects: $(call obj,$(CORE_SRC) $(PORT_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC) $(GW_LINUX_SRC) \
+                    $(GWD_MAIN) $(TOOL_SRC) $(TTOOL_SRC) $(UNIT_SRC) $(UNIT_HELP))
 
-$(LIB): $(call obj,$(LIB_SRC))
+# $(call archive,objects)
+define archive
 	@mkdir -p $(@D)
-	rm -f $@ && $(AR) rcs $@ $^
-$(LIBGWL): $(call obj,$(GWL_SRC))
-	@mkdir -p $(@D)
-	rm -f $@ && $(AR) rcs $@ $^
+	rm -f $@ && $(AR) rcs $@ $(1)
+endef
+$(LIB): $(call obj,$(CORE_SRC))
+	$(call archive,$^)
 $(LIBPOSIX): $(call obj,$(PORT_SRC))
-	@mkdir -p $(@D)
-	rm -f $@ && $(AR) rcs $@ $^
-$(LIBGW): $(call obj,$(GW_SRC))
-	@mkdir -p $(@D)
-	rm -f $@ && $(AR) rcs $@ $^
+	$(call archive,$^)
+$(LIBGW): $(call obj,$(GW_CLIENT_SRC))
+	$(call archive,$^)
+$(LIBGWNODE): $(call obj,$(GW_NODE_SRC))
+	$(call archive,$^)
+$(LIBGWLINUX): $(call obj,$(GW_LINUX_SRC))
+	$(call archive,$^)
 
-
+LDLIBS := $(GPIOD_LIBS) -lutil -lm
 $(BUILD)/bin/%: $(BUILD)/obj/host_tools/c/%.o $(ALL_LIBS)
 	@mkdir -p $(@D)
-	$(CC) $(LDSAN) -o $@ $^ $(GPIOD_LIBS) -lutil
+	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 $(BUILD)/bin/%: $(BUILD)/obj/tests/tools/%.o $(ALL_LIBS)
 	@mkdir -p $(@D)
-	$(CC) $(LDSAN) -o $@ $^ $(GPIOD_LIBS) -lutil
+	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 $(BUILD)/bin/dan-gatewayd: $(call obj,$(GWD_MAIN)) $(ALL_LIBS)
 	@mkdir -p $(@D)
-	$(CC) $(LDSAN) -o $@ $^ $(GPIOD_LIBS) -lutil -lm
+	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 
 -include $(shell find $(BUILD)/obj -name '*.d' 2>/dev/null)
 
-# ---- tests ----------------------------------------------------------------
+# ---- tests ----------------------------------------------------------------------
 
 $(BUILD)/tests/test_%: $(BUILD)/obj/tests/unit/test_%.o $(call obj,$(UNIT_HELP)) $(ALL_LIBS)
 	@mkdir -p $(@D)
-	$(CC) $(LDSAN) -o $@ $^ -lcmocka -lm
+	$(CC) $(LDSAN) -o $@ $^ -lcmocka $(LDLIBS)
 
-unit: deps-test all $(UNITS)
+unit: all $(UNITS)
 
 # Runs every unit test binary; fails if any fails.
 unit-run: unit
@@ -175,47 +204,69 @@ unit-run: unit
 pytest: all venv firmware
 	CI=$${CI:-} $(VENV)/bin/python -m pytest -q tests/e2e
 
+# One formatter for C (clang-format, .clang-format) and one for Python
+# (ruff, pyproject.toml at the top): `make style` fails on any difference.
+STYLE_C  = $(shell git ls-files '*.c' '*.h' 2>/dev/null)
+STYLE_PY = $(shell git ls-files '*.py' 2>/dev/null)
+style: venv
+	@clang-format --dry-run --Werror $(STYLE_C) && echo "style: C ok ($(words $(STYLE_C)) files)"
+	@$(VENV)/bin/ruff format --check --quiet $(STYLE_PY) && $(VENV)/bin/ruff check --quiet $(STYLE_PY) \
+	  && echo "style: Python ok ($(words $(STYLE_PY)) files)"
+	@$(VENV)/bin/python tests/style/check_functions.py
+format: venv
+	clang-format -i $(STYLE_C)
+	$(VENV)/bin/ruff format --quiet $(STYLE_PY)
+
 # The one-command demo: a DAN bus, the gateway and four DroneCAN ESCs on
 # virtual wires, driven by danprobe.
-demo: all venv
+demo: deps all
 	$(VENV)/bin/python host_tools/demo.py
 
-test: deps-test deps-firmware
+test: deps
 	$(MAKE) --no-print-directory unit-run
 	$(MAKE) --no-print-directory BUILD=build/asan SAN=1 unit-run
+	$(MAKE) --no-print-directory style
 	$(MAKE) --no-print-directory pytest
 
-# ---- firmware (Cortex-M4 under QEMU), size budget, portability -------------
+# ---- firmware (Cortex-M4 under QEMU), size budget, portability -------------------
 
 include examples/fc_firmware/firmware.mk
 
-# ---- benchmarks (make bench, make soak) and fuzzing (make fuzz) -------------
+# ---- benchmarks (make bench, make soak) and fuzzing (make fuzz) --------------------
 
 include tests/bench/bench.mk
 include tests/fuzz/fuzz.mk
 
-# ---- cross build ------------------------------------------------------------
+# ---- cross build ----------------------------------------------------------------
 
 CROSS_CC    := arm-none-eabi-gcc
-CROSS_FLAGS := -mcpu=cortex-m4 -mthumb -Os -std=c99 -Wall -Wextra -Werror -Wconversion -Wshadow \
-               -ffunction-sections -fdata-sections -Iinclude
+CROSS_FLAGS := -mcpu=cortex-m4 -mthumb -Os $(WARN) -ffunction-sections -fdata-sections $(INCLUDES)
 
-cross: deps-cross
+cross: deps-firmware
 	@mkdir -p $(BUILD)/cross
-	@for f in $(LIB_SRC); do \
+	@for f in $(PORTABLE_SRC); do \
 	  $(CROSS_CC) $(CROSS_FLAGS) -c $$f -o $(BUILD)/cross/$$(basename $$f .c).o || exit 1; \
 	done
 	@arm-none-eabi-size -t $(BUILD)/cross/*.o
 
-# ---- install ------------------------------------------------------------------
+# ---- install ---------------------------------------------------------------------
 
-install: $(LIB)
-	install -d $(DESTDIR)$(PREFIX)/include/dan $(DESTDIR)$(PREFIX)/lib/pkgconfig
+# $(call pc_file,name,description,libs,requires)
+define pc_file
+printf '%s\n' 'prefix=$(PREFIX)' 'includedir=$${prefix}/include' 'libdir=$${prefix}/lib' '' \
+  'Name: $(1)' 'Description: $(2)' 'Version: $(VERSION)' $(if $(4),'Requires: $(4)') \
+  'Cflags: -I$${includedir}' 'Libs: -L$${libdir} $(3)' > $(DESTDIR)$(PREFIX)/lib/pkgconfig/$(1).pc
+endef
+
+install: $(LIB) $(LIBPOSIX) $(LIBGW) $(LIBGWNODE)
+	install -d $(DESTDIR)$(PREFIX)/include/dan/can_gw $(DESTDIR)$(PREFIX)/lib/pkgconfig
 	install -m 644 include/dan/*.h $(DESTDIR)$(PREFIX)/include/dan/
-	install -m 644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
-	printf '%s\n' 'prefix=$(PREFIX)' 'includedir=$${prefix}/include' 'libdir=$${prefix}/lib' '' \
-	  'Name: dan' 'Description: DAN v1 (Drone Area Network) protocol library' 'Version: $(VERSION)' \
-	  'Cflags: -I$${includedir}' 'Libs: -L$${libdir} -ldan' > $(DESTDIR)$(PREFIX)/lib/pkgconfig/dan.pc
+	install -m 644 $(GW_DIR)/include/dan/can_gw/*.h $(DESTDIR)$(PREFIX)/include/dan/can_gw/
+	install -m 644 $(LIB) $(LIBPOSIX) $(LIBGW) $(LIBGWNODE) $(DESTDIR)$(PREFIX)/lib/
+	$(call pc_file,dan,DAN v1 (Drone Area Network) protocol library,-ldan)
+	$(call pc_file,dan-posix,DAN POSIX port (raw tty at any baud; libgpiod direction pin),-ldan_posix $(GPIOD_LIBS),dan)
+	$(call pc_file,dan-can-gw,DAN CAN-over-DAN gateway client (FC side),-ldan_can_gw,dan)
+	$(call pc_file,dan-can-gw-node,DAN CAN-over-DAN gateway node (DroneCAN side),-ldan_can_gw_node -ldan_can_gw,dan)
 
 clean:
 	rm -rf $(BUILD)

@@ -1,5 +1,6 @@
 # examples/fc_firmware/firmware.mk: libdan inside flight-controller firmware.
-# Included from the top-level Makefile (needs its BUILD and ensure_debs);
+# Included from the top-level Makefile (needs its BUILD, WARN, INCLUDES,
+# GW_CLIENT_SRC, PORTABLE_SRC and ensure_debs);
 # standalone: make -f Makefile -f examples/fc_firmware/firmware.mk firmware
 #
 #   make firmware      build/fw/fc_firmware.elf (Cortex-M4, QEMU mps2-an386)
@@ -23,7 +24,6 @@ FW_CC     := arm-none-eabi-gcc
 FW_NM     := arm-none-eabi-nm
 FW_SIZE   := arm-none-eabi-size
 FW_ARCH   := -mcpu=cortex-m4 -mthumb
-FW_WARN   := -std=c99 -Wall -Wextra -Werror -Wconversion -Wshadow
 # The budget README.md states (see "Size budget" there).
 FW_FLASH_BUDGET ?= 9216
 FW_RAM_BUDGET   ?= 2304
@@ -31,12 +31,11 @@ FW_RAM_BUDGET   ?= 2304
 DEBS_FW   := gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qemu-system-arm clang
 DEBS_RV   := gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf
 
-# The gateway client is linked (and its phase built) once it is in the tree.
-FW_GW_SRC := $(if $(and $(wildcard include/dan/gateway.h),$(wildcard src/gateway.c)),$(wildcard src/gateway.c src/gateway_msgs.c src/crc16.c))
-FW_DEFS   := $(if $(FW_GW_SRC),-DFW_WITH_GATEWAY)
+# What an FC links to drive ESCs through the CAN gateway: its client.
+FW_GW_SRC := $(GW_CLIENT_SRC) src/crc16.c
 
-FW_CFLAGS  = $(FW_ARCH) -Os -g $(FW_WARN) -ffunction-sections -fdata-sections \
-             -Iinclude -I$(FW_DIR) -MMD -MP $(FW_DEFS)
+FW_CFLAGS  = $(FW_ARCH) -Os -g $(WARN) -ffunction-sections -fdata-sections \
+             $(INCLUDES) -I$(FW_DIR) -MMD -MP
 FW_LDFLAGS = $(FW_ARCH) --specs=nano.specs -nostartfiles -Wl,--gc-sections \
              -T $(FW_DIR)/fc_firmware.ld
 
@@ -50,9 +49,8 @@ FW_OBJS     := $(call fw_obj,$(FW_LIB_SRC) $(FW_APP_SRC))
 FW_GW_OBJS  := $(call fw_obj,$(FW_GW_SRC))
 FW_SIZE_OBJS = $(call fw_obj,$(FW_CODEC_SRC) $(FW_MASTER_SRC))
 
-# Portable sources: everything in src/ but the POSIX port.
-PORTABLE_SRC := $(wildcard src/*.c)
-PORT_WARN    := -std=c99 -pedantic -Wall -Wextra -Werror -Wconversion -Wshadow -Iinclude
+# Portable sources (PORTABLE_SRC, from the Makefile): -pedantic on top.
+PORT_WARN    := $(WARN) -pedantic $(INCLUDES)
 
 .PHONY: firmware run-firmware size portability deps-firmware
 
@@ -61,7 +59,7 @@ deps-firmware:
 
 firmware: $(FW_ELF)
 
-# The flags in a stamp file: objects rebuild when the gateway appears.
+# The flags in a stamp file: objects rebuild when they change.
 $(FW_BUILD)/flags: FORCE_FW_FLAGS
 	@mkdir -p $(@D)
 	@echo '$(FW_CFLAGS)' | cmp -s - $@ || echo '$(FW_CFLAGS)' > $@
@@ -92,8 +90,8 @@ run-firmware: $(FW_ELF)
 # codec), 2 (+ the gateway calls an FC makes), 3 (+ the whole gateway API).
 # The report sums the input sections the linker kept per object (map file).
 
-FW_PROBES := 0 1 $(if $(FW_GW_SRC),2 3)
-FW_PROBE_TOP := $(if $(FW_GW_SRC),2,1)
+FW_PROBES := 0 1 2 3
+FW_PROBE_TOP := 2
 
 $(FW_BUILD)/size/probe%.o: $(FW_DIR)/size_probe.c $(FW_BUILD)/flags | deps-firmware
 	@mkdir -p $(@D)
@@ -107,7 +105,7 @@ size: $(foreach p,$(FW_PROBES),$(FW_BUILD)/size/probe$(p).elf)
 	@$(PYTHON) $(FW_DIR)/size_report.py --nm $(FW_NM) \
 	  --base $(FW_BUILD)/size/probe0.map --image $(FW_BUILD)/size/probe$(FW_PROBE_TOP).map \
 	  --elf $(FW_BUILD)/size/probe$(FW_PROBE_TOP).elf \
-	  $(if $(FW_GW_SRC),--full $(FW_BUILD)/size/probe3.map) \
+	  --full $(FW_BUILD)/size/probe3.map \
 	  --flash-budget $(FW_FLASH_BUDGET) --ram-budget $(FW_RAM_BUDGET)
 
 # ---- portability ---------------------------------------------------------------

@@ -19,9 +19,7 @@
 
 #include "dan/dan.h"
 #include "dan/rxring.h"
-#if defined(FW_WITH_GATEWAY)
-#include "dan/gateway.h"
-#endif
+#include "dan/can_gw/client.h"
 #include "board.h"
 
 #ifndef FW_RUN_LIMIT_US
@@ -166,11 +164,9 @@ struct app {
     uint32_t txn_ok, txn_bad;
     uint64_t txn_sum_us, txn_max_us;
     int gw_mode;
-#if defined(FW_WITH_GATEWAY)
     dan_gw_t gw;
     uint32_t esc_ok;
     int gw_result;
-#endif
 };
 
 static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST, DAN_TYPE_CAN_GW_FIRST};
@@ -341,8 +337,6 @@ static step_t ident_done(app_t *a, int r, uint64_t now)
 
 /* -- gateway: arm, a throttle ramp on four ESCs, telemetry, disarm -- */
 
-#if defined(FW_WITH_GATEWAY)
-
 static int16_t ramp_value(uint32_t k)
 {
     /* k = 1..RAMP_STEPS: up to RAMP_MAX at the middle, back down to 0 */
@@ -361,9 +355,9 @@ static void o_telem(const dan_gw_telem_t *t)
     o_key("rpm");
     o_int(t->rpm);
     o_key("mV");
-    o_int((int32_t)(dan_gw_f16_to_float(t->voltage_f16) * 1000.0f));
+    o_int((int32_t)(dan_f16_to_f32(t->voltage_f16) * 1000.0f));
     o_key("mA");
-    o_int((int32_t)(dan_gw_f16_to_float(t->current_f16) * 1000.0f));
+    o_int((int32_t)(dan_f16_to_f32(t->current_f16) * 1000.0f));
     o_key("power_pct");
     o_u32(t->power_pct);
     o_key("age_ms");
@@ -469,28 +463,6 @@ static step_t gw_done(app_t *a, int r, uint64_t now)
     }
     return gw_finish(a, DAN_OK, "done");
 }
-
-#else /* !FW_WITH_GATEWAY */
-
-/* TODO(gateway): built without include/dan/gateway.h + src/gateway.c; the
- * firmware.mk adds -DFW_WITH_GATEWAY once they exist. */
-static int gw_start(app_t *a, uint64_t now)
-{
-    (void)now;
-    o_begin("gateway");
-    o_key("skipped");
-    o_jstr("built without the gateway client");
-    o_end();
-    return a->gw_mode == GW_REQUIRE ? DAN_ERR_UNSUPPORTED : FW_SKIP;
-}
-
-static step_t gw_done(app_t *a, int r, uint64_t now)
-{
-    (void)a; (void)r; (void)now;
-    return STEP_NEXT;
-}
-
-#endif
 
 static const phase_t phases[] = {
     {"discover", discover_start, discover_done},

@@ -21,7 +21,7 @@
 #if SIZE_PROBE >= 2
 #include <string.h>
 
-#include "dan/gateway.h"
+#include "dan/can_gw/client.h"
 #endif
 
 extern uint32_t _estack;

@@ -1,7 +1,7 @@
 /* DSDL message codecs. See dsdl.h; bit rules in dronecan.h. */
 #include <string.h>
 
-#include "dsdl.h"
+#include "dan/can_gw/dsdl.h"
 
 /* Finishes an encode: DAN_ERR_OVERFLOW if the writer ran out of room. */
 static int enc_finish(const dan_dc_bw_t *w)
@@ -183,9 +183,9 @@ int dan_dc_esc_status_encode(const dan_dc_esc_status_t *m, uint8_t *buf, size_t 
     }
     dan_dc_bw_init(&w, buf, cap);
     dan_dc_put_uint(&w, 32, m->error_count);
-    dan_dc_put_f16(&w, m->voltage);
-    dan_dc_put_f16(&w, m->current);
-    dan_dc_put_f16(&w, m->temperature);
+    dan_dc_put_uint(&w, 16, m->voltage_f16);
+    dan_dc_put_uint(&w, 16, m->current_f16);
+    dan_dc_put_uint(&w, 16, m->temperature_f16);
     dan_dc_put_int(&w, 18, m->rpm);
     dan_dc_put_uint(&w, 7, m->power_rating_pct);
     dan_dc_put_uint(&w, 5, m->esc_index);
@@ -201,9 +201,9 @@ int dan_dc_esc_status_decode(dan_dc_esc_status_t *m, const uint8_t *buf, size_t 
     memset(m, 0, sizeof *m);
     dan_dc_br_init(&r, buf, len);
     m->error_count = (uint32_t)dan_dc_get_uint(&r, 32);
-    m->voltage = dan_dc_get_f16(&r);
-    m->current = dan_dc_get_f16(&r);
-    m->temperature = dan_dc_get_f16(&r);
+    m->voltage_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
+    m->current_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
+    m->temperature_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
     m->rpm = (int32_t)dan_dc_get_int(&r, 18);
     m->power_rating_pct = (uint8_t)dan_dc_get_uint(&r, 7);
     m->esc_index = (uint8_t)dan_dc_get_uint(&r, 5);

@@ -1,5 +1,5 @@
 # Benchmarks (not part of `make test`). Included by the Makefile; uses its
-# BUILD, CC, VENV, ALL_LIBS, deps-test, venv and all.
+# BUILD, CC, WARN, INCLUDES, LDLIBS, VENV, ALL_LIBS, deps and all.
 #
 #   make bench                 one table of ratios; build/bench/results.json
 #                              (+ a timestamped copy), delta vs the previous run
@@ -8,7 +8,7 @@
 #   make soak [SOAK=300]       the same (default 300 s)
 
 BENCH_DIR   := $(BUILD)/bench
-BENCH_CFLAGS = -std=c99 -Wall -Wextra -Werror -O2 -g -Iinclude -Iperipherals/can_gateway -D_GNU_SOURCE
+BENCH_CFLAGS = $(WARN) -O2 -g $(INCLUDES) -D_GNU_SOURCE
 BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway
 SOAK        ?=
 BENCH_ARGS  ?=
@@ -17,9 +17,9 @@ BENCH_ARGS  ?=
 
 $(BENCH_DIR)/bench_%: tests/bench/bench_%.c $(ALL_LIBS)
 	@mkdir -p $(@D)
-	$(CC) $(BENCH_CFLAGS) -o $@ $^ -lm
+	$(CC) $(BENCH_CFLAGS) -o $@ $^ $(LDLIBS)
 
-bench-build: deps-test all venv $(BENCH_BINS)
+bench-build: deps all $(BENCH_BINS)
 
 bench: bench-build
 	$(VENV)/bin/python tests/bench/run_bench.py --build $(BUILD) --out $(BENCH_DIR) \

@@ -13,9 +13,9 @@
 #include <string.h>
 
 #include "dan/codes.h"
-#include "dan/gateway.h"
-#include "dsdl.h"
-#include "gateway.h"
+#include "dan/can_gw/client.h"
+#include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/node.h"
 
 #define BAUD 115200u
 
@@ -111,9 +111,9 @@ static void esc_status_in(uint8_t idx, uint8_t tid)
     uint8_t pl[DAN_DC_ESC_STATUS_MAX_SIZE];
     int n, k, i;
     memset(&s, 0, sizeof s);
-    s.voltage = 16.8f;
-    s.current = 3.5f;
-    s.temperature = 310.0f;
+    s.voltage_f16 = dan_f16_from_f32(16.8f);
+    s.current_f16 = dan_f16_from_f32(3.5f);
+    s.temperature_f16 = dan_f16_from_f32(310.0f);
     s.rpm = 5000 + idx;
     s.power_rating_pct = 30;
     s.esc_index = idx;

@@ -11,7 +11,7 @@
 #include <string.h>
 
 #include "dan/dan.h"
-#include "dan/gateway_msgs.h"
+#include "dan/can_gw/msgs.h"
 
 static uint8_t g_stream[1u << 20];
 static size_t g_len;

@@ -1,5 +1,5 @@
 # Fuzzing with libFuzzer + ASan + UBSan (Debian clang 14). Included by the
-# Makefile; uses its BUILD, LIB_SRC, GW_SRC, GWL_SRC and ensure_debs.
+# Makefile; uses its BUILD, WARN, INCLUDES, the source lists and ensure_debs.
 #
 #   make fuzz                    every target for FUZZ_SECONDS (default 30) each
 #   make fuzz FUZZ_TARGETS=frame FUZZ_SECONDS=300
@@ -16,9 +16,9 @@ FUZZ_TARGETS ?= frame payloads gw_handlers dronecan_rx dsdl slcan gw_client
 FUZZ_CC      ?= clang-14
 FUZZ_DIR     := $(BUILD)/fuzz
 FUZZ_SAN     := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
-FUZZ_CFLAGS  := -std=c99 -g -O1 -D_GNU_SOURCE -Iinclude -Iperipherals/can_gateway -Itests/fuzz \
+FUZZ_CFLAGS  := $(WARN) -g -O1 -D_GNU_SOURCE $(INCLUDES) -I$(GW_DIR)/linux -Itests/fuzz \
                 $(FUZZ_SAN) -fsanitize=fuzzer-no-link
-FUZZ_LIBSRC   = $(LIB_SRC) $(GW_SRC) $(GWL_SRC) tests/fuzz/targets.c
+FUZZ_LIBSRC   = $(CORE_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC) $(GW_LINUX_SRC) tests/fuzz/targets.c
 FUZZ_OBJS     = $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(FUZZ_LIBSRC))
 FUZZ_BINS     = $(patsubst %,$(FUZZ_DIR)/bin/fuzz_%,$(FUZZ_TARGETS))
 

@@ -8,10 +8,10 @@
 #include <string.h>
 
 #include "dan/dan.h"
-#include "dan/gateway.h"
-#include "dsdl.h"
-#include "gateway.h"
-#include "linux/can_backend.h"
+#include "dan/can_gw/client.h"
+#include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/node.h"
+#include "can_backend.h"
 #include "targets.h"
 
 #define FUZZ_CHECK(cond) \

@@ -22,7 +22,7 @@
 #include <sys/time.h>
 #include <time.h>
 
-#include "linux/can_backend.h"
+#include "can_backend.h"
 
 static volatile sig_atomic_t g_stop;
 

@@ -37,7 +37,7 @@
 #include <string.h>
 
 #include "dan/codes.h"
-#include "dan/gateway.h"
+#include "dan/can_gw/client.h"
 #include "dan/master.h"
 #include "dan/posix.h"
 
@@ -103,9 +103,9 @@ static void print_telem(const dan_gw_telem_t *t)
     if (t->flags & DAN_GW_TELEM_STATUS) {
         printf(", \"age_ms\": %lu, \"voltage\": %.17g, \"current\": %.17g, \"temperature\": %.17g, "
                "\"rpm\": %ld, \"power_pct\": %u, \"error_count\": %lu",
-               (unsigned long)t->age_ms, (double)dan_gw_f16_to_float(t->voltage_f16),
-               (double)dan_gw_f16_to_float(t->current_f16),
-               (double)dan_gw_f16_to_float(t->temperature_f16), (long)t->rpm, t->power_pct,
+               (unsigned long)t->age_ms, (double)dan_f16_to_f32(t->voltage_f16),
+               (double)dan_f16_to_f32(t->current_f16),
+               (double)dan_f16_to_f32(t->temperature_f16), (long)t->rpm, t->power_pct,
                (unsigned long)t->error_count);
     }
     if (t->flags & DAN_GW_TELEM_EXT) {

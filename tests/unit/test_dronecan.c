@@ -14,8 +14,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "dronecan.h"
-#include "dsdl.h"
+#include "dan/can_gw/dronecan.h"
+#include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/f16.h"
 
 #define MAX_FRAMES 64
 #define MAX_KV 32
@@ -78,11 +79,6 @@ static bool accept_known(void *user, uint16_t dtid, uint8_t ttype, uint8_t src,
     (void)user;
     (void)src;
     return dan_dc_dsdl_signature(ttype, dtid, sig);
-}
-
-static float q16(float v)
-{
-    return dan_dc_f32_from_f16(dan_dc_f16_from_f32(v));
 }
 
 /* ---- vector lines ---- */
@@ -214,18 +210,14 @@ static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t,
         len = dan_dc_esc_raw_command_encode(&m->rc, buf, cap);
     } else if (strcmp(v->name, "esc_status") == 0) {
         m->es.error_count = (uint32_t)kv_uint(v, "error_count");
-        m->es.voltage = kv_float(v, "voltage");
-        m->es.current = kv_float(v, "current");
-        m->es.temperature = kv_float(v, "temperature");
+        m->es.voltage_f16 = dan_f16_from_f32(kv_float(v, "voltage"));
+        m->es.current_f16 = dan_f16_from_f32(kv_float(v, "current"));
+        m->es.temperature_f16 = dan_f16_from_f32(kv_float(v, "temperature"));
         m->es.rpm = (int32_t)kv_int(v, "rpm");
         m->es.power_rating_pct = (uint8_t)kv_int(v, "power_rating_pct");
         m->es.esc_index = (uint8_t)kv_int(v, "esc_index");
         t->data_type_id = DAN_DC_ESC_STATUS_ID;
         len = dan_dc_esc_status_encode(&m->es, buf, cap);
-        /* What a decode gives back: float16 precision. */
-        m->es.voltage = q16(m->es.voltage);
-        m->es.current = q16(m->es.current);
-        m->es.temperature = q16(m->es.temperature);
     } else if (strcmp(v->name, "esc_status_extended") == 0) {
         m->ex.input_pct = (uint8_t)kv_int(v, "input_pct");
         m->ex.output_pct = (uint8_t)kv_int(v, "output_pct");
@@ -441,7 +433,7 @@ static void test_brief_vectors(void **state)
                                      "14040A0A#d90c40"};
     dan_dc_node_status_t m1 = {1, 0, 0, 0, 0x1234};
     dan_dc_esc_raw_command_t m2 = {4, {0, 100, 200, 300}};
-    dan_dc_esc_status_t m3 = {7, 12.5f, -1.25f, 300.0f, -1234, 50, 3};
+    dan_dc_esc_status_t m3 = {7, 0, 0, 0, -1234, 50, 3};
     dan_dc_transfer_t t;
     uint8_t buf[64];
     dan_can_frame_t got[4], want[4];
@@ -472,6 +464,9 @@ static void test_brief_vectors(void **state)
     parse_frame(rc[0], &want[0]);
     assert_frames_equal(got, want, 1);
 
+    m3.voltage_f16 = dan_f16_from_f32(12.5f);
+    m3.current_f16 = dan_f16_from_f32(-1.25f);
+    m3.temperature_f16 = dan_f16_from_f32(300.0f);
     len = dan_dc_esc_status_encode(&m3, buf, sizeof buf);
     assert_int_equal(len, 14);
     t.data_type_id = DAN_DC_ESC_STATUS_ID;
@@ -591,32 +586,32 @@ static void test_float16(void **state)
 {
     uint32_t h;
     (void)state;
-    assert_int_equal(dan_dc_f16_from_f32(1.0f), 0x3C00);
-    assert_int_equal(dan_dc_f16_from_f32(-2.0f), 0xC000);
-    assert_int_equal(dan_dc_f16_from_f32(0.0f), 0x0000);
-    assert_int_equal(dan_dc_f16_from_f32(-0.0f), 0x8000);
-    assert_int_equal(dan_dc_f16_from_f32(65504.0f), 0x7BFF);
-    assert_int_equal(dan_dc_f16_from_f32(65519.0f), 0x7BFF);
-    assert_int_equal(dan_dc_f16_from_f32(65520.0f), 0x7C00); /* rounds to inf */
-    assert_int_equal(dan_dc_f16_from_f32(1e9f), 0x7C00);
-    assert_int_equal(dan_dc_f16_from_f32(INFINITY), 0x7C00);
-    assert_int_equal(dan_dc_f16_from_f32(-INFINITY), 0xFC00);
-    assert_int_equal(dan_dc_f16_from_f32(NAN) & 0x7FFF, 0x7FFF);
-    assert_int_equal(dan_dc_f16_from_f32(0.1f), 0x2E66);
-    assert_int_equal(dan_dc_f16_from_f32(5.9604645e-8f), 0x0001); /* 2^-24 */
-    assert_int_equal(dan_dc_f16_from_f32(2.9802322e-8f), 0x0001); /* 2^-25: tie, away */
-    assert_int_equal(dan_dc_f16_from_f32(2.98e-8f), 0x0000);
-    assert_int_equal(dan_dc_f16_from_f32(6.1035156e-5f), 0x0400); /* smallest normal */
-    assert_int_equal(dan_dc_f16_from_f32(1.00048828125f), 0x3C01); /* 1 + 2^-11: tie, away */
-    assert_int_equal(dan_dc_f16_from_f32(1.00048816f), 0x3C00);
-    assert_true(isinf(dan_dc_f32_from_f16(0x7C00)));
-    assert_true(isnan(dan_dc_f32_from_f16(0x7E00)));
-    assert_true(dan_dc_f32_from_f16(0xC000) == -2.0f);
-    assert_true(dan_dc_f32_from_f16(0x0001) == 5.9604645e-8f);
-    assert_true(dan_dc_f32_from_f16(0x8001) == -5.9604645e-8f);
+    assert_int_equal(dan_f16_from_f32(1.0f), 0x3C00);
+    assert_int_equal(dan_f16_from_f32(-2.0f), 0xC000);
+    assert_int_equal(dan_f16_from_f32(0.0f), 0x0000);
+    assert_int_equal(dan_f16_from_f32(-0.0f), 0x8000);
+    assert_int_equal(dan_f16_from_f32(65504.0f), 0x7BFF);
+    assert_int_equal(dan_f16_from_f32(65519.0f), 0x7BFF);
+    assert_int_equal(dan_f16_from_f32(65520.0f), 0x7C00); /* rounds to inf */
+    assert_int_equal(dan_f16_from_f32(1e9f), 0x7C00);
+    assert_int_equal(dan_f16_from_f32(INFINITY), 0x7C00);
+    assert_int_equal(dan_f16_from_f32(-INFINITY), 0xFC00);
+    assert_int_equal(dan_f16_from_f32(NAN) & 0x7FFF, 0x7FFF);
+    assert_int_equal(dan_f16_from_f32(0.1f), 0x2E66);
+    assert_int_equal(dan_f16_from_f32(5.9604645e-8f), 0x0001); /* 2^-24 */
+    assert_int_equal(dan_f16_from_f32(2.9802322e-8f), 0x0001); /* 2^-25: tie, away */
+    assert_int_equal(dan_f16_from_f32(2.98e-8f), 0x0000);
+    assert_int_equal(dan_f16_from_f32(6.1035156e-5f), 0x0400); /* smallest normal */
+    assert_int_equal(dan_f16_from_f32(1.00048828125f), 0x3C01); /* 1 + 2^-11: tie, away */
+    assert_int_equal(dan_f16_from_f32(1.00048816f), 0x3C00);
+    assert_true(isinf(dan_f16_to_f32(0x7C00)));
+    assert_true(isnan(dan_f16_to_f32(0x7E00)));
+    assert_true(dan_f16_to_f32(0xC000) == -2.0f);
+    assert_true(dan_f16_to_f32(0x0001) == 5.9604645e-8f);
+    assert_true(dan_f16_to_f32(0x8001) == -5.9604645e-8f);
     /* Every non-NaN half survives a round trip. */
     for (h = 0; h < 0x10000u; h++) {
-        uint16_t back = dan_dc_f16_from_f32(dan_dc_f32_from_f16((uint16_t)h));
+        uint16_t back = dan_f16_from_f32(dan_f16_to_f32((uint16_t)h));
         if ((h & 0x7C00u) == 0x7C00u && (h & 0x3FFu) != 0u) {
             assert_int_equal(back, (h & 0x8000u) | 0x7FFFu);
         } else {

@@ -15,8 +15,8 @@
 #include <string.h>
 
 #include "dan/codes.h"
-#include "dan/gateway.h"
-#include "gateway.h"
+#include "dan/can_gw/client.h"
+#include "dan/can_gw/node.h"
 #include "simbus.h"
 #include "vectors.h"
 
@@ -293,10 +293,10 @@ static void test_codec_limits(void **state)
     assert_int_equal(dan_gw_msg_esc_cmd_decode(buf, 8, v, &n), DAN_ERR_MALFORMED);
     buf[0] = 21;
     assert_int_equal(dan_gw_msg_esc_cmd_decode(buf, 64, v, &n), DAN_ERR_MALFORMED);
-    assert_true(dan_gw_f16_to_float(0x4A40) == 12.5f);
-    assert_true(dan_gw_f16_to_float(0xBD00) == -1.25f);
-    assert_true(dan_gw_f16_to_float(0x0001) == 5.9604644775390625e-8f);
-    assert_true(dan_gw_f16_to_float(0x7BFF) == 65504.0f);
+    assert_true(dan_f16_to_f32(0x4A40) == 12.5f);
+    assert_true(dan_f16_to_f32(0xBD00) == -1.25f);
+    assert_true(dan_f16_to_f32(0x0001) == 5.9604644775390625e-8f);
+    assert_true(dan_f16_to_f32(0x7BFF) == 65504.0f);
 }
 
 /* ---- rig: master + client, gateway node + peripheral engine ---- */
@@ -480,9 +480,9 @@ static void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int3
     uint8_t buf[DAN_DC_ESC_STATUS_MAX_SIZE];
     memset(&s, 0, sizeof s);
     s.esc_index = idx;
-    s.voltage = v;
-    s.current = c;
-    s.temperature = t;
+    s.voltage_f16 = dan_f16_from_f32(v);
+    s.current_f16 = dan_f16_from_f32(c);
+    s.temperature_f16 = dan_f16_from_f32(t);
     s.rpm = rpm;
     s.power_rating_pct = (uint8_t)(10 + idx);
     s.error_count = 100u + idx;
@@ -585,9 +585,9 @@ static void test_telemetry_round_robin(void **state)
     assert_int_equal(order[4], 1);
     assert_int_equal(order[5], 3);
     /* values are the float16 the ESC sent */
-    assert_true(dan_gw_f16_to_float(R->gw.esc[0].voltage_f16) == 12.5f);
-    assert_int_equal(R->gw.esc[1].voltage_f16, dan_dc_f16_from_f32(16.8f));
-    assert_int_equal(R->gw.esc[1].current_f16, dan_dc_f16_from_f32(-3.14159f));
+    assert_true(dan_f16_to_f32(R->gw.esc[0].voltage_f16) == 12.5f);
+    assert_int_equal(R->gw.esc[1].voltage_f16, dan_f16_from_f32(16.8f));
+    assert_int_equal(R->gw.esc[1].current_f16, dan_f16_from_f32(-3.14159f));
     assert_int_equal(R->gw.esc[1].rpm, -2000);
     assert_int_equal(R->gw.esc[1].node_id, 21);
     assert_int_equal(R->gw.esc[1].error_count, 101);
@@ -601,7 +601,7 @@ static void test_telemetry_round_robin(void **state)
     assert_int_equal(finish(), DAN_OK);
     assert_int_equal(R->gw.telem_next, DAN_GW_NONE);
     assert_int_equal(R->gw.esc[3].motor_angle, 359);
-    assert_int_equal(R->gw.esc[0].temperature_f16, dan_dc_f16_from_f32(300.0f));
+    assert_int_equal(R->gw.esc[0].temperature_f16, dan_f16_from_f32(300.0f));
     (void)h;
 }
 

@@ -1,5 +1,5 @@
 /* Dispatcher: parses the interface spec and forwards to the backend. */
-#include "linux/can_backend.h"
+#include "can_backend.h"
 
 #include <errno.h>
 #include <stdio.h>

@@ -21,7 +21,7 @@
 #include <stdint.h>
 #include <termios.h>
 
-#include "dan/can.h"
+#include "dan/can_gw/can.h"
 #include "dan/common.h"
 
 #ifdef __cplusplus

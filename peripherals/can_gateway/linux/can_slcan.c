@@ -8,7 +8,7 @@
  *   received frames in the same t/T/r/R syntax, optionally followed by a
  *   4-hex-digit millisecond timestamp (Z1 mode).
  */
-#include "linux/can_backend.h"
+#include "can_backend.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -4,7 +4,7 @@
  * Kernels or containers without AF_CAN fail in socket() with
  * EAFNOSUPPORT; dan_canif_open() then reports that clearly.
  */
-#include "linux/can_backend.h"
+#include "can_backend.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -24,8 +24,8 @@
 
 #include "dan/peripheral.h"
 #include "dan/posix.h"
-#include "gateway.h"
-#include "linux/can_backend.h"
+#include "dan/can_gw/node.h"
+#include "can_backend.h"
 
 #define REOPEN_US 1000000u
 #define SHUTDOWN_FLUSH_US 500000u

@@ -17,7 +17,9 @@
 #ifndef DAN_GATEWAY_MSGS_H
 #define DAN_GATEWAY_MSGS_H
 
-#include "dan/can.h"
+#include "dan/can_gw/can.h"
+#include "dan/can_gw/dronecan_limits.h"
+#include "dan/can_gw/f16.h"
 #include "dan/common.h"
 
 #ifdef __cplusplus
@@ -40,14 +42,11 @@ extern "C" {
 /* 0x4E, 0x4F reserved */
 
 /* ---- limits of the message set ---- */
-#define DAN_GW_ESC_MAX          20u    /* RawCommand.cmd is int14[<=20] */
-#define DAN_GW_ESC_RAW_MIN      (-8192)
-#define DAN_GW_ESC_RAW_MAX      8191
-#define DAN_GW_ESC_INDEX_MAX    31u    /* esc.Status.esc_index is uint5 */
+#define DAN_GW_ESC_MAX          DAN_DC_ESC_RAW_COMMAND_MAX_CMDS  /* channels per ESC_CMD */
+#define DAN_GW_ESC_INDEX_MAX    DAN_DC_ESC_INDEX_MAX
 #define DAN_GW_TUN_CHUNK_MAX    128u   /* data bytes in one TUN_XFER either way */
 #define DAN_GW_CAN_FRAMES_MAX   11u    /* frames in one CAN_SEND / CAN_RECV */
 #define DAN_GW_FILTERS_MAX      16u    /* filters in one CAN_FILTER */
-#define DAN_GW_NAME_MAX         80u    /* GetNodeInfo name */
 #define DAN_GW_NONE             0xFFu  /* "no next page" index */
 
 /* Gateway flags byte, in several responses. */
@@ -69,7 +68,7 @@ int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, siz
 
 /* ---- ESC telemetry record (ESC_CMD and ESC_TELEM responses) ----
  * Floats stay IEEE binary16 bit patterns exactly as the ESC sent them in
- * esc.Status (dan_gw_f16_to_float() converts). */
+ * esc.Status (dan_f16_to_f32() in dan/can_gw/f16.h converts). */
 #define DAN_GW_TELEM_STATUS     0x01u  /* esc.Status fields valid */
 #define DAN_GW_TELEM_EXT        0x02u  /* esc.StatusExtended fields valid */
 
@@ -106,9 +105,6 @@ void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h);
 int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h);
 void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t);
 int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
-
-/* IEEE binary16 bits to float (exact). */
-float dan_gw_f16_to_float(uint16_t h);
 
 /* ESC_TELEM request: uint8 first esc_index (records with index >= it). */
 
@@ -221,7 +217,7 @@ typedef struct {
     uint32_t vcs_commit;
     uint8_t hw_major, hw_minor;
     uint8_t unique_id[16];
-    char name[DAN_GW_NAME_MAX + 1u];
+    char name[DAN_DC_GET_NODE_INFO_NAME_MAX + 1u];
 } dan_gw_node_info_t;
 
 int dan_gw_msg_node_info_encode(const dan_gw_node_info_t *i, uint8_t *out, size_t cap);

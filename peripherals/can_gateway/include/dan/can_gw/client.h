@@ -31,7 +31,7 @@
 #ifndef DAN_GATEWAY_H
 #define DAN_GATEWAY_H
 
-#include "dan/gateway_msgs.h"
+#include "dan/can_gw/msgs.h"
 #include "dan/master.h"
 
 #ifdef __cplusplus

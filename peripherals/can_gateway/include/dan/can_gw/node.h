@@ -43,10 +43,10 @@
 #ifndef DAN_GATEWAY_NODE_H
 #define DAN_GATEWAY_NODE_H
 
-#include "dan/gateway_msgs.h"
+#include "dan/can_gw/msgs.h"
 #include "dan/peripheral.h"
-#include "dronecan.h"
-#include "dsdl.h"
+#include "dan/can_gw/dronecan.h"
+#include "dan/can_gw/dsdl.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -1,7 +1,7 @@
 /* CAN-over-DAN gateway client (FC side). */
 #include <string.h>
 
-#include "dan/gateway.h"
+#include "dan/can_gw/client.h"
 
 /* The master's reply check: a gateway reply must carry a matching seal, so
  * a reply corrupted past the frame CRC is retried, never decoded. */

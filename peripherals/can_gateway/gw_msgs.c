@@ -1,9 +1,8 @@
 /* CAN-over-DAN gateway payload codec (docs/PROTOCOL.md section 7). */
-#include <math.h>
 #include <string.h>
 
 #include "dan/codes.h"
-#include "dan/gateway_msgs.h"
+#include "dan/can_gw/msgs.h"
 
 static int finish_reader(const dan_reader_t *r)
 {
@@ -22,7 +21,7 @@ int dan_gw_msg_esc_cmd_encode(const int16_t *values, size_t n, uint8_t *out, siz
         return DAN_ERR_ARG;
     }
     for (i = 0; i < n; i++) {
-        if (values[i] < DAN_GW_ESC_RAW_MIN || values[i] > DAN_GW_ESC_RAW_MAX) {
+        if (values[i] < DAN_DC_ESC_RAW_CMD_MIN || values[i] > DAN_DC_ESC_RAW_CMD_MAX) {
             return DAN_ERR_ARG;
         }
     }
@@ -160,27 +159,6 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
     }
     t->flags &= (uint8_t)(DAN_GW_TELEM_STATUS | DAN_GW_TELEM_EXT);
     return finish_reader(r);
-}
-
-float dan_gw_f16_to_float(uint16_t h)
-{
-    /* binary16: 1 sign, 5 exponent (bias 15), 10 fraction bits */
-    uint32_t exp = (h >> 10) & 0x1Fu;
-    uint32_t frac = h & 0x3FFu;
-    float v;
-    if (exp == 0u) {
-        v = (float)frac * (1.0f / 16777216.0f); /* subnormal: frac * 2^-24 */
-    } else if (exp == 31u) {
-        v = (frac == 0u) ? INFINITY : NAN;
-    } else {
-        v = (float)(frac | 0x400u);
-        if (exp >= 25u) {
-            v *= (float)(1u << (exp - 25u));
-        } else {
-            v /= (float)(1u << (25u - exp));
-        }
-    }
-    return (h & 0x8000u) ? -v : v;
 }
 
 /* ---- config ---- */

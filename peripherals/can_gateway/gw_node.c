@@ -2,7 +2,7 @@
 #include <string.h>
 
 #include "dan/codes.h"
-#include "gateway.h"
+#include "dan/can_gw/node.h"
 
 #if (DAN_GW_NODE_TUN_TX_BUF & (DAN_GW_NODE_TUN_TX_BUF - 1u)) != 0u || \
     (DAN_GW_NODE_TUN_RX_BUF & (DAN_GW_NODE_TUN_RX_BUF - 1u)) != 0u
@@ -355,7 +355,7 @@ static void on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t)
     n->info.hw_major = rp->hardware_version.major;
     n->info.hw_minor = rp->hardware_version.minor;
     memcpy(n->info.unique_id, rp->hardware_version.unique_id, 16);
-    len = rp->name_len > DAN_GW_NAME_MAX ? DAN_GW_NAME_MAX : rp->name_len;
+    len = rp->name_len > DAN_DC_GET_NODE_INFO_NAME_MAX ? DAN_DC_GET_NODE_INFO_NAME_MAX : rp->name_len;
     memcpy(n->info.name, rp->name, len);
     n->info.name[len] = '\0';
     n->e.info_state = DAN_GW_INFO_VALID;
@@ -411,9 +411,9 @@ static void on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t
     e->t.esc_index = s.esc_index;
     e->t.node_id = t->source_node;
     e->t.flags |= DAN_GW_TELEM_STATUS;
-    e->t.voltage_f16 = dan_dc_f16_from_f32(s.voltage);     /* exact: it came from f16 */
-    e->t.current_f16 = dan_dc_f16_from_f32(s.current);
-    e->t.temperature_f16 = dan_dc_f16_from_f32(s.temperature);
+    e->t.voltage_f16 = s.voltage_f16;
+    e->t.current_f16 = s.current_f16;
+    e->t.temperature_f16 = s.temperature_f16;
     e->t.rpm = s.rpm;
     e->t.power_pct = s.power_rating_pct;
     e->t.error_count = s.error_count;

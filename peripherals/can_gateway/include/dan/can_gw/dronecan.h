@@ -13,9 +13,9 @@
  *   - TX transfer-ID bookkeeping (dan_dc_tid_table_t)
  *   - RX: reassembly with fixed session slots (dan_dc_rx_t)
  *   - transfer CRC (CRC-16-CCITT-FALSE seeded with the type signature)
- *   - DSDL bit-level serialization (dan_dc_bw_t / dan_dc_br_t) and float16
  *
- * Message codecs live in dsdl.h.
+ * Serialization is separate, as in libcanard: bit packing in dsdl_bits.h,
+ * message codecs in dsdl.h.
  */
 #ifndef DAN_DRONECAN_H
 #define DAN_DRONECAN_H
@@ -24,7 +24,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "dan/can.h"
+#include "dan/can_gw/can.h"
 #include "dan/common.h"
 
 #ifdef __cplusplus
@@ -271,100 +271,6 @@ int dan_dc_rx_frame(dan_dc_rx_t *rx, const dan_can_frame_t *frame,
  * (counted in stats.timeouts when a transfer was in progress). Optional:
  * stale slots are also reclaimed when a new flow needs one. */
 void dan_dc_rx_cleanup(dan_dc_rx_t *rx, uint64_t now_us);
-
-/* ---- DSDL bit-level serialization ----
- *
- * DSDL v0 packs fields back to back with no alignment, first field first.
- * Within the stream, bits fill each byte from its most significant bit. A
- * scalar of n bits is laid out as its little-endian bytes: each whole byte
- * takes 8 bits, then the n % 8 low bits of the last byte follow (as
- * libcanard's canardEncodeScalar/canardDecodeScalar do; checked against
- * pydronecan's output). The payload is zero-padded to whole bytes. */
-
-/* Writes bit_len (1..64) low bits of value at bit_offset of buf, which must
- * hold bit_offset + bit_len bits (caller checks). */
-void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len,
-                          uint64_t value);
-/* Reads bit_len (1..64) bits at bit_offset; sign-extends when is_signed.
- * buf must hold bit_offset + bit_len bits (caller checks). */
-uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset,
-                              unsigned bit_len, bool is_signed);
-
-/* Bounds-checked bit writer. The first failure sets a sticky error and
- * later puts do nothing; check once with dan_dc_bw_finish. With buf NULL it
- * only counts (size-only pass). Integer puts saturate to the field's range
- * (DSDL's default "saturated" cast mode). */
-typedef struct {
-    uint8_t *buf;
-    size_t cap;   /* bytes */
-    size_t bit;   /* bits written (or counted) so far */
-    bool error;
-} dan_dc_bw_t;
-
-void dan_dc_bw_init(dan_dc_bw_t *w, uint8_t *buf, size_t cap);
-void dan_dc_put_uint(dan_dc_bw_t *w, unsigned bits, uint64_t v);  /* 1..64 */
-void dan_dc_put_int(dan_dc_bw_t *w, unsigned bits, int64_t v);    /* 2..64 */
-void dan_dc_put_bool(dan_dc_bw_t *w, bool v);
-void dan_dc_put_f16(dan_dc_bw_t *w, float v);  /* saturates finite values */
-void dan_dc_put_f32(dan_dc_bw_t *w, float v);
-void dan_dc_put_bytes(dan_dc_bw_t *w, const uint8_t *p, size_t n); /* uint8[n] */
-/* Length prefix of a dynamic array: dan_dc_array_len_bits(max) bits. */
-void dan_dc_put_array_len(dan_dc_bw_t *w, size_t len, size_t max);
-/* Bytes written (bits rounded up, padding bits are zero), or
- * DAN_ERR_OVERFLOW. */
-int dan_dc_bw_finish(const dan_dc_bw_t *w);
-
-/* Bounds-checked bit reader: reading past the end sets the sticky error and
- * returns 0; nothing outside [data, data+len) is read. */
-typedef struct {
-    const uint8_t *data;
-    size_t len;   /* bytes */
-    size_t bit;   /* bits read so far */
-    bool error;
-} dan_dc_br_t;
-
-void dan_dc_br_init(dan_dc_br_t *r, const uint8_t *data, size_t len);
-uint64_t dan_dc_get_uint(dan_dc_br_t *r, unsigned bits);  /* 1..64 */
-int64_t dan_dc_get_int(dan_dc_br_t *r, unsigned bits);    /* 2..64 */
-bool dan_dc_get_bool(dan_dc_br_t *r);
-float dan_dc_get_f16(dan_dc_br_t *r);
-float dan_dc_get_f32(dan_dc_br_t *r);
-void dan_dc_get_bytes(dan_dc_br_t *r, uint8_t *out, size_t n); /* out may be NULL */
-/* A dynamic array length prefix; above max sets the error. */
-size_t dan_dc_get_array_len(dan_dc_br_t *r, size_t max);
-size_t dan_dc_br_remaining_bits(const dan_dc_br_t *r);
-/* DAN_OK if every read succeeded, else DAN_ERR_MALFORMED. */
-int dan_dc_br_finish(const dan_dc_br_t *r);
-
-/* Bits of a dynamic array's length prefix: bit length of max (e.g. 20 -> 5,
- * 255 -> 8). */
-unsigned dan_dc_array_len_bits(size_t max);
-
-/* Tail array optimization: a dynamic array that is the last field of the
- * top-level type has no length prefix (its length follows from the payload
- * length), but only when its element is at least 8 bits long: shorter
- * elements would leave the element count ambiguous with the zero padding,
- * so e.g. a trailing bool[<=N] keeps its prefix (DSDL v0 rule, as
- * pydronecan's transport.py applies it). Nested types' arrays always keep
- * their prefix. */
-static inline bool dan_dc_tao(unsigned elem_min_bits, bool last_top_level_field)
-{
-    return last_top_level_field && elem_min_bits >= 8u;
-}
-
-/* Elements of a tail-optimized array left in r (remaining bits / element
- * bits; the leftover padding is under 8 bits). */
-size_t dan_dc_tao_count(const dan_dc_br_t *r, unsigned elem_bits);
-
-/* ---- float16 (IEEE 754 binary16) ----
- *
- * Round to nearest, ties away from zero (as libuavcan and pydronecan do, so
- * encodings match them bit for bit). Values beyond the half range become
- * +-infinity here; dan_dc_put_f16 saturates finite values to +-65504 first
- * (DSDL saturated cast). Infinity stays infinity, NaN becomes 0x7FFF with
- * the sign kept (pydronecan instead clamps infinity to 65504 as well). */
-uint16_t dan_dc_f16_from_f32(float v);
-float dan_dc_f32_from_f16(uint16_t h);
 
 #ifdef __cplusplus
 }

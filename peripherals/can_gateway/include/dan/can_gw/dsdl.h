@@ -29,7 +29,9 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "dronecan.h"
+#include "dan/can_gw/dronecan.h"
+#include "dan/can_gw/dronecan_limits.h"
+#include "dan/can_gw/dsdl_bits.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -71,7 +73,6 @@ int dan_dc_node_status_decode(dan_dc_node_status_t *m, const uint8_t *buf, size_
 
 #define DAN_DC_GET_NODE_INFO_ID        1u
 #define DAN_DC_GET_NODE_INFO_SIGNATURE 0xEE468A8121C46A9Eull
-#define DAN_DC_GET_NODE_INFO_NAME_MAX  80u
 #define DAN_DC_COA_MAX                 255u
 /* 7 status + 15 software + 2 + 16 + 1 + 255 hardware + 80 name */
 #define DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE 376u
@@ -116,10 +117,7 @@ int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m,
 
 #define DAN_DC_ESC_RAW_COMMAND_ID        1030u
 #define DAN_DC_ESC_RAW_COMMAND_SIGNATURE 0x217F5C87D7EC951Dull
-#define DAN_DC_ESC_RAW_COMMAND_MAX_CMDS  20u
 #define DAN_DC_ESC_RAW_COMMAND_MAX_SIZE  35u  /* 20 * 14 bits */
-#define DAN_DC_ESC_RAW_CMD_MIN           (-8192)
-#define DAN_DC_ESC_RAW_CMD_MAX           8191
 
 typedef struct {
     uint8_t count;                                   /* 0..20 */
@@ -135,11 +133,13 @@ int dan_dc_esc_raw_command_decode(dan_dc_esc_raw_command_t *m, const uint8_t *bu
 #define DAN_DC_ESC_STATUS_SIGNATURE 0xA9AF28AEA2FBB254ull
 #define DAN_DC_ESC_STATUS_MAX_SIZE  14u   /* 110 bits */
 
+/* The float16 fields stay bit patterns: the gateway passes them to the FC
+ * unchanged (dan_f16_to_f32() / dan_f16_from_f32() in f16.h convert). */
 typedef struct {
     uint32_t error_count;
-    float voltage;          /* V, float16 */
-    float current;          /* A, float16, negative when braking */
-    float temperature;      /* K, float16 */
+    uint16_t voltage_f16;     /* V */
+    uint16_t current_f16;     /* A, negative when braking */
+    uint16_t temperature_f16; /* K */
     int32_t rpm;            /* int18 */
     uint8_t power_rating_pct; /* uint7 */
     uint8_t esc_index;      /* uint5 */

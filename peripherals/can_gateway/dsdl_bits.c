@@ -1,0 +1,310 @@
+/* DSDL v0 bit-level serialization (see dan/can_gw/dsdl_bits.h). */
+#include <string.h>
+
+#include "dan/can_gw/dsdl_bits.h"
+#include "dan/can_gw/f16.h"
+
+/* Copies bit_len bits, MSB first, from src at src_off to dst at dst_off. */
+static void copy_bits(const uint8_t *src, size_t src_off, size_t bit_len,
+                      uint8_t *dst, size_t dst_off)
+{
+    size_t i;
+    for (i = 0; i < bit_len; i++) {
+        size_t si = src_off + i, di = dst_off + i;
+        unsigned bit = ((unsigned)src[si / 8u] >> (7u - si % 8u)) & 1u;
+        uint8_t mask = (uint8_t)(0x80u >> (di % 8u));
+        if (bit != 0u) {
+            dst[di / 8u] = (uint8_t)(dst[di / 8u] | mask);
+        } else {
+            dst[di / 8u] = (uint8_t)(dst[di / 8u] & (uint8_t)~mask);
+        }
+    }
+}
+
+void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len,
+                          uint64_t value)
+{
+    uint8_t le[8];
+    unsigned i;
+    if (buf == NULL || bit_len < 1u || bit_len > 64u) {
+        return;
+    }
+    /* Little-endian bytes; the partial last byte's bits move to its top so
+     * the MSB-first copy takes exactly its n % 8 low bits. */
+    for (i = 0; i < 8u; i++) {
+        le[i] = (uint8_t)(value >> (8u * i));
+    }
+    if (bit_len % 8u != 0u) {
+        le[bit_len / 8u] = (uint8_t)(le[bit_len / 8u] << (8u - bit_len % 8u));
+    }
+    copy_bits(le, 0, bit_len, buf, bit_offset);
+}
+
+uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset,
+                              unsigned bit_len, bool is_signed)
+{
+    uint8_t le[8] = {0};
+    uint64_t v = 0;
+    unsigned i;
+    if (buf == NULL || bit_len < 1u || bit_len > 64u) {
+        return 0;
+    }
+    copy_bits(buf, bit_offset, bit_len, le, 0);
+    if (bit_len % 8u != 0u) {
+        le[bit_len / 8u] = (uint8_t)(le[bit_len / 8u] >> (8u - bit_len % 8u));
+    }
+    for (i = 0; i < 8u; i++) {
+        v |= (uint64_t)le[i] << (8u * i);
+    }
+    if (is_signed && bit_len < 64u && ((v >> (bit_len - 1u)) & 1u) != 0u) {
+        v |= ~(uint64_t)0 << bit_len;
+    }
+    return v;
+}
+
+void dan_dc_bw_init(dan_dc_bw_t *w, uint8_t *buf, size_t cap)
+{
+    w->buf = buf;
+    w->cap = buf != NULL ? cap : 0u;
+    w->bit = 0;
+    w->error = false;
+}
+
+/* Room for bits more bits? Sets the error if not. */
+static bool bw_room(dan_dc_bw_t *w, unsigned bits)
+{
+    if (w->error || bits < 1u || bits > 64u) {
+        w->error = true;
+        return false;
+    }
+    if (w->buf != NULL && (w->cap > SIZE_MAX / 8u || w->cap * 8u < bits ||
+                           w->bit > w->cap * 8u - bits)) {
+        w->error = true;
+        return false;
+    }
+    return true;
+}
+
+static void bw_raw(dan_dc_bw_t *w, unsigned bits, uint64_t v)
+{
+    if (!bw_room(w, bits)) {
+        return;
+    }
+    if (w->buf != NULL) {
+        if (w->bit % 8u == 0u) {
+            w->buf[w->bit / 8u] = 0; /* new byte: padding bits read as 0 */
+        }
+        dan_dc_encode_scalar(w->buf, w->bit, bits, v);
+        /* Zero the rest of the last byte touched, so padding is clean. */
+        if ((w->bit + bits) % 8u != 0u) {
+            size_t last = (w->bit + bits) / 8u;
+            w->buf[last] = (uint8_t)(w->buf[last] &
+                                     (uint8_t)(0xFF00u >> ((w->bit + bits) % 8u)));
+        }
+    }
+    w->bit += bits;
+}
+
+void dan_dc_put_uint(dan_dc_bw_t *w, unsigned bits, uint64_t v)
+{
+    if (bits >= 1u && bits < 64u) {
+        uint64_t max = ((uint64_t)1 << bits) - 1u;
+        if (v > max) {
+            v = max;
+        }
+    }
+    bw_raw(w, bits, v);
+}
+
+void dan_dc_put_int(dan_dc_bw_t *w, unsigned bits, int64_t v)
+{
+    if (bits >= 2u && bits < 64u) {
+        int64_t max = (int64_t)(((uint64_t)1 << (bits - 1u)) - 1u);
+        int64_t min = -max - 1;
+        if (v > max) {
+            v = max;
+        } else if (v < min) {
+            v = min;
+        }
+    } else if (bits != 64u) {
+        w->error = true;
+        return;
+    }
+    bw_raw(w, bits, (uint64_t)v);
+}
+
+void dan_dc_put_bool(dan_dc_bw_t *w, bool v)
+{
+    bw_raw(w, 1u, v ? 1u : 0u);
+}
+
+void dan_dc_put_f16(dan_dc_bw_t *w, float v)
+{
+    if (v > 65504.0f && v <= 3.4028235e38f) {
+        v = 65504.0f;
+    } else if (v < -65504.0f && v >= -3.4028235e38f) {
+        v = -65504.0f;
+    }
+    bw_raw(w, 16u, dan_f16_from_f32(v));
+}
+
+void dan_dc_put_f32(dan_dc_bw_t *w, float v)
+{
+    uint32_t u;
+    memcpy(&u, &v, sizeof u);
+    bw_raw(w, 32u, u);
+}
+
+void dan_dc_put_bytes(dan_dc_bw_t *w, const uint8_t *p, size_t n)
+{
+    size_t i;
+    if (p == NULL && n > 0u) {
+        w->error = true;
+        return;
+    }
+    for (i = 0; i < n && !w->error; i++) {
+        bw_raw(w, 8u, p[i]);
+    }
+}
+
+unsigned dan_dc_array_len_bits(size_t max)
+{
+    unsigned bits = 0;
+    while (max != 0u) {
+        bits++;
+        max >>= 1;
+    }
+    return bits;
+}
+
+void dan_dc_put_array_len(dan_dc_bw_t *w, size_t len, size_t max)
+{
+    if (len > max || max == 0u) {
+        w->error = true;
+        return;
+    }
+    bw_raw(w, dan_dc_array_len_bits(max), len);
+}
+
+int dan_dc_bw_finish(const dan_dc_bw_t *w)
+{
+    size_t bytes;
+    if (w->error) {
+        return DAN_ERR_OVERFLOW;
+    }
+    bytes = (w->bit + 7u) / 8u;
+    if (bytes > (size_t)0x7FFFFFFF) {
+        return DAN_ERR_OVERFLOW;
+    }
+    return (int)bytes;
+}
+
+void dan_dc_br_init(dan_dc_br_t *r, const uint8_t *data, size_t len)
+{
+    r->data = data;
+    r->len = data != NULL ? len : 0u;
+    r->bit = 0;
+    r->error = false;
+}
+
+size_t dan_dc_br_remaining_bits(const dan_dc_br_t *r)
+{
+    if (r->error || r->len > SIZE_MAX / 8u || r->bit > r->len * 8u) {
+        return 0;
+    }
+    return r->len * 8u - r->bit;
+}
+
+static uint64_t br_raw(dan_dc_br_t *r, unsigned bits, bool is_signed)
+{
+    uint64_t v;
+    if (r->error || bits < 1u || bits > 64u || dan_dc_br_remaining_bits(r) < bits) {
+        r->error = true;
+        return 0;
+    }
+    v = dan_dc_decode_scalar(r->data, r->bit, bits, is_signed);
+    r->bit += bits;
+    return v;
+}
+
+uint64_t dan_dc_get_uint(dan_dc_br_t *r, unsigned bits)
+{
+    return br_raw(r, bits, false);
+}
+
+int64_t dan_dc_get_int(dan_dc_br_t *r, unsigned bits)
+{
+    uint64_t u;
+    if (bits < 2u) {
+        r->error = true;
+        return 0;
+    }
+    u = br_raw(r, bits, true);
+    /* Two's complement reinterpretation without implementation-defined
+     * conversion of out-of-range unsigned values. */
+    if ((u >> 63) != 0u) {
+        return -(int64_t)(~u) - 1;
+    }
+    return (int64_t)u;
+}
+
+bool dan_dc_get_bool(dan_dc_br_t *r)
+{
+    return br_raw(r, 1u, false) != 0u;
+}
+
+float dan_dc_get_f16(dan_dc_br_t *r)
+{
+    return dan_f16_to_f32((uint16_t)br_raw(r, 16u, false));
+}
+
+float dan_dc_get_f32(dan_dc_br_t *r)
+{
+    uint32_t u = (uint32_t)br_raw(r, 32u, false);
+    float f;
+    memcpy(&f, &u, sizeof f);
+    return f;
+}
+
+void dan_dc_get_bytes(dan_dc_br_t *r, uint8_t *out, size_t n)
+{
+    size_t i;
+    if (dan_dc_br_remaining_bits(r) / 8u < n) {
+        r->error = true;
+        return;
+    }
+    for (i = 0; i < n; i++) {
+        uint8_t b = (uint8_t)br_raw(r, 8u, false);
+        if (out != NULL) {
+            out[i] = b;
+        }
+    }
+}
+
+size_t dan_dc_get_array_len(dan_dc_br_t *r, size_t max)
+{
+    uint64_t len;
+    if (max == 0u) {
+        r->error = true;
+        return 0;
+    }
+    len = br_raw(r, dan_dc_array_len_bits(max), false);
+    if (len > max) {
+        r->error = true;
+        return 0;
+    }
+    return (size_t)len;
+}
+
+int dan_dc_br_finish(const dan_dc_br_t *r)
+{
+    return r->error ? DAN_ERR_MALFORMED : DAN_OK;
+}
+
+size_t dan_dc_tao_count(const dan_dc_br_t *r, unsigned elem_bits)
+{
+    if (elem_bits == 0u) {
+        return 0;
+    }
+    return dan_dc_br_remaining_bits(r) / elem_bits;
+}
