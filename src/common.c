@@ -158,6 +158,25 @@ void dan_put_string(dan_writer_t *w, const char *s)
     dan_put_array(w, s, (s == NULL) ? 0u : strlen(s));
 }
 
+uint8_t *dan_writer_room(const dan_writer_t *w, size_t *cap)
+{
+    if (w->error || w->buf == NULL) {
+        *cap = 0;
+        return NULL; /* an encoder given NULL counts (size-only pass) */
+    }
+    *cap = w->cap - w->len;
+    return w->buf + w->len;
+}
+
+void dan_writer_advance(dan_writer_t *w, int n)
+{
+    if (n < 0) {
+        w->error = true;
+    } else if (!w->error) {
+        w->len += (size_t)n;
+    }
+}
+
 int dan_writer_finish(const dan_writer_t *w)
 {
     if (w->error || w->len > 0x7FFFFFFFu) {

@@ -99,6 +99,44 @@ static void handle_configure(dan_periph_t *p, const dan_ptype_t *t, const dan_fr
     queue_reply(p, f->code, 1, now_us);
 }
 
+/* Runs a handler inside the type's envelope (if any) and queues its reply. */
+static void serve(dan_periph_t *p, const dan_ptype_t *t, const dan_handler_t *h,
+                  const dan_frame_t *f, uint64_t now_us)
+{
+    const dan_envelope_t *env = t->envelope;
+    size_t len = f->len, room = sizeof p->reply;
+    const char *text = NULL;
+    dan_writer_t w;
+    int r;
+    if (env != NULL) {
+        r = env->open(t->user, f->code, f->payload, f->len);
+        if (r < 0) {
+            p->stats.dropped++;
+            return;
+        }
+        len = (size_t)r;
+        room = room > env->trailer ? room - env->trailer : 0u;
+    }
+    dan_writer_init(&w, p->reply, room);
+    r = h->fn(t->user, f->code, f->payload, len, &w, &text, now_us);
+    if (r == DAN_PERIPH_NO_REPLY) {
+        return;
+    }
+    if (r == DAN_OK && dan_writer_finish(&w) < 0) {
+        r = DAN_ERR_OVERFLOW;
+        text = "response too large";
+    }
+    if (r < 0) {
+        queue_error(p, f->code, (text != NULL) ? text : dan_strerror(r), now_us);
+        return;
+    }
+    if (env != NULL) {
+        env->close(t->user, f->code, p->reply, w.len);
+        w.len += env->trailer;
+    }
+    queue_reply(p, f->code, w.len, now_us);
+}
+
 static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
 {
     dan_periph_t *p = (dan_periph_t *)owner;
@@ -135,23 +173,7 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
     }
     for (i = 0; i < t->nhandlers; i++) {
         if (t->handlers[i].code == f->code && t->handlers[i].fn != NULL) {
-            dan_writer_t w;
-            const char *text = NULL;
-            int r;
-            dan_writer_init(&w, p->reply, sizeof p->reply);
-            r = t->handlers[i].fn(t->user, f->code, f->payload, f->len, &w, &text, now_us);
-            if (r == DAN_PERIPH_NO_REPLY) {
-                return;
-            }
-            if (r == DAN_OK && dan_writer_finish(&w) < 0) {
-                r = DAN_ERR_OVERFLOW;
-                text = "response too large";
-            }
-            if (r < 0) {
-                queue_error(p, f->code, (text != NULL) ? text : dan_strerror(r), now_us);
-            } else {
-                queue_reply(p, f->code, w.len, now_us);
-            }
+            serve(p, t, &t->handlers[i], f, now_us);
             return;
         }
     }

@@ -30,7 +30,8 @@
 #define DAN_CODE_VTX_IDENTIFY     0x20u
 #define DAN_CODE_VTX_CONFIGURE    0x21u
 
-/* CAN-over-DAN gateway; its messages are in dan/gateway_codes.h. */
+/* CAN-over-DAN gateway; its messages are in dan/can_gw/msgs.h
+ * (peripherals/can_gateway/). */
 #define DAN_TYPE_CAN_GW_FIRST     0x40u
 #define DAN_TYPE_CAN_GW_LAST      0x4Fu
 #define DAN_CODE_CAN_GW_IDENTIFY  0x40u

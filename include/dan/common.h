@@ -83,6 +83,14 @@ void dan_put_uvarint(dan_writer_t *w, uint32_t v);
 void dan_put_raw(dan_writer_t *w, const void *data, size_t len); /* no length */
 void dan_put_array(dan_writer_t *w, const void *data, size_t len); /* uvarint len + bytes */
 void dan_put_string(dan_writer_t *w, const char *s);      /* NULL == "" */
+/* For an encoder that writes in place (the dan_*_encode(..., out, cap)
+ * functions): the free space (NULL in a size-only pass or after an error:
+ * such encoders then return the size only), and then how much it wrote;
+ * a negative count (the encoder's error) sets the sticky error.
+ *     size_t cap; uint8_t *out = dan_writer_room(w, &cap);
+ *     dan_writer_advance(w, dan_x_encode(&x, out, cap)); */
+uint8_t *dan_writer_room(const dan_writer_t *w, size_t *cap);
+void dan_writer_advance(dan_writer_t *w, int n);
 /* Returns the length written, or DAN_ERR_OVERFLOW. */
 int dan_writer_finish(const dan_writer_t *w);
 

@@ -11,6 +11,8 @@
  *   - listen before talk: transmit only after the line was idle >= lbt_chars * C
  *   - inter-byte gap: a frame's bytes are back to back; an idle gap longer
  *     than gap_us while a frame is incomplete drops it
+ *
+ * Not reentrant: one instance is used from one context (its engine's).
  */
 #ifndef DAN_LINK_H
 #define DAN_LINK_H
@@ -21,22 +23,10 @@
 extern "C" {
 #endif
 
-/* Defaults; each can be changed per engine at run time (config structs). */
-#ifndef DAN_LBT_CHARS
-#define DAN_LBT_CHARS 3u           /* idle character times before talking (>= 2) */
-#endif
-#ifndef DAN_GAP_CHARS
-#define DAN_GAP_CHARS 10u          /* inter-byte gap that ends a partial frame */
-#endif
-#ifndef DAN_GAP_MIN_US
-#define DAN_GAP_MIN_US 2000u       /* ... but never shorter than this */
-#endif
-#ifndef DAN_TURNAROUND_CHARS
-#define DAN_TURNAROUND_CHARS 2u    /* peripheral waits this long before replying */
-#endif
-#ifndef DAN_RESP_LATENCY_US
-#define DAN_RESP_LATENCY_US 10000u /* a reply must start this soon after the turnaround */
-#endif
+/* Timing defaults (DAN_LBT_CHARS, DAN_GAP_CHARS, DAN_GAP_MIN_US,
+ * DAN_TURNAROUND_CHARS, DAN_RESP_LATENCY_US, DAN_ECHO_LATE_HOLD_US) are
+ * settings in dan/config.h; the engines' config structs change them at
+ * run time. */
 
 /*
  * The platform: a small table of functions. write and set_baud are
@@ -136,9 +126,6 @@ void dan_link_ack(dan_link_t *l);
 /* How long after an echo timeout or a collision a copy of our own frame is
  * taken for our own echo (late, or the tail of a frame a collision broke),
  * never for a frame from someone else. */
-#ifndef DAN_ECHO_LATE_HOLD_US
-#define DAN_ECHO_LATE_HOLD_US 1000000u
-#endif
 
 /* True if f is a copy of the frame in our TX buffer and our echo went
  * missing or broke (collision) less than DAN_ECHO_LATE_HOLD_US ago: it is

@@ -14,6 +14,11 @@
  *
  * Timing rules, retries and the discovery/configure sequences are in
  * docs/PROTOCOL.md section 6; the formulas are implemented here.
+ *
+ * Not reentrant: call every dan_master_* function of one instance (and the
+ * clients built on it, e.g. dan_gw_*) from one context (a main loop or one
+ * task), never from an interrupt; feed bytes from an ISR through a
+ * dan_rxring_t (dan/rxring.h). Distinct instances are independent.
  */
 #ifndef DAN_MASTER_H
 #define DAN_MASTER_H
@@ -25,11 +30,8 @@
 extern "C" {
 #endif
 
-/* Peripheral types one master can probe (and so, peers per UART). Each
- * costs a dan_peer_t (its identity strings: see DAN_MAX_STRING). */
-#ifndef DAN_MASTER_MAX_TYPES
-#define DAN_MASTER_MAX_TYPES 4u
-#endif
+/* Peripheral types one master can probe (and so, peers per UART):
+ * DAN_MASTER_MAX_TYPES, a setting in dan/config.h. */
 
 /* Bauds a master tries during discovery, in order: the spec's 9600 first,
  * then the mask bauds from the highest (where a configured bus most likely

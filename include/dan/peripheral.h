@@ -11,6 +11,11 @@
  *
  *     dan_periph_init(&p, &port, types, ntypes, NULL, now);
  *     loop: dan_periph_rx(&p, bytes, n, now); dan_periph_poll(&p, now);
+ *
+ * Not reentrant: call every dan_periph_* function of one instance from one
+ * context (a main loop or one task), never from an interrupt; feed bytes
+ * from an ISR through a dan_rxring_t (dan/rxring.h). Distinct instances
+ * are independent.
  */
 #ifndef DAN_PERIPHERAL_H
 #define DAN_PERIPHERAL_H
@@ -26,8 +31,9 @@ extern "C" {
 #define DAN_PERIPH_NO_REPLY 1
 
 /*
- * A request handler. req/len is the request payload. Write the response
- * payload into resp (its capacity is DAN_MAX_PAYLOAD) and return DAN_OK to
+ * A request handler. req/len is the request payload (inside the type's
+ * envelope, if it has one). Write the response payload into resp (its
+ * capacity is DAN_MAX_PAYLOAD less the envelope's trailer) and return DAN_OK to
  * send it with the request's code. Return DAN_ERR_MALFORMED (or another
  * negative code) to answer with an error frame; set *error_text to say why
  * (a static string; default: the error's name). Return DAN_PERIPH_NO_REPLY
@@ -41,6 +47,25 @@ typedef struct {
     dan_handler_fn fn;
 } dan_handler_t;
 
+/*
+ * An optional envelope around every message of a type but IDENTIFY,
+ * CONFIGURE and error frames: e.g. the CAN gateway's seal, a check bound to
+ * the code and the direction. The engine opens each request before any
+ * handler sees it and closes each response after its handler wrote it, so
+ * handlers work on the inner payload only.
+ */
+typedef struct {
+    /* Bytes close() appends to a response payload. */
+    size_t trailer;
+    /* Checks a request payload; returns the inner length (<= len), or a
+     * negative code to drop the request without any reply (the master
+     * retries, as after a bad CRC). */
+    int (*open)(void *user, uint32_t code, const uint8_t *req, size_t len);
+    /* Appends the trailer to a response payload of len bytes; the room for
+     * it is reserved (the handler's writer ends trailer bytes short). */
+    void (*close)(void *user, uint32_t code, uint8_t *resp, size_t len);
+} dan_envelope_t;
+
 /* A peripheral type: a block of DAN_TYPE_BLOCK_SIZE codes starting at
  * first, with IDENTIFY = first and CONFIGURE = first + 1. */
 typedef struct {
@@ -48,7 +73,8 @@ typedef struct {
     const dan_identity_t *identity;
     const dan_handler_t *handlers;
     size_t nhandlers;
-    void *user;
+    void *user;                   /* passed to the handlers and the envelope */
+    const dan_envelope_t *envelope; /* NULL: none */
 } dan_ptype_t;
 
 typedef struct {
@@ -71,6 +97,7 @@ typedef struct {
     uint32_t nacks;             /* CONFIGURE answered ACK-FAIL */
     uint32_t baud_changes;
     uint32_t own_echoes;        /* copies of our own reply ignored (after a collision) */
+    uint32_t dropped;           /* requests the type's envelope refused (no reply) */
 } dan_periph_stats_t;
 
 typedef struct {

@@ -40,26 +40,14 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "dan/config.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* Buffer size in bytes: a power of two, 2..32768. It must hold the bytes
- * that arrive between two main-loop passes (115200 baud: 11.5 bytes/ms). */
-#ifndef DAN_RXRING_SIZE
-#define DAN_RXRING_SIZE 256u
-#endif
-
-/* Type of the free-running indices: read and written by the CPU in one
- * access (uint32_t on 32-bit MCUs; on 8/16-bit MCUs use uint8_t with a
- * size <= 128, or mask interrupts around the consumer's reads instead). */
-#ifndef DAN_RXRING_INDEX_T
-#define DAN_RXRING_INDEX_T uint32_t
-#endif
-
-#if DAN_RXRING_SIZE < 2u || DAN_RXRING_SIZE > 32768u || (DAN_RXRING_SIZE & (DAN_RXRING_SIZE - 1u)) != 0u
-#error "DAN_RXRING_SIZE must be a power of two within 2..32768"
-#endif
+/* Its size (DAN_RXRING_SIZE) and index type (DAN_RXRING_INDEX_T) are
+ * settings in dan/config.h. */
 
 /* Memory barrier between storing a byte and publishing it (and between
  * reading bytes and freeing them). Override with -D for another compiler.

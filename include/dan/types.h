@@ -4,6 +4,14 @@
 
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#ifdef __cplusplus
+}
+#endif
+
+#endif
+
 typedef struct {
     const char *name;     /* short name for command lines ("can-gw") */
     uint32_t first;       /* first code of the block (IDENTIFY) */
@@ -19,5 +27,9 @@ const dan_type_info_t *dan_type_lookup(const char *name_or_code);
 
 /* The type whose block holds code, or NULL. */
 const dan_type_info_t *dan_type_of_code(uint32_t code);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

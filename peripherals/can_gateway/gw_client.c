@@ -246,7 +246,7 @@ static void store_telem(dan_gw_t *gw, const dan_gw_telem_t *t)
     }
 }
 
-static int complete_telem(dan_gw_t *gw, const uint8_t *p, size_t len)
+static int complete_telem(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
 {
     dan_reader_t r;
     dan_gw_telem_hdr_t h;
@@ -257,7 +257,7 @@ static int complete_telem(dan_gw_t *gw, const uint8_t *p, size_t len)
         return DAN_ERR_MALFORMED;
     }
     gw->gw_flags = h.gw_flags;
-    if (gw->code == DAN_GW_CODE_ESC_CMD) {
+    if (code == DAN_GW_CODE_ESC_CMD) {
         gw->esc_seen = h.aux;
         gw->last_telem = DAN_GW_NONE;
     } else {
@@ -313,9 +313,7 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
     switch (code) {
     case DAN_GW_CODE_ESC_CMD:
     case DAN_GW_CODE_ESC_TELEM:
-        gw->code = code; /* complete_telem tells the two apart */
-        rc = complete_telem(gw, p, len);
-        gw->code = 0;
+        rc = complete_telem(gw, code, p, len);
         break;
     case DAN_GW_CODE_ARM:
         if (len < 1u) {

@@ -132,6 +132,14 @@ void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
     }
 }
 
+size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, NULL, 0);
+    dan_gw_msg_telem_put(&w, t);
+    return w.len;
+}
+
 int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
 {
     memset(t, 0, sizeof *t);
@@ -283,6 +291,14 @@ void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n)
     dan_put_u16(w, n->vendor_status);
     dan_put_uvarint(w, n->age_ms);
     dan_put_u8(w, n->info_state);
+}
+
+size_t dan_gw_msg_node_size(const dan_gw_node_entry_t *n)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, NULL, 0);
+    dan_gw_msg_node_put(&w, n);
+    return w.len;
 }
 
 int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n)
@@ -450,6 +466,14 @@ void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f)
     if (!(f->flags & DAN_CAN_RTR)) {
         dan_put_raw(w, f->data, dlc);
     }
+}
+
+size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f)
+{
+    dan_writer_t w;
+    dan_writer_init(&w, NULL, 0);
+    dan_gw_msg_can_frame_put(&w, f);
+    return w.len;
 }
 
 int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f)
@@ -629,10 +653,8 @@ int dan_gw_unseal(uint32_t code, uint8_t dir, const uint8_t *p, size_t len)
 
 const char *dan_gw_stat_name(unsigned i)
 {
-    static const char *const names[DAN_GW_STAT_COUNT] = {
-        "dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
-        "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers", "dc_crc_errors",
-        "dc_errors", "esc_cmds", "failsafes", "failsafe_active", "tun_dropped", "raw_dropped",
-        "nodes", "bad_checks", "nodes_dropped"};
+#define NAME_(e, name) #name,
+    static const char *const names[DAN_GW_STAT_COUNT] = {DAN_GW_STATS(NAME_)};
+#undef NAME_
     return (i < DAN_GW_STAT_COUNT) ? names[i] : NULL;
 }

@@ -70,9 +70,9 @@ static void rig_setup(bool echo)
 {
     dan_master_config_t cfg;
     memset(&rig, 0, sizeof rig);
-    types_dev1[0] = (dan_ptype_t){DAN_TYPE_TEST_A_FIRST, &ident_a, handlers_a, 2, &silent_calls};
-    types_dev1[1] = (dan_ptype_t){DAN_TYPE_TEST_B_FIRST, &ident_b, NULL, 0, NULL};
-    types_dev2[0] = (dan_ptype_t){DAN_TYPE_CAN_GW_FIRST, &ident_gw, NULL, 0, NULL};
+    types_dev1[0] = (dan_ptype_t){DAN_TYPE_TEST_A_FIRST, &ident_a, handlers_a, 2, &silent_calls, NULL};
+    types_dev1[1] = (dan_ptype_t){DAN_TYPE_TEST_B_FIRST, &ident_b, NULL, 0, NULL, NULL};
+    types_dev2[0] = (dan_ptype_t){DAN_TYPE_CAN_GW_FIRST, &ident_gw, NULL, 0, NULL, NULL};
     sim_init(&rig.bus, STEP_US);
     dan_master_config_default(&cfg);
     rig.nm = sim_add_master(&rig.bus, &rig.m, 9600, echo);

@@ -689,7 +689,7 @@ static void test_failsafe(void **state)
     assert_int_equal(finish(), DAN_OK);
     assert_int_equal(dan_gw_esc_command(&R->gw, v, 6, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
-    t_last = R->g.last_cmd_us; /* when the gateway got it */
+    t_last = R->g.esc.last_cmd_us; /* when the gateway got it */
     from = R->ncap;
     advance(150000);
     assert_int_equal(R->g.stats.failsafes, 0);
@@ -1321,7 +1321,7 @@ static void test_stalled_can_latest_throttle_wins(void **state)
         sim_run_for(&R->bus, 1000);
         dan_gw_node_poll(&R->g, R->bus.now);
     }
-    assert_true(R->g.failsafe);
+    assert_true(R->g.esc.failsafe);
     /* the bus comes back: what goes out is zeros and DISARMED, no stale throttle */
     from = R->ncap;
     drain();
@@ -1434,7 +1434,7 @@ static void test_arm_during_failsafe(void **state)
     assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
     advance(700000);
-    assert_true(R->g.failsafe);
+    assert_true(R->g.esc.failsafe);
     from = R->ncap;
     assert_int_equal(dan_gw_arm(&R->gw, true, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
@@ -1444,7 +1444,7 @@ static void test_arm_during_failsafe(void **state)
     }
     assert_non_null(last);
     assert_int_equal(last->payload[0], 255);
-    assert_true(R->g.failsafe); /* still: no ESC command yet */
+    assert_true(R->g.esc.failsafe); /* still: no ESC command yet */
     from = 0;
     while ((c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
         assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);

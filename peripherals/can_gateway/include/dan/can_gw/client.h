@@ -38,15 +38,8 @@
 extern "C" {
 #endif
 
-/* Telemetry slots kept by the client (ESC indexes 0..DAN_GW_MAX_ESC-1;
- * records of higher indexes are counted in telem_ignored). */
-#ifndef DAN_GW_MAX_ESC
-#define DAN_GW_MAX_ESC 8u
-#endif
-/* Tunnel ports the client tracks (port numbers 0..DAN_GW_TUNNELS-1). */
-#ifndef DAN_GW_TUNNELS
-#define DAN_GW_TUNNELS 2u
-#endif
+/* Telemetry slots (DAN_GW_MAX_ESC), tunnel ports (DAN_GW_TUNNELS) and the
+ * resync distance (DAN_GW_CAN_RESYNC) are settings in dan/config.h. */
 
 typedef struct {
     uint32_t wr_offset;        /* bytes of ours the gateway has accepted */
@@ -80,12 +73,6 @@ typedef struct {
     uint32_t can_queue_free;
     uint32_t decode_errors;    /* responses that did not decode */
 } dan_gw_t;
-
-/* A CAN_RECV sequence more than this ahead of (or behind) ours means the
- * gateway restarted: the client follows it instead of counting losses. */
-#ifndef DAN_GW_CAN_RESYNC
-#define DAN_GW_CAN_RESYNC 4096u
-#endif
 
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
 

@@ -31,33 +31,8 @@
 extern "C" {
 #endif
 
-/* ---- configuration (override with -D) ---- */
-
-/* Concurrent multi-frame RX sessions, one per (data type, transfer type,
- * source node); a slot stays in use for the transfer timeout after its
- * transfer completes (duplicate detection). 20 ESCs sending esc.Status and
- * StatusExtended need 40, plus GetNodeInfo and tunnels: 64 (25 KiB on a
- * Linux gateway; an MCU gateway with fewer ESCs can lower it). Each slot
- * holds DAN_DC_MAX_TRANSFER bytes. */
-#ifndef DAN_DC_RX_SESSIONS
-#define DAN_DC_RX_SESSIONS 64u
-#endif
-
-/* Largest transfer payload received, in bytes, excluding the transfer CRC.
- * 384 fits the largest uavcan.protocol.GetNodeInfo response (376 bytes: an
- * 80-char name and a 255-byte certificate) and tunnel.Targetted (126). */
-#ifndef DAN_DC_MAX_TRANSFER
-#define DAN_DC_MAX_TRANSFER 384u
-#endif
-
-/* Entries of a dan_dc_tid_table_t (distinct TX flows tracked). */
-#ifndef DAN_DC_TX_TIDS
-#define DAN_DC_TX_TIDS 16u
-#endif
-
-#if DAN_DC_RX_SESSIONS < 1u || DAN_DC_RX_SESSIONS > 255u
-#error "DAN_DC_RX_SESSIONS must be within 1..255"
-#endif
+/* Sizes (DAN_DC_RX_SESSIONS, DAN_DC_MAX_TRANSFER, DAN_DC_TX_TIDS) are
+ * settings in dan/config.h. */
 #if DAN_DC_MAX_TRANSFER < 7u || DAN_DC_MAX_TRANSFER > 65535u
 #error "DAN_DC_MAX_TRANSFER must be within 7..65535"
 #endif

@@ -198,6 +198,10 @@ int dan_dc_arming_status_decode(dan_dc_arming_status_t *m, const uint8_t *buf, s
 #define DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX 120u
 #define DAN_DC_TUNNEL_TARGETTED_MAX_SIZE   126u
 #define DAN_DC_TUNNEL_OPTION_LOCK_PORT     1u
+#define DAN_DC_TUNNEL_SERIAL_ID_MIN        (-16)       /* int5 */
+#define DAN_DC_TUNNEL_SERIAL_ID_MAX        15
+#define DAN_DC_TUNNEL_OPTIONS_MAX          15u         /* uint4 */
+#define DAN_DC_TUNNEL_BAUD_MAX             0xFFFFFFu   /* uint24 */
 
 typedef struct {
     uint8_t protocol;     /* DAN_DC_TUNNEL_* */

@@ -100,10 +100,13 @@ typedef struct {
     uint8_t aux;
     uint8_t count;
 } dan_gw_telem_hdr_t;
+#define DAN_GW_TELEM_HDR_SIZE 3u
 
 void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h);
 int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h);
 void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t);
+/* Bytes of one record (a size-only pass of the put). */
+size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t);
 int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
 
 /* ESC_TELEM request: uint8 first esc_index (records with index >= it). */
@@ -141,29 +144,32 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
 /* ---- STATS (0x46) ----
  * Request: empty. Response: uint8 n, then n uvarint counters in this order
  * (later versions append; a decoder keeps the ones it knows). */
-enum {
-    DAN_GW_STAT_DAN_FRAMES = 0,    /* valid DAN frames received */
-    DAN_GW_STAT_DAN_CRC,           /* DAN frames with a bad CRC */
-    DAN_GW_STAT_DAN_UNKNOWN,       /* frames with codes not ours */
-    DAN_GW_STAT_DAN_ERRORS_SENT,   /* error frames sent */
-    DAN_GW_STAT_DAN_REQUESTS,
-    DAN_GW_STAT_CAN_TX,            /* CAN frames queued for the bus */
-    DAN_GW_STAT_CAN_RX,            /* CAN frames received */
-    DAN_GW_STAT_CAN_TX_DROPPED,    /* CAN output queue full */
-    DAN_GW_STAT_CAN_ERRORS,        /* adapter / bus errors */
-    DAN_GW_STAT_DC_TRANSFERS,      /* DroneCAN transfers received */
-    DAN_GW_STAT_DC_CRC,            /* DroneCAN transfer CRC errors */
-    DAN_GW_STAT_DC_ERRORS,         /* other DroneCAN reassembly errors */
-    DAN_GW_STAT_ESC_CMDS,          /* ESC commands received */
-    DAN_GW_STAT_FAILSAFES,         /* failsafe events */
-    DAN_GW_STAT_FAILSAFE_ACTIVE,   /* 1 while active */
-    DAN_GW_STAT_TUN_DROPPED,       /* tunnel bytes dropped (both ways) */
-    DAN_GW_STAT_RAW_DROPPED,       /* raw frames dropped (receive ring full) */
-    DAN_GW_STAT_NODES,             /* nodes in the table */
-    DAN_GW_STAT_BAD_CHECKS,        /* requests whose seal did not match (dropped) */
-    DAN_GW_STAT_NODES_DROPPED,     /* new nodes with no room in the table */
-    DAN_GW_STAT_COUNT
-};
+/* X(ENUM, name, what): one list for the enum, the names (docs/PROTOCOL.md)
+ * and the order on the wire. */
+#define DAN_GW_STATS(X)                                                                         \
+    X(DAN_FRAMES, dan_frames)           /* valid DAN frames received */                          \
+    X(DAN_CRC, dan_crc_errors)          /* DAN frames with a bad CRC */                          \
+    X(DAN_UNKNOWN, dan_unknown)         /* frames with codes not ours */                         \
+    X(DAN_ERRORS_SENT, dan_errors_sent) /* error frames sent */                                  \
+    X(DAN_REQUESTS, dan_requests)       /* gateway requests */                                   \
+    X(CAN_TX, can_tx)                   /* CAN frames queued for the bus */                      \
+    X(CAN_RX, can_rx)                   /* CAN frames received */                                \
+    X(CAN_TX_DROPPED, can_tx_dropped)   /* CAN output queue full */                              \
+    X(CAN_ERRORS, can_errors)           /* adapter / bus errors */                               \
+    X(DC_TRANSFERS, dc_transfers)       /* DroneCAN transfers received */                        \
+    X(DC_CRC, dc_crc_errors)            /* DroneCAN transfer CRC errors */                       \
+    X(DC_ERRORS, dc_errors)             /* other DroneCAN reassembly errors */                   \
+    X(ESC_CMDS, esc_cmds)               /* ESC commands received */                              \
+    X(FAILSAFES, failsafes)             /* failsafe events */                                    \
+    X(FAILSAFE_ACTIVE, failsafe_active) /* 1 while active */                                     \
+    X(TUN_DROPPED, tun_dropped)         /* tunnel bytes dropped (both ways) */                   \
+    X(RAW_DROPPED, raw_dropped)         /* raw frames dropped (receive ring full) */             \
+    X(NODES, nodes)                     /* nodes in the table */                                 \
+    X(BAD_CHECKS, bad_checks)           /* requests whose seal did not match (dropped) */        \
+    X(NODES_DROPPED, nodes_dropped)     /* new nodes with no room in the table */
+
+#define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
+enum { DAN_GW_STATS(DAN_GW_STAT_ENUM_) DAN_GW_STAT_COUNT };
 
 /* The counter's name as in docs/PROTOCOL.md ("dan_frames"), or NULL. */
 const char *dan_gw_stat_name(unsigned i);
@@ -199,10 +205,12 @@ typedef struct {
     uint8_t next;
     uint8_t count;
 } dan_gw_nodes_hdr_t;
+#define DAN_GW_NODES_HDR_SIZE 2u
 
 void dan_gw_msg_nodes_hdr_put(dan_writer_t *w, const dan_gw_nodes_hdr_t *h);
 int dan_gw_msg_nodes_hdr_get(dan_reader_t *r, dan_gw_nodes_hdr_t *h);
 void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n);
+size_t dan_gw_msg_node_size(const dan_gw_node_entry_t *n);
 int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n);
 
 /* ---- NODE_INFO (0x48) ----
@@ -280,6 +288,7 @@ int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_
 #define DAN_GW_CAN_ID_RTR       0x40000000u
 
 void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f);
+size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f);
 int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f);
 
 /* CAN_SEND request: uint8 seq, uint8 count (<= 11), frames. A request with
@@ -294,6 +303,7 @@ typedef struct {
 /* CAN_RECV request: uvarint next_seq (frames before it were received),
  * uint8 max. Response: uvarint first_seq (of the first frame here),
  * uvarint dropped (total), uint8 count, frames. */
+#define DAN_GW_CAN_RECV_HDR_MAX 11u    /* the response header at its largest */
 typedef struct {
     uint32_t seq;              /* req: next_seq; rsp: first_seq */
     uint32_t dropped;          /* rsp */

@@ -17,70 +17,58 @@
  *                               if (send(&f) busy) break; dan_gw_node_tx_pop(&gwn); }
  *       sleep until min(dan_periph_next_us, dan_gw_node_next_us) or I/O
  *
- * DroneCAN behaviour (docs/PROTOCOL.md section 7):
- *   - NodeStatus every second: health OK while a DAN master sent a request
- *     within cfg.master_timeout_ms, WARNING otherwise; mode OPERATIONAL;
- *     vendor-specific status code = the gateway flags byte.
- *   - Answers GetNodeInfo; asks every new node (from its NodeStatus) for
- *     GetNodeInfo, up to DAN_GW_NODE_INFO_TRIES times a second apart (and
- *     again after the node restarts: its uptime went down).
- *   - ESC_CMD: uavcan.equipment.esc.RawCommand broadcast at once (priority
- *     high). Failsafe: no ESC_CMD for esc_timeout_ms -> RawCommand of zeros
+ * Not reentrant: call every function of one instance from one context (the
+ * same one that runs its dan_periph_t). Sizes are set in dan/config.h.
+ *
+ * DroneCAN behaviour (docs/PROTOCOL.md section 7), one file per subsystem:
+ *   - gw_node.c: NodeStatus every second (health OK while a DAN master sent
+ *     a request within cfg.master_timeout_ms, WARNING otherwise; mode
+ *     OPERATIONAL; vendor-specific status code = the gateway flags byte),
+ *     our GetNodeInfo answer, dispatch of received transfers, timers.
+ *   - gw_node_txq.c: CAN output, two bounded queues: urgent (ESC, arming,
+ *     our NodeStatus: latest-wins states) before bulk (services, raw
+ *     frames, tunnels). A transfer that does not fit is dropped whole and
+ *     counted.
+ *   - gw_node_esc.c: ESC_CMD -> uavcan.equipment.esc.RawCommand broadcast
+ *     at once (priority high); esc.Status / StatusExtended per ESC index;
+ *     the failsafe: no ESC_CMD for esc_timeout_ms -> RawCommand of zeros
  *     (the channel count last used) and ArmingStatus DISARMED at once, then
  *     both repeated at the arming rate until the next ESC_CMD.
- *   - ArmingStatus at arming_rate_hz, and at once on a change.
- *   - Tunnels: uavcan.tunnel.Targetted as ArduPilot's AP_DroneCAN_serial
- *     does it (chunks <= 120 bytes, an empty keepalive every 500 ms while
- *     idle, options from TUN_OPEN, received only from the target node with
- *     target_node == our id and the port's serial_id) and tunnel.Broadcast
- *     (chunks <= 60, received by protocol and channel_id).
- *   - Every received CAN frame, processed or not, goes through the raw
- *     filter into the raw receive ring.
- * CAN output has two bounded queues: urgent (ESC, arming, services,
- * NodeStatus, raw frames) before bulk (tunnels). A transfer that does not
- * fit is dropped whole and counted.
+ *   - gw_node_arming.c: ArmingStatus at arming_rate_hz, and at once on a
+ *     change.
+ *   - gw_node_table.c: the node table from NodeStatus; GetNodeInfo asked of
+ *     every new node up to DAN_GW_NODE_INFO_TRIES times a second apart (and
+ *     again after the node restarts: its uptime went down).
+ *   - gw_node_tunnel.c: uavcan.tunnel.Targetted as ArduPilot's
+ *     AP_DroneCAN_serial does it (chunks <= 120 bytes, an empty keepalive
+ *     every 500 ms while idle, options from TUN_OPEN, received only from
+ *     the target node with target_node == our id and the port's serial_id)
+ *     and tunnel.Broadcast (chunks <= 60, received by protocol and
+ *     channel_id).
+ *   - gw_node_raw.c: every received CAN frame, processed or not, goes
+ *     through the raw filter into the raw receive ring; raw frames out.
+ *   - gw_node_dan.c: the DAN handlers (decode, call the subsystem, encode)
+ *     and the seal, as the type's envelope.
  */
-#ifndef DAN_GATEWAY_NODE_H
-#define DAN_GATEWAY_NODE_H
+#ifndef DAN_CAN_GW_NODE_H
+#define DAN_CAN_GW_NODE_H
 
-#include "dan/can_gw/msgs.h"
-#include "dan/peripheral.h"
 #include "dan/can_gw/dronecan.h"
 #include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/msgs.h"
+#include "dan/peripheral.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-/* ---- configuration (override with -D) ---- */
-#ifndef DAN_GW_NODE_MAX_NODES
-#define DAN_GW_NODE_MAX_NODES 32u      /* node table entries */
-#endif
-/* A node silent this long is offline (DroneCAN's OFFLINE_TIMEOUT is 3 s);
- * when the table is full, its slot goes to a new node. */
-#ifndef DAN_GW_NODE_OFFLINE_US
-#define DAN_GW_NODE_OFFLINE_US 3000000u
-#endif
-#ifndef DAN_GW_NODE_TUNNELS
-#define DAN_GW_NODE_TUNNELS 4u         /* tunnel ports */
-#endif
-#ifndef DAN_GW_NODE_TUN_TX_BUF
-#define DAN_GW_NODE_TUN_TX_BUF 1024u   /* DAN -> CAN bytes per port (power of 2) */
-#endif
-#ifndef DAN_GW_NODE_TUN_RX_BUF
-#define DAN_GW_NODE_TUN_RX_BUF 4096u   /* CAN -> DAN bytes per port (power of 2) */
-#endif
-#ifndef DAN_GW_NODE_TXQ
-#define DAN_GW_NODE_TXQ 128u           /* frames per CAN output queue */
-#endif
-#ifndef DAN_GW_NODE_RAW_RX
-#define DAN_GW_NODE_RAW_RX 64u         /* raw frames waiting for CAN_RECV */
-#endif
-#define DAN_GW_NODE_ESC_SLOTS   32u    /* one per esc_index (uint5) */
-#define DAN_GW_NODE_INFO_TRIES  3u
+/* ---- fixed by the protocols (not settings) ---- */
+#define DAN_GW_NODE_ESC_SLOTS     32u      /* one per esc_index (uint5) */
+#define DAN_GW_NODE_OFFLINE_US    3000000u /* DroneCAN's OFFLINE_TIMEOUT */
+#define DAN_GW_NODE_STATUS_US     1000000u /* our NodeStatus period */
+#define DAN_GW_NODE_KEEPALIVE_US  500000u  /* ArduPilot's tunnel keepalive */
+#define DAN_GW_NODE_INFO_TRIES    3u       /* GetNodeInfo attempts per node */
 #define DAN_GW_NODE_INFO_RETRY_US 1000000u
-#define DAN_GW_NODE_KEEPALIVE_US 500000u  /* ArduPilot's tunnel keepalive */
-#define DAN_GW_NODE_STATUS_US   1000000u
 
 #define DAN_GW_NODE_DEFAULT_ID          10u
 #define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT 500u   /* ms */
@@ -121,11 +109,37 @@ typedef struct {
     uint32_t bad_checks;        /* requests whose seal failed (dropped) */
 } dan_gw_node_stats_t;
 
+/* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
+
+/* CAN output queue (gw_node_txq.c). */
+typedef struct {
+    dan_can_frame_t f[DAN_GW_NODE_TXQ];
+    uint16_t head, len;
+} dan_gw_node_txq_t;
+
+/* One ESC index's newest telemetry (gw_node_esc.c). */
 typedef struct {
     dan_gw_telem_t t;           /* age fields filled when sent */
     uint64_t status_us, ext_us;
 } dan_gw_node_esc_t;
 
+/* ESC commands, telemetry and the failsafe (gw_node_esc.c). */
+typedef struct {
+    bool active;                /* commands have been received */
+    bool failsafe;              /* failsafe active */
+    uint8_t n;                  /* channel count last used */
+    uint8_t rr;                 /* round-robin position of telemetry records */
+    uint64_t last_cmd_us;
+    dan_gw_node_esc_t slot[DAN_GW_NODE_ESC_SLOTS];
+} dan_gw_node_escs_t;
+
+/* ArmingStatus (gw_node_arming.c). */
+typedef struct {
+    uint8_t status;             /* ArmingStatus value broadcast */
+    uint64_t due_us;            /* next periodic broadcast */
+} dan_gw_node_arming_t;
+
+/* One node of the table (gw_node_table.c). */
 typedef struct {
     dan_gw_node_entry_t e;      /* age_ms filled when sent */
     uint64_t seen_us;
@@ -135,6 +149,7 @@ typedef struct {
     dan_gw_node_info_t info;
 } dan_gw_node_slot_t;
 
+/* One tunnel port (gw_node_tunnel.c). */
 typedef struct {
     dan_gw_tun_open_t cfg;      /* cfg.mode DAN_GW_TUN_CLOSED: unused */
     uint32_t wr_next;           /* DAN -> CAN bytes accepted */
@@ -147,10 +162,18 @@ typedef struct {
     uint8_t rx[DAN_GW_NODE_TUN_RX_BUF];
 } dan_gw_node_tun_t;
 
+/* Raw frames both ways and the receive filter (gw_node_raw.c). */
 typedef struct {
-    dan_can_frame_t f[DAN_GW_NODE_TXQ];
+    dan_gw_filter_t filters[DAN_GW_FILTERS_MAX];
+    uint8_t nfilters;
+    bool send_seq_valid;
+    uint16_t send_digest;       /* of the last accepted CAN_SEND (retry check) */
+    uint8_t send_seq;           /* last CAN_SEND seq accepted */
+    uint8_t send_accepted;
+    dan_can_frame_t ring[DAN_GW_NODE_RAW_RX];
+    uint32_t first;             /* sequence number of ring[head] */
     uint16_t head, len;
-} dan_gw_node_txq_t;
+} dan_gw_node_raw_t;
 
 typedef struct {
     dan_gw_node_config_t cfg;
@@ -162,30 +185,12 @@ typedef struct {
     uint64_t start_us;
     uint64_t last_dan_us;       /* last gateway request (0: none yet) */
     uint64_t status_due_us;
-    uint64_t arming_due_us;
     bool can_ok;
-    /* ESC */
-    uint8_t arming;             /* ArmingStatus value broadcast */
-    bool esc_active;            /* commands have been received */
-    bool failsafe;              /* failsafe active */
-    uint8_t esc_n;              /* channel count last used */
-    uint64_t last_cmd_us;
-    uint8_t rr;                 /* round-robin position */
-    dan_gw_node_esc_t esc[DAN_GW_NODE_ESC_SLOTS];
-    /* nodes */
+    dan_gw_node_escs_t esc;
+    dan_gw_node_arming_t arming;
     dan_gw_node_slot_t nodes[DAN_GW_NODE_MAX_NODES];
-    /* tunnels */
     dan_gw_node_tun_t tun[DAN_GW_NODE_TUNNELS];
-    /* raw CAN */
-    dan_gw_filter_t filters[DAN_GW_FILTERS_MAX];
-    uint8_t nfilters;
-    bool send_seq_valid;
-    uint16_t send_digest;       /* of the last accepted CAN_SEND (retry check) */
-    uint8_t send_seq;           /* last CAN_SEND seq accepted */
-    uint8_t send_accepted;
-    dan_can_frame_t raw[DAN_GW_NODE_RAW_RX];
-    uint32_t raw_first;         /* sequence number of raw[raw_head] */
-    uint16_t raw_head, raw_len;
+    dan_gw_node_raw_t raw;
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
@@ -235,4 +240,4 @@ int dan_gw_node_set_arming_rate(dan_gw_node_t *g, uint32_t hz, uint64_t now_us);
 }
 #endif
 
-#endif /* DAN_GATEWAY_NODE_H */
+#endif /* DAN_CAN_GW_NODE_H */

@@ -1,0 +1,87 @@
+/*
+ * What the gateway node's subsystems (gw_node*.c) call of each other. Not
+ * installed, not for callers: the public API is dan/can_gw/node.h.
+ */
+#ifndef DAN_CAN_GW_NODE_INTERNAL_H
+#define DAN_CAN_GW_NODE_INTERNAL_H
+
+#include "dan/can_gw/node.h"
+
+/* Milliseconds between two microsecond times, saturated to 32 bits. */
+uint32_t dan_gwn_age_ms(uint64_t now_us, uint64_t then_us);
+
+/* ---- CAN output (gw_node_txq.c) ---- */
+size_t dan_gwn_txq_free(const dan_gw_node_txq_t *q);
+void dan_gwn_txq_push(dan_gw_node_txq_t *q, const dan_can_frame_t *f);
+/* Queues one transfer whole (source node = ours), or drops it whole
+ * (counted in can_tx_dropped): DAN_ERR_OVERFLOW. */
+int dan_gwn_send_transfer(dan_gw_node_t *g, dan_gw_node_txq_t *q, dan_dc_transfer_t *t);
+/* A broadcast of an encoded payload (len < 0: the encoder's error, passed
+ * through). */
+int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uint64_t sig,
+                      uint8_t prio, const uint8_t *payload, int len);
+/* Latest wins: removes our own unsent broadcasts of one data type from q
+ * before a newer one is queued. */
+void dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid);
+
+/* ---- ESC commands, telemetry, failsafe (gw_node_esc.c) ---- */
+void dan_gwn_esc_command(dan_gw_node_t *g, const int16_t *v, size_t n, uint64_t now_us);
+/* The telemetry of ESC index idx with its ages, or NULL if none arrived. */
+const dan_gw_telem_t *dan_gwn_esc_telem(dan_gw_node_t *g, size_t idx, uint64_t now_us);
+/* The next ESC with telemetry after the last one reported (round robin). */
+const dan_gw_telem_t *dan_gwn_esc_next_telem(dan_gw_node_t *g, uint64_t now_us);
+uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g);
+void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_esc_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_esc_next_us(const dan_gw_node_t *g, uint64_t t);
+
+/* ---- ArmingStatus (gw_node_arming.c) ---- */
+void dan_gwn_arming_send(dan_gw_node_t *g, uint64_t now_us);
+/* An ARM request: broadcast at once when the value changes. */
+void dan_gwn_arming_set(dan_gw_node_t *g, uint8_t status, uint64_t now_us);
+void dan_gwn_arming_poll(dan_gw_node_t *g, uint64_t now_us);
+
+/* ---- node table (gw_node_table.c) ---- */
+dan_gw_node_slot_t *dan_gwn_find_node(dan_gw_node_t *g, uint8_t id);
+void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t);
+void dan_gwn_table_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_table_next_us(const dan_gw_node_t *g, uint64_t t);
+uint32_t dan_gwn_table_count(const dan_gw_node_t *g);
+
+/* ---- tunnels (gw_node_tunnel.c) ---- */
+void dan_gwn_on_targetted(dan_gw_node_t *g, const dan_dc_transfer_t *t);
+void dan_gwn_on_tun_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t);
+/* TUN_OPEN: opens, reconfigures or closes a port; false if refused. */
+bool dan_gwn_tunnel_open(dan_gw_node_t *g, const dan_gw_tun_open_t *o, uint64_t now_us);
+/* TUN_XFER: takes x's data from the port's wr_next on, acknowledges
+ * x->rd_offset, and fills r (data copied into out, DAN_GW_TUN_CHUNK_MAX
+ * bytes). DAN_ERR_NOTFOUND: port not open; DAN_ERR_MALFORMED: a gap. */
+int dan_gwn_tunnel_xfer(dan_gw_node_t *g, const dan_gw_tun_xfer_t *x, dan_gw_tun_xfer_t *r,
+                        uint8_t *out);
+void dan_gwn_tunnel_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t);
+
+/* ---- raw frames (gw_node_raw.c) ---- */
+void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f);
+/* CAN_SEND: all or nothing; a retry (same seq and digest) is not sent
+ * again. Fills s->count (accepted) and s->queue_free. */
+void dan_gwn_raw_send(dan_gw_node_t *g, dan_gw_can_send_t *s, const dan_can_frame_t *f,
+                      uint16_t digest);
+/* CAN_RECV: acknowledges frames before q->seq; fills a (first_seq,
+ * dropped, count for the room left in a response of cap bytes). The
+ * frames are dan_gwn_raw_at(g, 0 .. a->count - 1). */
+void dan_gwn_raw_recv(dan_gw_node_t *g, const dan_gw_can_recv_t *q, dan_gw_can_recv_t *a,
+                      size_t cap);
+const dan_can_frame_t *dan_gwn_raw_at(const dan_gw_node_t *g, size_t i);
+/* CAN_FILTER: applies op to the table; returns the result byte (0 OK,
+ * 1 full). */
+uint8_t dan_gwn_raw_filter(dan_gw_node_t *g, uint8_t op, const dan_gw_filter_t *f, size_t n);
+
+/* ---- DAN side (gw_node_dan.c) ---- */
+extern const dan_handler_t dan_gwn_handlers[];
+extern const size_t dan_gwn_nhandlers;
+extern const dan_envelope_t dan_gwn_seal;
+
+#endif /* DAN_CAN_GW_NODE_INTERNAL_H */

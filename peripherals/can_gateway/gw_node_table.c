@@ -1,0 +1,153 @@
+/* Gateway node: the node table (from NodeStatus) and the GetNodeInfo
+ * requests the gateway makes of every node in it. */
+#include <string.h>
+
+#include "gw_node_internal.h"
+
+dan_gw_node_slot_t *dan_gwn_find_node(dan_gw_node_t *g, uint8_t id)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        if (g->nodes[i].e.node_id == id) {
+            return &g->nodes[i];
+        }
+    }
+    return NULL;
+}
+
+uint32_t dan_gwn_table_count(const dan_gw_node_t *g)
+{
+    uint32_t n = 0;
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        n += g->nodes[i].e.node_id != 0u;
+    }
+    return n;
+}
+
+/* A free slot, or, when the table is full, the slot of the node silent the
+ * longest past DroneCAN's offline timeout; NULL if none. */
+static dan_gw_node_slot_t *slot_for_new(dan_gw_node_t *g, uint64_t now_us)
+{
+    dan_gw_node_slot_t *best = dan_gwn_find_node(g, 0);
+    size_t i;
+    if (best != NULL) {
+        return best;
+    }
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        dan_gw_node_slot_t *c = &g->nodes[i];
+        if (now_us - c->seen_us > DAN_GW_NODE_OFFLINE_US &&
+            (best == NULL || c->seen_us < best->seen_us)) {
+            best = c;
+        }
+    }
+    return best;
+}
+
+void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
+{
+    dan_dc_node_status_t s;
+    dan_gw_node_slot_t *n;
+    if (t->source_node == 0u || dan_dc_node_status_decode(&s, t->payload, t->payload_len) != DAN_OK) {
+        return;
+    }
+    n = dan_gwn_find_node(g, t->source_node);
+    if (n == NULL) {
+        n = slot_for_new(g, now_us);
+        if (n == NULL) {
+            g->stats.nodes_dropped++;
+            return;
+        }
+        memset(n, 0, sizeof *n);
+        n->e.node_id = t->source_node;
+        n->info_due_us = now_us;
+    } else if (s.uptime_sec < n->e.uptime_sec) {
+        /* restarted: its software may have changed */
+        n->e.info_state = DAN_GW_INFO_NONE;
+        n->info_tries = 0;
+        n->info_due_us = now_us;
+    }
+    n->e.health = s.health;
+    n->e.mode = s.mode;
+    n->e.sub_mode = s.sub_mode;
+    n->e.uptime_sec = s.uptime_sec;
+    n->e.vendor_status = s.vendor_specific_status_code;
+    n->seen_us = now_us;
+}
+
+void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t)
+{
+    dan_dc_get_node_info_rsp_t *rp = &g->scratch.info;
+    dan_gw_node_slot_t *n = dan_gwn_find_node(g, t->source_node);
+    size_t len;
+    if (n == NULL || dan_dc_get_node_info_rsp_decode(rp, t->payload, t->payload_len) != DAN_OK) {
+        return;
+    }
+    n->info.node_id = n->e.node_id;
+    n->info.info_state = DAN_GW_INFO_VALID;
+    n->info.sw_major = rp->software_version.major;
+    n->info.sw_minor = rp->software_version.minor;
+    n->info.sw_flags = rp->software_version.optional_field_flags;
+    n->info.vcs_commit = rp->software_version.vcs_commit;
+    n->info.hw_major = rp->hardware_version.major;
+    n->info.hw_minor = rp->hardware_version.minor;
+    memcpy(n->info.unique_id, rp->hardware_version.unique_id, 16);
+    len = rp->name_len > DAN_DC_GET_NODE_INFO_NAME_MAX ? DAN_DC_GET_NODE_INFO_NAME_MAX
+                                                       : rp->name_len;
+    memcpy(n->info.name, rp->name, len);
+    n->info.name[len] = '\0';
+    n->e.info_state = DAN_GW_INFO_VALID;
+}
+
+static void request_info(dan_gw_node_t *g, dan_gw_node_slot_t *n, uint64_t now_us)
+{
+    dan_dc_transfer_t t;
+    memset(&t, 0, sizeof t);
+    t.signature = DAN_DC_GET_NODE_INFO_SIGNATURE;
+    t.data_type_id = DAN_DC_GET_NODE_INFO_ID;
+    t.transfer_type = DAN_DC_TRANSFER_REQUEST;
+    t.priority = DAN_DC_PRIORITY_LOW;
+    t.destination_node = n->e.node_id;
+    t.transfer_id = n->info_tid;
+    if (dan_gwn_send_transfer(g, &g->q_bulk, &t) == DAN_OK) {
+        n->info_tid = (uint8_t)((n->info_tid + 1u) & DAN_DC_TRANSFER_ID_MASK);
+        g->stats.info_requests++;
+    }
+    n->info_tries++;
+    n->e.info_state = DAN_GW_INFO_PENDING;
+    n->info_due_us = now_us + DAN_GW_NODE_INFO_RETRY_US;
+}
+
+static bool info_wanted(const dan_gw_node_slot_t *n)
+{
+    return n->e.node_id != 0u &&
+           (n->e.info_state == DAN_GW_INFO_NONE || n->e.info_state == DAN_GW_INFO_PENDING);
+}
+
+void dan_gwn_table_poll(dan_gw_node_t *g, uint64_t now_us)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        dan_gw_node_slot_t *n = &g->nodes[i];
+        if (!info_wanted(n) || now_us < n->info_due_us) {
+            continue;
+        }
+        if (n->info_tries >= DAN_GW_NODE_INFO_TRIES) {
+            n->e.info_state = DAN_GW_INFO_FAILED;
+        } else {
+            request_info(g, n, now_us);
+        }
+    }
+}
+
+uint64_t dan_gwn_table_next_us(const dan_gw_node_t *g, uint64_t t)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        const dan_gw_node_slot_t *n = &g->nodes[i];
+        if (info_wanted(n) && n->info_due_us < t) {
+            t = n->info_due_us;
+        }
+    }
+    return t;
+}

@@ -1,0 +1,232 @@
+/* Gateway node: serial tunnels, uavcan.tunnel.Targetted (ArduPilot's
+ * AP_DroneCAN_serial semantics) and uavcan.tunnel.Broadcast, by stream
+ * offset on the DAN side so the master's retries are safe. */
+#include <stddef.h>
+#include <string.h>
+
+#include "gw_node_internal.h"
+
+/* Bulk-queue room for one whole Targetted transfer (126 payload bytes + 2
+ * CRC in 7-byte frames): tunnel chunks wait for it, so the queue is the
+ * flow control. */
+#define TARGETTED_FRAMES_MAX 19u
+
+/* Appends received tunnel bytes; what does not fit is dropped (counted). */
+static void tun_in(dan_gw_node_t *g, dan_gw_node_tun_t *p, const uint8_t *d, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        if (p->rd_end - p->rd_base >= DAN_GW_NODE_TUN_RX_BUF) {
+            p->rd_dropped += (uint32_t)(n - i);
+            g->stats.tun_dropped += (uint32_t)(n - i);
+            return;
+        }
+        p->rx[p->rd_end % DAN_GW_NODE_TUN_RX_BUF] = d[i];
+        p->rd_end++;
+    }
+}
+
+void dan_gwn_on_targetted(dan_gw_node_t *g, const dan_dc_transfer_t *t)
+{
+    dan_dc_tunnel_targetted_t *mp = &g->scratch.targetted;
+    size_t i;
+    if (dan_dc_tunnel_targetted_decode(mp, t->payload, t->payload_len) != DAN_OK ||
+        mp->target_node != g->cfg.node_id) {
+        return;
+    }
+    for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
+        dan_gw_node_tun_t *p = &g->tun[i];
+        if (p->cfg.mode == DAN_GW_TUN_TARGETTED && p->cfg.target == t->source_node &&
+            p->cfg.serial_id == mp->serial_id) {
+            tun_in(g, p, mp->buffer, mp->buffer_len);
+            return;
+        }
+    }
+}
+
+void dan_gwn_on_tun_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t)
+{
+    dan_dc_tunnel_broadcast_t *mp = &g->scratch.bcast;
+    size_t i;
+    if (dan_dc_tunnel_broadcast_decode(mp, t->payload, t->payload_len) != DAN_OK) {
+        return;
+    }
+    for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
+        dan_gw_node_tun_t *p = &g->tun[i];
+        if (p->cfg.mode == DAN_GW_TUN_BROADCAST && p->cfg.protocol == mp->protocol &&
+            p->cfg.target == mp->channel_id) {
+            tun_in(g, p, mp->buffer, mp->buffer_len);
+        }
+    }
+}
+
+bool dan_gwn_tunnel_open(dan_gw_node_t *g, const dan_gw_tun_open_t *o, uint64_t now_us)
+{
+    dan_gw_node_tun_t *p;
+    bool ok = o->port < DAN_GW_NODE_TUNNELS && o->mode <= DAN_GW_TUN_BROADCAST &&
+              (o->mode != DAN_GW_TUN_TARGETTED ||
+               (o->target >= 1u && o->target <= DAN_DC_NODE_ID_MAX &&
+                o->serial_id >= DAN_DC_TUNNEL_SERIAL_ID_MIN &&
+                o->serial_id <= DAN_DC_TUNNEL_SERIAL_ID_MAX &&
+                o->options <= DAN_DC_TUNNEL_OPTIONS_MAX && o->baud <= DAN_DC_TUNNEL_BAUD_MAX));
+    if (!ok) {
+        return false;
+    }
+    p = &g->tun[o->port];
+    memset(p, 0, offsetof(dan_gw_node_tun_t, tx)); /* buffers need no clearing */
+    p->cfg = *o;
+    p->last_tx_us = now_us - DAN_GW_NODE_KEEPALIVE_US; /* first keepalive at once */
+    return true;
+}
+
+int dan_gwn_tunnel_xfer(dan_gw_node_t *g, const dan_gw_tun_xfer_t *x, dan_gw_tun_xfer_t *r,
+                        uint8_t *out)
+{
+    dan_gw_node_tun_t *p;
+    int32_t skip, ack;
+    size_t i, n;
+    if (x->port >= DAN_GW_NODE_TUNNELS || g->tun[x->port].cfg.mode == DAN_GW_TUN_CLOSED) {
+        return DAN_ERR_NOTFOUND;
+    }
+    p = &g->tun[x->port];
+    /* write: bytes before wr_next are repeats of a retried request */
+    skip = dan_gw_off_diff(p->wr_next, x->wr_offset);
+    if (skip < 0) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = (size_t)skip; i < x->len && p->tx_len < DAN_GW_NODE_TUN_TX_BUF; i++) {
+        p->tx[p->wr_next % DAN_GW_NODE_TUN_TX_BUF] = x->data[i];
+        p->wr_next++;
+        p->tx_len++;
+    }
+    /* read: the master has every byte before rd_offset */
+    ack = dan_gw_off_diff(x->rd_offset, p->rd_base);
+    if (ack > 0 && dan_gw_off_diff(p->rd_end, x->rd_offset) >= 0) {
+        p->rd_base = x->rd_offset;
+    }
+    n = p->rd_end - p->rd_base;
+    if (n > x->rd_max) {
+        n = x->rd_max;
+    }
+    if (n > DAN_GW_TUN_CHUNK_MAX) {
+        n = DAN_GW_TUN_CHUNK_MAX;
+    }
+    for (i = 0; i < n; i++) {
+        out[i] = p->rx[(p->rd_base + i) % DAN_GW_NODE_TUN_RX_BUF];
+    }
+    memset(r, 0, sizeof *r);
+    r->port = x->port;
+    r->wr_offset = p->wr_next;
+    r->wr_space = DAN_GW_NODE_TUN_TX_BUF - p->tx_len;
+    r->rd_offset = p->rd_base;
+    r->rd_dropped = p->rd_dropped;
+    r->data = out;
+    r->len = n;
+    return DAN_OK;
+}
+
+/* Copies the next n bytes waiting to go out of a port. */
+static void tun_peek(const dan_gw_node_tun_t *p, uint8_t *dst, size_t n)
+{
+    uint32_t start = p->wr_next - p->tx_len;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        dst[i] = p->tx[(start + i) % DAN_GW_NODE_TUN_TX_BUF];
+    }
+}
+
+static size_t min_size(size_t a, size_t b)
+{
+    return a < b ? a : b;
+}
+
+/* One Targetted chunk, or an empty keepalive when the port was idle for
+ * DAN_GW_NODE_KEEPALIVE_US. Returns the bytes sent, or -1 if nothing was. */
+static int targetted_out(dan_gw_node_t *g, dan_gw_node_tun_t *p, uint64_t now_us)
+{
+    dan_dc_tunnel_targetted_t *m = &g->scratch.targetted;
+    uint8_t buf[DAN_DC_TUNNEL_TARGETTED_MAX_SIZE];
+    size_t n = min_size(p->tx_len, DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX);
+    if (n == 0u && now_us - p->last_tx_us < DAN_GW_NODE_KEEPALIVE_US) {
+        return -1;
+    }
+    memset(m, 0, sizeof *m);
+    m->protocol = p->cfg.protocol;
+    m->target_node = p->cfg.target;
+    m->serial_id = p->cfg.serial_id;
+    m->options = p->cfg.options;
+    m->baudrate = p->cfg.baud;
+    m->buffer_len = (uint8_t)n;
+    tun_peek(p, m->buffer, n);
+    if (dan_gwn_broadcast(g, &g->q_bulk, DAN_DC_TUNNEL_TARGETTED_ID,
+                          DAN_DC_TUNNEL_TARGETTED_SIGNATURE, DAN_DC_PRIORITY_MEDIUM, buf,
+                          dan_dc_tunnel_targetted_encode(m, buf, sizeof buf)) != DAN_OK) {
+        return -1;
+    }
+    return (int)n;
+}
+
+/* One Broadcast chunk; -1 if nothing was sent. */
+static int broadcast_out(dan_gw_node_t *g, dan_gw_node_tun_t *p)
+{
+    dan_dc_tunnel_broadcast_t *m = &g->scratch.bcast;
+    uint8_t buf[DAN_DC_TUNNEL_BROADCAST_MAX_SIZE];
+    size_t n = min_size(p->tx_len, DAN_DC_TUNNEL_BROADCAST_BUFFER_MAX);
+    if (n == 0u) {
+        return -1;
+    }
+    m->protocol = p->cfg.protocol;
+    m->channel_id = p->cfg.target;
+    m->buffer_len = (uint8_t)n;
+    tun_peek(p, m->buffer, n);
+    if (dan_gwn_broadcast(g, &g->q_bulk, DAN_DC_TUNNEL_BROADCAST_ID,
+                          DAN_DC_TUNNEL_BROADCAST_SIGNATURE, DAN_DC_PRIORITY_MEDIUM, buf,
+                          dan_dc_tunnel_broadcast_encode(m, buf, sizeof buf)) != DAN_OK) {
+        return -1;
+    }
+    return (int)n;
+}
+
+/* Sends one chunk (or a Targetted keepalive). Returns true if data went. */
+static bool tun_out(dan_gw_node_t *g, dan_gw_node_tun_t *p, uint64_t now_us)
+{
+    int n = p->cfg.mode == DAN_GW_TUN_TARGETTED ? targetted_out(g, p, now_us)
+                                                : broadcast_out(g, p);
+    if (n < 0) {
+        return false;
+    }
+    p->tx_len -= (uint32_t)n;
+    p->last_tx_us = now_us;
+    return n > 0;
+}
+
+void dan_gwn_tunnel_poll(dan_gw_node_t *g, uint64_t now_us)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
+        dan_gw_node_tun_t *p = &g->tun[i];
+        /* chunks while the bulk queue has room for a whole one */
+        while (p->cfg.mode != DAN_GW_TUN_CLOSED &&
+               dan_gwn_txq_free(&g->q_bulk) >= TARGETTED_FRAMES_MAX && tun_out(g, p, now_us) &&
+               p->tx_len > 0u) {
+        }
+    }
+}
+
+uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
+        const dan_gw_node_tun_t *p = &g->tun[i];
+        if (p->cfg.mode == DAN_GW_TUN_CLOSED) {
+            continue;
+        }
+        if (p->tx_len > 0u) {
+            t = now_us; /* waits for queue room: the caller's CAN output paces it */
+        } else if (p->cfg.mode == DAN_GW_TUN_TARGETTED &&
+                   p->last_tx_us + DAN_GW_NODE_KEEPALIVE_US < t) {
+            t = p->last_tx_us + DAN_GW_NODE_KEEPALIVE_US;
+        }
+    }
+    return t;
+}

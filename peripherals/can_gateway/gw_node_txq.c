@@ -1,0 +1,109 @@
+/* Gateway node: CAN output, two bounded frame queues (urgent before bulk). */
+#include <string.h>
+
+#include "gw_node_internal.h"
+
+size_t dan_gwn_txq_free(const dan_gw_node_txq_t *q)
+{
+    return DAN_GW_NODE_TXQ - q->len;
+}
+
+void dan_gwn_txq_push(dan_gw_node_txq_t *q, const dan_can_frame_t *f)
+{
+    q->f[(q->head + q->len) % DAN_GW_NODE_TXQ] = *f;
+    q->len++;
+}
+
+bool dan_gw_node_tx_peek(const dan_gw_node_t *g, dan_can_frame_t *f)
+{
+    const dan_gw_node_txq_t *q = g->q_urgent.len > 0u ? &g->q_urgent : &g->q_bulk;
+    if (q->len == 0u) {
+        return false;
+    }
+    *f = q->f[q->head];
+    return true;
+}
+
+void dan_gw_node_tx_pop(dan_gw_node_t *g)
+{
+    dan_gw_node_txq_t *q = g->q_urgent.len > 0u ? &g->q_urgent : &g->q_bulk;
+    if (q->len > 0u) {
+        q->head = (uint16_t)((q->head + 1u) % DAN_GW_NODE_TXQ);
+        q->len--;
+    }
+}
+
+size_t dan_gw_node_tx_pending(const dan_gw_node_t *g)
+{
+    return (size_t)g->q_urgent.len + g->q_bulk.len;
+}
+
+/* Throttle, arming and our status are states: only the newest matters,
+ * and an old one waiting behind a stalled bus must never go out after a
+ * newer one (nor crowd out the failsafe's zeros). A transfer cut in the
+ * middle is dropped by its receivers, which then take the new one. */
+void dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid)
+{
+    size_t i, kept = 0, n = q->len;
+    for (i = 0; i < n; i++) {
+        dan_can_frame_t f = q->f[(q->head + i) % DAN_GW_NODE_TXQ];
+        dan_dc_transfer_t id;
+        bool ours = (f.flags & DAN_CAN_EXT) != 0u && dan_dc_parse_id(f.id, &id) == DAN_OK &&
+                    id.transfer_type == DAN_DC_TRANSFER_BROADCAST && id.data_type_id == dtid &&
+                    id.source_node == g->cfg.node_id;
+        if (!ours) {
+            q->f[(q->head + kept) % DAN_GW_NODE_TXQ] = f;
+            kept++;
+        }
+    }
+    q->len = (uint16_t)kept;
+}
+
+/* Frames are built straight into the queue, one at a time: no frame array
+ * on the stack (a GetNodeInfo response is 54 frames). */
+int dan_gwn_send_transfer(dan_gw_node_t *g, dan_gw_node_txq_t *q, dan_dc_transfer_t *t)
+{
+    size_t n = dan_dc_tx_frame_count(t->payload_len), i;
+    uint16_t crc = 0;
+    t->source_node = g->cfg.node_id;
+    if (n > 1u) {
+        crc = dan_dc_transfer_crc(t->signature, t->payload, t->payload_len);
+    }
+    if (n > dan_gwn_txq_free(q)) {
+        g->stats.can_tx_dropped += (uint32_t)n;
+        return DAN_ERR_OVERFLOW;
+    }
+    for (i = 0; i < n; i++) {
+        dan_can_frame_t *f = &q->f[(q->head + q->len + i) % DAN_GW_NODE_TXQ];
+        int rc = dan_dc_tx_frame(t, crc, i, f);
+        if (rc < 0) {
+            return rc; /* nothing committed: q->len counts only whole transfers */
+        }
+    }
+    q->len = (uint16_t)(q->len + n);
+    g->stats.can_tx += (uint32_t)n;
+    return DAN_OK;
+}
+
+int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uint64_t sig,
+                      uint8_t prio, const uint8_t *payload, int len)
+{
+    dan_dc_transfer_t t;
+    int tid;
+    if (len < 0) {
+        return len;
+    }
+    tid = dan_dc_tid_next(&g->tids, dtid, DAN_DC_TRANSFER_BROADCAST, 0);
+    if (tid < 0) {
+        return tid;
+    }
+    memset(&t, 0, sizeof t);
+    t.signature = sig;
+    t.payload = payload;
+    t.payload_len = (size_t)len;
+    t.data_type_id = dtid;
+    t.transfer_type = DAN_DC_TRANSFER_BROADCAST;
+    t.priority = prio;
+    t.transfer_id = (uint8_t)tid;
+    return dan_gwn_send_transfer(g, q, &t);
+}
