@@ -382,94 +382,137 @@ static uint32_t rec_baud(const dan_master_t *m, const dan_peer_t *p, size_t bidx
 
 static void start_recovery(dan_master_t *m, int why, uint64_t now_us);
 
+/* Sequencer steps: each starts a transaction or finishes the operation
+ * (returns true: wait for it), or moves on to another step or index
+ * (returns false: seq_next() goes on). */
+
+/* Counts the peers found so far. */
+static size_t peers_found(const dan_master_t *m)
+{
+    size_t i, found = 0;
+    for (i = 0; i < m->ntypes; i++) {
+        found += m->peers[i].present ? 1u : 0u;
+    }
+    return found;
+}
+
+/* Discovery: IDENTIFY each missing type at the current discovery baud;
+ * then the next baud the port supports, or the end. */
+static bool step_disc_probe(dan_master_t *m, uint64_t now_us)
+{
+    size_t i, found;
+    while (m->idx < m->ntypes && m->peers[m->idx].present) {
+        m->idx++;
+    }
+    if (m->idx < m->ntypes) {
+        switch_baud(m, disc_bauds[m->bidx], now_us);
+        probe(m, m->types[m->idx], m->cfg.discovery_attempts, now_us);
+        return true;
+    }
+    found = peers_found(m);
+    do {
+        m->bidx++;
+    } while (m->bidx < DAN_DISCOVERY_NBAUDS && !port_supports(m, disc_bauds[m->bidx]));
+    if (found == m->ntypes || !m->cfg.scan_all_bauds || m->bidx >= DAN_DISCOVERY_NBAUDS) {
+        /* Leave the bus at the baud of the first peer found. */
+        for (i = 0; i < m->ntypes; i++) {
+            if (m->peers[i].present) {
+                switch_baud(m, m->peers[i].baud, now_us);
+                break;
+            }
+        }
+        op_finish(m, found > 0u ? DAN_OK : DAN_ERR_NOTFOUND);
+        return true;
+    }
+    m->idx = 0;
+    return false;
+}
+
+/* Configure: CONFIGURE each present peer not at the target, at its baud;
+ * then verify at the target. */
+static bool step_cfg_send(dan_master_t *m, uint64_t now_us)
+{
+    while (m->idx < m->ntypes &&
+           (!m->peers[m->idx].present || m->peers[m->idx].baud == m->target_baud)) {
+        m->idx++;
+    }
+    if (m->idx < m->ntypes) {
+        switch_baud(m, m->peers[m->idx].baud, now_us);
+        send_configure(m, m->types[m->idx], m->target_baud, now_us);
+        return true;
+    }
+    m->step = ST_CFG_VERIFY;
+    m->idx = 0;
+    switch_baud(m, m->target_baud, now_us);
+    return false;
+}
+
+/* Verification (after configure, or after recovery): IDENTIFY each
+ * present peer at the current baud. */
+static bool step_verify(dan_master_t *m, uint64_t now_us)
+{
+    while (m->idx < m->ntypes && !m->peers[m->idx].present) {
+        m->idx++;
+    }
+    if (m->idx < m->ntypes) {
+        probe(m, m->types[m->idx], (uint8_t)(m->cfg.retries + 1u), now_us);
+        return true;
+    }
+    op_finish(m, m->step == ST_CFG_VERIFY ? DAN_OK : m->result);
+    return true;
+}
+
+/* Recovery: find each peer at its believed baud, then at each discovery
+ * baud; a peer found nowhere is dropped. Then verify everyone at 9600. */
+static bool step_rec_find(dan_master_t *m, uint64_t now_us)
+{
+    uint32_t b;
+    while (m->idx < m->ntypes && !m->peers[m->idx].present) {
+        m->idx++;
+    }
+    if (m->idx >= m->ntypes) {
+        m->step = ST_REC_VERIFY;
+        m->idx = 0;
+        switch_baud(m, DAN_BAUD_BASE, now_us);
+        return false;
+    }
+    b = rec_baud(m, &m->peers[m->idx], m->bidx);
+    if (b == 0u) {
+        m->peers[m->idx].present = false; /* lost */
+        m->idx++;
+        m->bidx = 0;
+        return false;
+    }
+    switch_baud(m, b, now_us);
+    probe(m, m->types[m->idx], m->cfg.discovery_attempts, now_us);
+    return true;
+}
+
 /* Picks the next thing to do for the current operation. */
 static void seq_next(dan_master_t *m, uint64_t now_us)
 {
-    for (;;) {
+    bool waiting;
+    do {
         switch (m->step) {
         case ST_DISC_PROBE:
-            while (m->idx < m->ntypes && m->peers[m->idx].present) {
-                m->idx++;
-            }
-            if (m->idx < m->ntypes) {
-                switch_baud(m, disc_bauds[m->bidx], now_us);
-                probe(m, m->types[m->idx], m->cfg.discovery_attempts, now_us);
-                return;
-            }
-            {
-                size_t i, found = 0;
-                for (i = 0; i < m->ntypes; i++) {
-                    found += m->peers[i].present ? 1u : 0u;
-                }
-                do {
-                    m->bidx++;
-                } while (m->bidx < DAN_DISCOVERY_NBAUDS && !port_supports(m, disc_bauds[m->bidx]));
-                if (found == m->ntypes || !m->cfg.scan_all_bauds || m->bidx >= DAN_DISCOVERY_NBAUDS) {
-                    /* Leave the bus at the baud of the first peer found. */
-                    for (i = 0; i < m->ntypes; i++) {
-                        if (m->peers[i].present) {
-                            switch_baud(m, m->peers[i].baud, now_us);
-                            break;
-                        }
-                    }
-                    op_finish(m, found > 0u ? DAN_OK : DAN_ERR_NOTFOUND);
-                    return;
-                }
-                m->idx = 0;
-            }
+            waiting = step_disc_probe(m, now_us);
             break;
         case ST_CFG_SEND:
-            while (m->idx < m->ntypes &&
-                   (!m->peers[m->idx].present || m->peers[m->idx].baud == m->target_baud)) {
-                m->idx++;
-            }
-            if (m->idx < m->ntypes) {
-                switch_baud(m, m->peers[m->idx].baud, now_us);
-                send_configure(m, m->types[m->idx], m->target_baud, now_us);
-                return;
-            }
-            m->step = ST_CFG_VERIFY;
-            m->idx = 0;
-            switch_baud(m, m->target_baud, now_us);
+            waiting = step_cfg_send(m, now_us);
             break;
         case ST_CFG_VERIFY:
         case ST_REC_VERIFY:
-            while (m->idx < m->ntypes && !m->peers[m->idx].present) {
-                m->idx++;
-            }
-            if (m->idx < m->ntypes) {
-                probe(m, m->types[m->idx], (uint8_t)(m->cfg.retries + 1u), now_us);
-                return;
-            }
-            op_finish(m, m->step == ST_CFG_VERIFY ? DAN_OK : m->result);
-            return;
+            waiting = step_verify(m, now_us);
+            break;
         case ST_REC_FIND:
-            while (m->idx < m->ntypes && !m->peers[m->idx].present) {
-                m->idx++;
-            }
-            if (m->idx >= m->ntypes) {
-                m->step = ST_REC_VERIFY;
-                m->idx = 0;
-                switch_baud(m, DAN_BAUD_BASE, now_us);
-                break;
-            }
-            {
-                uint32_t b = rec_baud(m, &m->peers[m->idx], m->bidx);
-                if (b == 0u) {
-                    m->peers[m->idx].present = false; /* lost */
-                    m->idx++;
-                    m->bidx = 0;
-                    break;
-                }
-                switch_baud(m, b, now_us);
-                probe(m, m->types[m->idx], m->cfg.discovery_attempts, now_us);
-                return;
-            }
+            waiting = step_rec_find(m, now_us);
+            break;
         default:
             op_finish(m, DAN_ERR_ARG);
-            return;
+            waiting = true;
+            break;
         }
-    }
+    } while (!waiting);
 }
 
 /* A transaction of the current operation completed. */

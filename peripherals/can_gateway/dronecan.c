@@ -4,6 +4,17 @@
 
 #include "dan/can_gw/dronecan.h"
 
+void dan_dc_transfer_init(dan_dc_transfer_t *t, uint16_t data_type_id, uint64_t signature,
+                          dan_dc_transfer_type_t type, const uint8_t *payload, size_t len)
+{
+    memset(t, 0, sizeof *t);
+    t->data_type_id = data_type_id;
+    t->signature = signature;
+    t->transfer_type = (uint8_t)type;
+    t->payload = payload;
+    t->payload_len = len;
+}
+
 /* ---- CAN ID ---- */
 
 int dan_dc_make_id(const dan_dc_transfer_t *t, uint32_t *id)
@@ -327,136 +338,147 @@ static bool session_restart_ok(dan_dc_rx_t *rx, dan_dc_rx_session_t *s, uint8_t 
     return true;
 }
 
-int dan_dc_rx_frame(dan_dc_rx_t *rx, const dan_can_frame_t *frame,
-                    uint64_t now_us, dan_dc_transfer_t *out)
-{
-    dan_dc_transfer_t t;
-    dan_dc_rx_session_t *s;
-    uint8_t tail, tid, toggle;
-    size_t n;
+/* The fields of one received frame. */
+typedef struct {
+    dan_dc_transfer_t t;  /* from the CAN ID, with transfer_id and time */
+    size_t n;             /* data bytes before the tail byte */
+    uint8_t toggle;
     bool sot, eot;
-    uint64_t sig = 0;
+} rx_frame_t;
 
-    if (rx == NULL || frame == NULL || out == NULL) {
-        return DAN_ERR_ARG;
-    }
-    rx->stats.frames++;
-    if ((frame->flags & DAN_CAN_EXT) == 0u ||
-        (frame->flags & (DAN_CAN_RTR | DAN_CAN_ERR)) != 0u ||
+/* Parses a frame; false (counted ignored) if it is not one for us. */
+static bool rx_parse(dan_dc_rx_t *rx, const dan_can_frame_t *frame, uint64_t now_us,
+                     rx_frame_t *fr)
+{
+    uint8_t tail;
+    if ((frame->flags & DAN_CAN_EXT) == 0u || (frame->flags & (DAN_CAN_RTR | DAN_CAN_ERR)) != 0u ||
         frame->dlc < 1u || frame->dlc > 8u) {
-        rx->stats.ignored++;
-        return 0;
+        return false;
     }
-    memset(&t, 0, sizeof t);
-    if (dan_dc_parse_id(frame->id, &t) < 0) {
-        rx->stats.ignored++;
-        return 0;
+    memset(fr, 0, sizeof *fr);
+    if (dan_dc_parse_id(frame->id, &fr->t) < 0) {
+        return false;
     }
-    if (t.transfer_type != DAN_DC_TRANSFER_BROADCAST &&
-        (rx->local_node == 0u || t.destination_node != rx->local_node)) {
-        rx->stats.ignored++;
-        return 0;
+    if (fr->t.transfer_type != DAN_DC_TRANSFER_BROADCAST &&
+        (rx->local_node == 0u || fr->t.destination_node != rx->local_node)) {
+        return false;
     }
-    n = (size_t)frame->dlc - 1u;
-    tail = frame->data[n];
-    tid = (uint8_t)(tail & DAN_DC_TRANSFER_ID_MASK);
-    toggle = (uint8_t)(tail & DAN_DC_TAIL_TOGGLE);
-    sot = (tail & DAN_DC_TAIL_SOT) != 0u;
-    eot = (tail & DAN_DC_TAIL_EOT) != 0u;
-    t.transfer_id = tid;
-    t.timestamp_us = now_us;
+    fr->n = (size_t)frame->dlc - 1u;
+    tail = frame->data[fr->n];
+    fr->t.transfer_id = (uint8_t)(tail & DAN_DC_TRANSFER_ID_MASK);
+    fr->t.timestamp_us = now_us;
+    fr->toggle = (uint8_t)(tail & DAN_DC_TAIL_TOGGLE);
+    fr->sot = (tail & DAN_DC_TAIL_SOT) != 0u;
+    fr->eot = (tail & DAN_DC_TAIL_EOT) != 0u;
+    return true;
+}
 
-    s = t.source_node != 0u ? find_session(rx, &t) : NULL;
-
-    if (sot) {
-        if (toggle != 0u) {
-            rx->stats.toggle_errors++;
+/* A start frame: checks it, finds or takes its session, and delivers a
+ * single-frame transfer at once (1) or starts a multi-frame one (0). */
+static int rx_start(dan_dc_rx_t *rx, dan_dc_rx_session_t *s, const dan_can_frame_t *frame,
+                    rx_frame_t *fr, uint64_t now_us, dan_dc_transfer_t *out)
+{
+    uint64_t sig = 0;
+    uint8_t tid = fr->t.transfer_id;
+    if (fr->toggle != 0u) {
+        rx->stats.toggle_errors++;
+        return 0;
+    }
+    if ((fr->t.source_node == 0u && !fr->eot) || (!fr->eot && fr->n != DAN_DC_FRAME_DATA_MAX)) {
+        rx->stats.malformed++; /* anonymous transfers are single-frame */
+        return 0;
+    }
+    if (rx->accept == NULL ||
+        !rx->accept(rx->user, fr->t.data_type_id, fr->t.transfer_type, fr->t.source_node, &sig)) {
+        rx->stats.ignored++;
+        return 0;
+    }
+    if (s != NULL) {
+        if (!session_restart_ok(rx, s, tid, now_us)) {
             return 0;
         }
-        if (t.source_node == 0u && !eot) {
-            rx->stats.malformed++; /* anonymous transfers are single-frame */
+    } else if (fr->t.source_node != 0u) {
+        s = alloc_session(rx, &fr->t, now_us);
+        if (s == NULL && !fr->eot) {
+            rx->stats.no_slot++;
             return 0;
         }
-        if (!eot && n != DAN_DC_FRAME_DATA_MAX) {
-            rx->stats.malformed++;
-            return 0;
-        }
-        if (rx->accept == NULL ||
-            !rx->accept(rx->user, t.data_type_id, t.transfer_type, t.source_node, &sig)) {
-            rx->stats.ignored++;
-            return 0;
-        }
+        /* A single-frame transfer is delivered even without a slot; it
+         * only loses duplicate filtering. */
+    }
+    if (s != NULL) {
+        s->ts_start_us = now_us;
+        s->transfer_id = tid;
+        s->priority = fr->t.priority;
+        s->signature = sig;
+    }
+    if (fr->eot) {
+        memcpy(rx->single, frame->data, fr->n);
         if (s != NULL) {
-            if (!session_restart_ok(rx, s, tid, now_us)) {
-                return 0;
-            }
-        } else if (t.source_node != 0u) {
-            s = alloc_session(rx, &t, now_us);
-            if (s == NULL && !eot) {
-                rx->stats.no_slot++;
-                return 0;
-            }
-            /* A single-frame transfer is delivered even without a slot; it
-             * only loses duplicate filtering. */
+            s->done = true;
         }
-        if (s != NULL) {
-            s->ts_start_us = now_us;
-            s->transfer_id = tid;
-            s->priority = t.priority;
-            s->signature = sig;
-        }
-        if (eot) {
-            memcpy(rx->single, frame->data, n);
-            if (s != NULL) {
-                s->done = true;
-            }
-            t.signature = sig;
-            t.payload = rx->single;
-            t.payload_len = n;
-            *out = t;
-            rx->stats.transfers++;
-            return 1;
-        }
-        s->crc = (uint16_t)(frame->data[0] | (unsigned)frame->data[1] << 8);
-        memcpy(s->buf, &frame->data[2], n - 2u);
-        s->len = (uint16_t)(n - 2u);
-        s->next_toggle = DAN_DC_TAIL_TOGGLE;
-        s->in_progress = true;
-        return 0;
+        fr->t.signature = sig;
+        fr->t.payload = rx->single;
+        fr->t.payload_len = fr->n;
+        *out = fr->t;
+        rx->stats.transfers++;
+        return 1;
     }
+    s->crc = (uint16_t)(frame->data[0] | (unsigned)frame->data[1] << 8);
+    memcpy(s->buf, &frame->data[2], fr->n - 2u);
+    s->len = (uint16_t)(fr->n - 2u);
+    s->next_toggle = DAN_DC_TAIL_TOGGLE;
+    s->in_progress = true;
+    return 0;
+}
 
-    /* Continuation frame. */
+/* Checks a continuation frame against its session; false (counted) if it
+ * does not continue the transfer in progress. */
+static bool rx_continues(dan_dc_rx_t *rx, dan_dc_rx_session_t *s, const rx_frame_t *fr,
+                         uint64_t now_us)
+{
     if (s == NULL || !s->in_progress) {
         rx->stats.tid_errors++; /* start missed (or the transfer was dropped) */
-        return 0;
+        return false;
     }
     if (timed_out(s, now_us)) {
         rx->stats.timeouts++;
         s->in_progress = false;
-        return 0;
+        return false;
     }
-    if (tid != s->transfer_id) {
+    if (fr->t.transfer_id != s->transfer_id) {
         rx->stats.tid_errors++;
-        return 0;
+        return false;
     }
-    if (toggle != s->next_toggle) {
+    if (fr->toggle != s->next_toggle) {
         rx->stats.toggle_errors++;
-        return 0;
+        return false;
     }
-    if (!eot && n != DAN_DC_FRAME_DATA_MAX) {
+    if (!fr->eot && fr->n != DAN_DC_FRAME_DATA_MAX) {
         rx->stats.malformed++;
         s->in_progress = false;
-        return 0;
+        return false;
     }
-    if ((size_t)s->len + n > DAN_DC_MAX_TRANSFER) {
+    if ((size_t)s->len + fr->n > DAN_DC_MAX_TRANSFER) {
         rx->stats.overflow++;
         s->in_progress = false;
+        return false;
+    }
+    return true;
+}
+
+/* A continuation frame: appends it; at the end of the transfer checks the
+ * CRC and delivers it (1). */
+static int rx_continue(dan_dc_rx_t *rx, dan_dc_rx_session_t *s, const dan_can_frame_t *frame,
+                       rx_frame_t *fr, uint64_t now_us, dan_dc_transfer_t *out)
+{
+    if (!rx_continues(rx, s, fr, now_us)) {
         return 0;
     }
-    memcpy(&s->buf[s->len], frame->data, n);
-    s->len = (uint16_t)(s->len + n);
+    memcpy(&s->buf[s->len], frame->data, fr->n);
+    s->len = (uint16_t)(s->len + fr->n);
     s->next_toggle ^= DAN_DC_TAIL_TOGGLE;
-    if (!eot) {
+    if (!fr->eot) {
         return 0;
     }
     s->in_progress = false;
@@ -465,14 +487,34 @@ int dan_dc_rx_frame(dan_dc_rx_t *rx, const dan_can_frame_t *frame,
         return 0;
     }
     s->done = true;
-    t.timestamp_us = s->ts_start_us;
-    t.priority = s->priority;
-    t.signature = s->signature;
-    t.payload = s->buf;
-    t.payload_len = s->len;
-    *out = t;
+    fr->t.timestamp_us = s->ts_start_us;
+    fr->t.priority = s->priority;
+    fr->t.signature = s->signature;
+    fr->t.payload = s->buf;
+    fr->t.payload_len = s->len;
+    *out = fr->t;
     rx->stats.transfers++;
     return 1;
+}
+
+int dan_dc_rx_frame(dan_dc_rx_t *rx, const dan_can_frame_t *frame, uint64_t now_us,
+                    dan_dc_transfer_t *out)
+{
+    rx_frame_t fr;
+    dan_dc_rx_session_t *s;
+    if (rx == NULL || frame == NULL || out == NULL) {
+        return DAN_ERR_ARG;
+    }
+    rx->stats.frames++;
+    if (!rx_parse(rx, frame, now_us, &fr)) {
+        rx->stats.ignored++;
+        return 0;
+    }
+    s = fr.t.source_node != 0u ? find_session(rx, &fr.t) : NULL;
+    if (fr.sot) {
+        return rx_start(rx, s, frame, &fr, now_us, out);
+    }
+    return rx_continue(rx, s, frame, &fr, now_us, out);
 }
 
 void dan_dc_rx_cleanup(dan_dc_rx_t *rx, uint64_t now_us)

@@ -79,7 +79,7 @@ int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 
 int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us)
 {
-    uint8_t v = armed ? 255u : 0u;
+    uint8_t v = armed ? DAN_GW_ARM_FULLY_ARMED : DAN_GW_ARM_DISARMED;
     if (!idle(gw)) {
         return DAN_ERR_BUSY;
     }
@@ -88,7 +88,7 @@ int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us)
 
 int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us)
 {
-    uint8_t buf[16];
+    uint8_t buf[DAN_GW_CONFIG_REQ_MAX];
     dan_gw_config_t none;
     if (!idle(gw)) {
         return DAN_ERR_BUSY;
@@ -127,7 +127,7 @@ int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us)
 
 int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_us)
 {
-    uint8_t buf[16];
+    uint8_t buf[DAN_GW_TUN_OPEN_REQ_MAX];
     int rc;
     if (!idle(gw)) {
         return DAN_ERR_BUSY;
@@ -202,7 +202,7 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
 
 int dan_gw_can_recv(dan_gw_t *gw, uint8_t max, uint64_t now_us)
 {
-    uint8_t buf[8];
+    uint8_t buf[DAN_GW_CAN_RECV_REQ_MAX];
     dan_gw_can_recv_t q;
     if (!idle(gw)) {
         return DAN_ERR_BUSY;

@@ -191,7 +191,7 @@ static void answer_node_info(dan_gw_node_t *g, const dan_dc_transfer_t *req, uin
     }
     rp->hardware_version.major = g->cfg.hw_major;
     rp->hardware_version.minor = g->cfg.hw_minor;
-    memcpy(rp->hardware_version.unique_id, g->cfg.unique_id, 16);
+    memcpy(rp->hardware_version.unique_id, g->cfg.unique_id, DAN_DC_UNIQUE_ID_SIZE);
     if (nl > DAN_DC_GET_NODE_INFO_NAME_MAX) {
         nl = DAN_DC_GET_NODE_INFO_NAME_MAX;
     }
@@ -201,12 +201,8 @@ static void answer_node_info(dan_gw_node_t *g, const dan_dc_transfer_t *req, uin
     if (len < 0) {
         return;
     }
-    memset(&t, 0, sizeof t);
-    t.signature = DAN_DC_GET_NODE_INFO_SIGNATURE;
-    t.payload = g->scratch_buf;
-    t.payload_len = (size_t)len;
-    t.data_type_id = DAN_DC_GET_NODE_INFO_ID;
-    t.transfer_type = DAN_DC_TRANSFER_RESPONSE;
+    dan_dc_transfer_init(&t, DAN_DC_GET_NODE_INFO_ID, DAN_DC_GET_NODE_INFO_SIGNATURE,
+                         DAN_DC_TRANSFER_RESPONSE, g->scratch_buf, (size_t)len);
     t.priority = req->priority;
     t.destination_node = req->source_node;
     t.transfer_id = req->transfer_id;

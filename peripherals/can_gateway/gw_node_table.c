@@ -91,7 +91,7 @@ void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t)
     n->info.vcs_commit = rp->software_version.vcs_commit;
     n->info.hw_major = rp->hardware_version.major;
     n->info.hw_minor = rp->hardware_version.minor;
-    memcpy(n->info.unique_id, rp->hardware_version.unique_id, 16);
+    memcpy(n->info.unique_id, rp->hardware_version.unique_id, DAN_DC_UNIQUE_ID_SIZE);
     len = rp->name_len > DAN_DC_GET_NODE_INFO_NAME_MAX ? DAN_DC_GET_NODE_INFO_NAME_MAX
                                                        : rp->name_len;
     memcpy(n->info.name, rp->name, len);
@@ -102,10 +102,8 @@ void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t)
 static void request_info(dan_gw_node_t *g, dan_gw_node_slot_t *n, uint64_t now_us)
 {
     dan_dc_transfer_t t;
-    memset(&t, 0, sizeof t);
-    t.signature = DAN_DC_GET_NODE_INFO_SIGNATURE;
-    t.data_type_id = DAN_DC_GET_NODE_INFO_ID;
-    t.transfer_type = DAN_DC_TRANSFER_REQUEST;
+    dan_dc_transfer_init(&t, DAN_DC_GET_NODE_INFO_ID, DAN_DC_GET_NODE_INFO_SIGNATURE,
+                         DAN_DC_TRANSFER_REQUEST, NULL, 0);
     t.priority = DAN_DC_PRIORITY_LOW;
     t.destination_node = n->e.node_id;
     t.transfer_id = n->info_tid;

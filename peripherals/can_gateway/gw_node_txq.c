@@ -97,12 +97,7 @@ int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uin
     if (tid < 0) {
         return tid;
     }
-    memset(&t, 0, sizeof t);
-    t.signature = sig;
-    t.payload = payload;
-    t.payload_len = (size_t)len;
-    t.data_type_id = dtid;
-    t.transfer_type = DAN_DC_TRANSFER_BROADCAST;
+    dan_dc_transfer_init(&t, dtid, sig, DAN_DC_TRANSFER_BROADCAST, payload, (size_t)len);
     t.priority = prio;
     t.transfer_id = (uint8_t)tid;
     return dan_gwn_send_transfer(g, q, &t);

@@ -118,12 +118,8 @@ static void esc_status_in(uint8_t idx, uint8_t tid)
     s.power_rating_pct = 30;
     s.esc_index = idx;
     n = dan_dc_esc_status_encode(&s, pl, sizeof pl);
-    memset(&t, 0, sizeof t);
-    t.signature = DAN_DC_ESC_STATUS_SIGNATURE;
-    t.payload = pl;
-    t.payload_len = (size_t)n;
-    t.data_type_id = DAN_DC_ESC_STATUS_ID;
-    t.transfer_type = DAN_DC_TRANSFER_BROADCAST;
+    dan_dc_transfer_init(&t, DAN_DC_ESC_STATUS_ID, DAN_DC_ESC_STATUS_SIGNATURE,
+                         DAN_DC_TRANSFER_BROADCAST, pl, (size_t)n);
     t.priority = 16;
     t.source_node = (uint8_t)(20u + idx);
     t.transfer_id = tid;

@@ -424,12 +424,7 @@ static void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t
     dan_can_frame_t f[64];
     int n, i;
     assert_true(len >= 0);
-    memset(&t, 0, sizeof t);
-    t.signature = sig;
-    t.payload = payload;
-    t.payload_len = (size_t)len;
-    t.data_type_id = dtid;
-    t.transfer_type = tt;
+    dan_dc_transfer_init(&t, dtid, sig, (dan_dc_transfer_type_t)tt, payload, (size_t)len);
     t.priority = 16;
     t.source_node = src;
     t.destination_node = dst;

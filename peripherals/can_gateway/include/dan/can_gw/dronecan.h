@@ -93,6 +93,11 @@ typedef struct {
     uint8_t transfer_id;      /* 0..31 */
 } dan_dc_transfer_t;
 
+/* Starts a TX transfer: data type, signature, type and payload set, every
+ * other field 0 (the caller sets priority, nodes and transfer ID). */
+void dan_dc_transfer_init(dan_dc_transfer_t *t, uint16_t data_type_id, uint64_t signature,
+                          dan_dc_transfer_type_t type, const uint8_t *payload, size_t len);
+
 /* ---- CAN ID and tail byte ---- */
 
 /* The 29-bit CAN ID of a transfer. Returns DAN_ERR_ARG for fields out of

@@ -14,5 +14,6 @@
 #define DAN_DC_ESC_RAW_CMD_MAX          8191
 #define DAN_DC_ESC_INDEX_MAX            31u    /* esc.Status.esc_index: uint5 */
 #define DAN_DC_GET_NODE_INFO_NAME_MAX   80u    /* GetNodeInfo.name bytes */
+#define DAN_DC_UNIQUE_ID_SIZE           16u    /* HardwareVersion.unique_id bytes */
 
 #endif /* DAN_CAN_GW_DRONECAN_LIMITS_H */

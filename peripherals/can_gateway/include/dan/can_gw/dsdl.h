@@ -91,7 +91,7 @@ typedef struct {
 typedef struct {
     uint8_t major;
     uint8_t minor;
-    uint8_t unique_id[16];
+    uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
     uint8_t coa_len;              /* 0..255 */
     uint8_t certificate_of_authenticity[DAN_DC_COA_MAX];
 } dan_dc_hardware_version_t;

@@ -114,6 +114,8 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
 /* ---- ARM (0x44) ----
  * Request: uint8 status, the ArmingStatus value (0 disarmed, 255 fully
  * armed; others are sent on as they are). Response: uint8 gw_flags. */
+#define DAN_GW_ARM_DISARMED     0u     /* ArmingStatus.STATUS_DISARMED */
+#define DAN_GW_ARM_FULLY_ARMED  255u   /* ArmingStatus.STATUS_FULLY_ARMED */
 
 /* ---- CONFIG (0x45) ----
  * Request: uint8 set_mask, then for each set bit in bit order its field:
@@ -127,6 +129,7 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
 #define DAN_GW_ESC_TIMEOUT_MAX  60000u
 #define DAN_GW_ARMING_RATE_MIN  1u
 #define DAN_GW_ARMING_RATE_MAX  50u
+#define DAN_GW_CONFIG_REQ_MAX   11u    /* mask + two 5-byte uvarints */
 
 typedef struct {
     uint8_t set_mask;          /* request only */
@@ -224,7 +227,7 @@ typedef struct {
     uint8_t sw_major, sw_minor, sw_flags;
     uint32_t vcs_commit;
     uint8_t hw_major, hw_minor;
-    uint8_t unique_id[16];
+    uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
     char name[DAN_DC_GET_NODE_INFO_NAME_MAX + 1u];
 } dan_gw_node_info_t;
 
@@ -251,6 +254,7 @@ typedef struct {
     uint32_t baud;
 } dan_gw_tun_open_t;
 
+#define DAN_GW_TUN_OPEN_REQ_MAX 11u    /* six bytes + a 5-byte uvarint */
 int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap);
 int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len);
 
@@ -332,6 +336,7 @@ void dan_gw_msg_can_send_req_put(dan_writer_t *w, const dan_gw_can_send_t *s);
 int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s);
 int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap);
 int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len);
+#define DAN_GW_CAN_RECV_REQ_MAX 6u     /* a 5-byte uvarint + max */
 int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap);
 int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_t len);
 void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q);

@@ -83,7 +83,7 @@ typedef struct {
     uint8_t sw_major, sw_minor;
     uint32_t vcs_commit;
     uint8_t hw_major, hw_minor;
-    uint8_t unique_id[16];
+    uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
     const char *name;           /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
     uint32_t raw_seq_start;     /* first raw-frame sequence number: give each boot a
                                    different one (the daemon uses the clock), so a
