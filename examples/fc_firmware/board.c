@@ -4,7 +4,7 @@
  * Reference Manual (SysTick, NVIC, SCB), the Cortex-M System Design Kit
  * TRM ARM DDI0479 (APB UART), ARM AN385/AN386 (memory map, interrupt
  * numbers), the ARM semihosting specification v2 (operation numbers), and
- * /work/shared/notes/qemu-cortex-m.md (QEMU's behaviour).
+ * QEMU's behaviour as measured here (README.md, "QEMU facts").
  */
 #include "board.h"
 

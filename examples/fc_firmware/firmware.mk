@@ -75,7 +75,7 @@ $(FW_ELF): $(FW_OBJS) $(FW_DIR)/fc_firmware.ld
 
 -include $(shell find $(FW_BUILD) -name '*.d' 2>/dev/null)
 
-# QEMU needs the host to own the pty (the notes in shared/notes): give it a
+# QEMU needs the host to own the pty (README.md, "QEMU facts"): give it a
 # dan-vbus endpoint, e.g. FW_SERIAL=$$(readlink -f /tmp/dan0).
 FW_SERIAL ?=
 FW_APPEND ?=
