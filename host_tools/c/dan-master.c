@@ -264,7 +264,13 @@ int main(int argc, char **argv)
                 fprintf(stderr, "dan-master: %s needs a value\n", a);
                 return 2;
             }
-            if (a[2] == 'p') port = v; else if (a[2] == 't') types_arg = v; else de = v;
+            if (a[2] == 'p') {
+                port = v;
+            } else if (a[2] == 't') {
+                types_arg = v;
+            } else {
+                de = v;
+            }
             i++;
         } else if (strcmp(a, "--baud") == 0) { num = &baud;
         } else if (strcmp(a, "--latency-ms") == 0) { num = &latency_ms;

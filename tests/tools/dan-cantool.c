@@ -47,9 +47,15 @@ static void usage(FILE *o)
 
 static int hexv(char ch)
 {
-    if (ch >= '0' && ch <= '9') return ch - '0';
-    if (ch >= 'a' && ch <= 'f') return ch - 'a' + 10;
-    if (ch >= 'A' && ch <= 'F') return ch - 'A' + 10;
+    if (ch >= '0' && ch <= '9') {
+        return ch - '0';
+    }
+    if (ch >= 'a' && ch <= 'f') {
+        return ch - 'a' + 10;
+    }
+    if (ch >= 'A' && ch <= 'F') {
+        return ch - 'A' + 10;
+    }
     return -1;
 }
 
@@ -61,20 +67,24 @@ static int parse_frame(const char *s, dan_can_frame_t *f)
     uint32_t id = 0;
 
     memset(f, 0, sizeof *f);
-    if (!hash)
+    if (!hash) {
         return -1;
+    }
     idlen = (size_t)(hash - s);
-    if (idlen != 3 && idlen != 8)
+    if (idlen != 3 && idlen != 8) {
         return -1;
+    }
     for (size_t i = 0; i < idlen; i++) {
         int h = hexv(s[i]);
-        if (h < 0)
+        if (h < 0) {
             return -1;
+        }
         id = (id << 4) | (uint32_t)h;
     }
     if (idlen == 8) {
-        if (id > DAN_CAN_EFF_MASK)
+        if (id > DAN_CAN_EFF_MASK) {
             return -1;
+        }
         f->flags |= DAN_CAN_EXT;
     } else if (id > DAN_CAN_SFF_MASK) {
         return -1;
@@ -83,10 +93,12 @@ static int parse_frame(const char *s, dan_can_frame_t *f)
     s = hash + 1;
     if (*s == 'R' || *s == 'r') {
         f->flags |= DAN_CAN_RTR;
-        if (s[1] == '\0')
+        if (s[1] == '\0') {
             return 0;
-        if (s[1] < '0' || s[1] > '8' || s[2] != '\0')
+        }
+        if (s[1] < '0' || s[1] > '8' || s[2] != '\0') {
             return -1;
+        }
         f->dlc = (uint8_t)(s[1] - '0');
         return 0;
     }
@@ -98,8 +110,9 @@ static int parse_frame(const char *s, dan_can_frame_t *f)
         }
         hi = hexv(s[0]);
         lo = hi < 0 ? -1 : hexv(s[1]);
-        if (lo < 0 || f->dlc >= 8)
+        if (lo < 0 || f->dlc >= 8) {
             return -1;
+        }
         f->data[f->dlc++] = (uint8_t)((hi << 4) | lo);
         s += 2;
     }
@@ -112,19 +125,22 @@ static void print_frame(const char *ifname, const dan_can_frame_t *f)
     gettimeofday(&tv, NULL);
     printf("(%lld.%06ld) %s ", (long long)tv.tv_sec, (long)tv.tv_usec,
            ifname);
-    if (f->flags & DAN_CAN_ERR)
+    if (f->flags & DAN_CAN_ERR) {
         printf("%08X#", (unsigned)(f->id | 0x20000000u));
-    else if (f->flags & DAN_CAN_EXT)
+    } else if (f->flags & DAN_CAN_EXT) {
         printf("%08X#", (unsigned)f->id);
-    else
+    } else {
         printf("%03X#", (unsigned)f->id);
+    }
     if (f->flags & DAN_CAN_RTR) {
         printf("R");
-        if (f->dlc)
+        if (f->dlc) {
             printf("%u", (unsigned)f->dlc);
+        }
     } else {
-        for (unsigned i = 0; i < f->dlc; i++)
+        for (unsigned i = 0; i < f->dlc; i++) {
             printf("%02X", f->data[i]);
+        }
     }
     printf("\n");
     fflush(stdout);
@@ -141,10 +157,12 @@ static int wait_fd(int fd, short ev, long long deadline)
 {
     struct pollfd p = { .fd = fd, .events = ev, .revents = 0 };
     long long left = deadline - now_ms();
-    if (left < 0)
+    if (left < 0) {
         left = 0;
-    if (left > 1000)
+    }
+    if (left > 1000) {
         left = 1000;
+    }
     return poll(&p, 1, (int)left);
 }
 
@@ -182,8 +200,9 @@ static int do_send(dan_canif_t *c, int argc, char **argv)
             fprintf(stderr, "dan-cantool: flush failed\n");
             return 1;
         }
-        if (r == DAN_ERR_BUSY)
+        if (r == DAN_ERR_BUSY) {
             wait_fd(dan_canif_fd(c), POLLOUT, deadline);
+        }
     }
     /* SLCAN: wait for the adapter's z/Z (or BEL) for every frame. */
     if (c->kind == DAN_CANIF_SLCAN) {
@@ -194,10 +213,12 @@ static int do_send(dan_canif_t *c, int argc, char **argv)
                 fprintf(stderr, "dan-cantool: %s\n", dan_strerror(r));
                 return 1;
             }
-            if (r == 1)
+            if (r == 1) {
                 continue;           /* bus traffic: not ours to print */
-            if (c->stats.tx_ack + c->stats.bel >= (uint32_t)sent)
+            }
+            if (c->stats.tx_ack + c->stats.bel >= (uint32_t)sent) {
                 break;
+            }
             if (now_ms() > ackdl) {
                 fprintf(stderr, "dan-cantool: no transmit ACK from the "
                         "adapter for %d of %d frames\n",
@@ -234,8 +255,9 @@ static int do_recv(dan_canif_t *c, const char *ifname, long count,
             got++;
             continue;
         }
-        if (now_ms() >= deadline)
+        if (now_ms() >= deadline) {
             break;
+        }
         wait_fd(dan_canif_fd(c), POLLIN, deadline);
     }
     if (count > 0 && got < count) {
@@ -333,10 +355,11 @@ int main(int argc, char **argv)
         fprintf(stderr, "dan-cantool: %s\n", err);
         return 2;
     }
-    if (!strcmp(cmd, "send"))
+    if (!strcmp(cmd, "send")) {
         rc = do_send(&c, argc - i, argv + i);
-    else
+    } else {
         rc = do_recv(&c, ifname, count, timeout_ms);
+    }
     dan_canif_close(&c);
     return rc;
 }

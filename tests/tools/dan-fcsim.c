@@ -155,10 +155,18 @@ static uint32_t g_recover;
 static int recover_bus(void)
 {
     int rc = dan_master_discover(&g_m, dan_posix_now_us());
-    if (rc == DAN_OK) rc = run();
-    if (rc == DAN_OK && dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST) == NULL) rc = DAN_ERR_NOTFOUND;
-    if (rc == DAN_OK) rc = dan_master_configure(&g_m, 0, dan_posix_now_us());
-    if (rc == DAN_OK) rc = run();
+    if (rc == DAN_OK) {
+        rc = run();
+    }
+    if (rc == DAN_OK && dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST) == NULL) {
+        rc = DAN_ERR_NOTFOUND;
+    }
+    if (rc == DAN_OK) {
+        rc = dan_master_configure(&g_m, 0, dan_posix_now_us());
+    }
+    if (rc == DAN_OK) {
+        rc = run();
+    }
     return rc;
 }
 
@@ -321,10 +329,16 @@ static int do_step(char *step)
     if (!strcmp(name, "discover")) {
         const dan_peer_t *p;
         rc = dan_master_discover(&g_m, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         p = dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST);
-        if (p == NULL) return fail(step, DAN_ERR_NOTFOUND);
+        if (p == NULL) {
+            return fail(step, DAN_ERR_NOTFOUND);
+        }
         printf("{\"step\": \"discover\", \"ok\": true, \"baud\": %u, \"manufacturer\": \"%s\", "
                "\"model\": \"%s\", \"baud_mask\": %u}\n", p->baud, p->identity.manufacturer,
                p->identity.model, p->identity.baud_mask);
@@ -332,15 +346,23 @@ static int do_step(char *step)
     }
     if (!strcmp(name, "configure")) {
         rc = dan_master_configure(&g_m, args ? (uint32_t)strtoul(args, NULL, 0) : 0u, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u}\n", dan_master_baud(&g_m));
         return 0;
     }
     if (!strcmp(name, "arm") || !strcmp(name, "disarm")) {
         rc = dan_gw_arm(&g_gw, name[0] == 'a', dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u}\n", name, g_gw.gw_flags);
         return 0;
     }
@@ -358,8 +380,12 @@ static int do_step(char *step)
             }
         }
         rc = dan_gw_config(&g_gw, &c, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"config\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
                "\"arming_rate_hz\": %u, \"flags\": %u}\n", g_gw.config.node_id,
                g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz, g_gw.config.gw_flags);
@@ -369,7 +395,9 @@ static int do_step(char *step)
         int16_t from[DAN_GW_ESC_MAX], to[DAN_GW_ESC_MAX];
         size_t n;
         uint32_t ms = 0, hz = 0;
-        if (args == NULL) return fail(step, DAN_ERR_ARG);
+        if (args == NULL) {
+            return fail(step, DAN_ERR_ARG);
+        }
         if (name[3] == '-') {
             unsigned nn;
             long a, b;
@@ -387,10 +415,14 @@ static int do_step(char *step)
             if (at) {
                 *at++ = '\0';
                 ms = (uint32_t)strtoul(at, &at, 0);
-                if (*at == '@') hz = (uint32_t)strtoul(at + 1, NULL, 0);
+                if (*at == '@') {
+                    hz = (uint32_t)strtoul(at + 1, NULL, 0);
+                }
             }
         }
-        if (parse_values(args, from, &n)) return fail(step, DAN_ERR_ARG);
+        if (parse_values(args, from, &n)) {
+            return fail(step, DAN_ERR_ARG);
+        }
         return esc_run("esc", from, NULL, n, ms, hz);
     }
     if (!strcmp(name, "telemetry")) {
@@ -398,8 +430,12 @@ static int do_step(char *step)
         int pages = 0;
         do {
             rc = dan_gw_telemetry(&g_gw, first, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc != DAN_OK) return fail(step, rc);
+            if (rc == DAN_OK) {
+                rc = run();
+            }
+            if (rc != DAN_OK) {
+                return fail(step, rc);
+            }
             first = g_gw.telem_next;
         } while (first != DAN_GW_NONE && ++pages < 8);
         printf("{\"step\": \"telemetry\", \"ok\": true, \"flags\": %u, ", g_gw.gw_flags);
@@ -415,11 +451,19 @@ static int do_step(char *step)
             dan_reader_t r;
             dan_gw_nodes_hdr_t h;
             rc = dan_gw_nodes(&g_gw, first, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc == DAN_OK) rc = dan_gw_nodes_begin(&g_gw, &r, &h);
-            if (rc != DAN_OK) return fail(step, rc);
+            if (rc == DAN_OK) {
+                rc = run();
+            }
+            if (rc == DAN_OK) {
+                rc = dan_gw_nodes_begin(&g_gw, &r, &h);
+            }
+            if (rc != DAN_OK) {
+                return fail(step, rc);
+            }
             for (i = 0; i < h.count && nn < 128; i++) {
-                if (dan_gw_nodes_next(&r, &list[nn]) == DAN_OK) nn++;
+                if (dan_gw_nodes_next(&r, &list[nn]) == DAN_OK) {
+                    nn++;
+                }
             }
             first = h.next;
         } while (first != 0);
@@ -428,8 +472,12 @@ static int do_step(char *step)
             dan_gw_node_info_t ni;
             memset(&ni, 0, sizeof ni);
             rc = dan_gw_node_info(&g_gw, list[i].node_id, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc == DAN_OK) (void)dan_gw_node_info_get(&g_gw, &ni);
+            if (rc == DAN_OK) {
+                rc = run();
+            }
+            if (rc == DAN_OK) {
+                (void)dan_gw_node_info_get(&g_gw, &ni);
+            }
             printf("%s{\"id\": %u, \"health\": %u, \"mode\": %u, \"sub_mode\": %u, \"uptime\": %lu, "
                    "\"vendor\": %u, \"age_ms\": %lu, \"info\": %u, \"name\": \"%s\", "
                    "\"sw\": [%u, %u], \"hw\": [%u, %u], \"uid\": \"",
@@ -439,7 +487,9 @@ static int do_step(char *step)
                    ni.hw_major, ni.hw_minor);
             {
                 size_t k;
-                for (k = 0; k < 16; k++) printf("%02x", ni.unique_id[k]);
+                for (k = 0; k < 16; k++) {
+                    printf("%02x", ni.unique_id[k]);
+                }
             }
             printf("\"}");
         }
@@ -448,8 +498,12 @@ static int do_step(char *step)
     }
     if (!strcmp(name, "stats")) {
         rc = dan_gw_stats(&g_gw, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"stats\", \"ok\": true");
         for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
             printf(", \"%s\": %u", dan_gw_stat_name((unsigned)i), g_gw.stats[i]);
@@ -483,8 +537,12 @@ static int do_step(char *step)
             o.target = (uint8_t)b;
         }
         rc = dan_gw_tunnel_open(&g_gw, &o, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"tunnel\", \"ok\": true, \"port\": %u}\n", port);
         return 0;
     }
@@ -498,14 +556,20 @@ static int do_step(char *step)
         for (tok = args ? strtok_r(args, ",", &save) : NULL; tok && n < DAN_GW_FILTERS_MAX;
              tok = strtok_r(NULL, ",", &save)) {
             char *slash = strchr(tok, '/');
-            if (slash == NULL) return fail(step, DAN_ERR_ARG);
+            if (slash == NULL) {
+                return fail(step, DAN_ERR_ARG);
+            }
             f[n].id = (uint32_t)strtoul(tok, NULL, 16) | ((slash - tok) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
             f[n].mask = (uint32_t)strtoul(slash + 1, NULL, 16);
             n++;
         }
         rc = dan_gw_can_filter(&g_gw, DAN_GW_FILTER_REPLACE, f, n, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"filter\", \"ok\": true, \"count\": %zu}\n", n);
         return 0;
     }
@@ -515,12 +579,18 @@ static int do_step(char *step)
         size_t n = 0;
         for (tok = args ? strtok_r(args, ",", &save) : NULL; tok && n < DAN_GW_CAN_FRAMES_MAX;
              tok = strtok_r(NULL, ",", &save)) {
-            if (parse_frame(tok, &f[n])) return fail(step, DAN_ERR_ARG);
+            if (parse_frame(tok, &f[n])) {
+                return fail(step, DAN_ERR_ARG);
+            }
             n++;
         }
         rc = dan_gw_can_send(&g_gw, f, n, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
+        if (rc == DAN_OK) {
+            rc = run();
+        }
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
         printf("{\"step\": \"cansend\", \"ok\": %s, \"accepted\": %u}\n",
                g_gw.can_accepted == n ? "true" : "false", g_gw.can_accepted);
         return g_gw.can_accepted == n ? 0 : 1;
@@ -529,7 +599,9 @@ static int do_step(char *step)
         unsigned long want = 1, timeout_ms = 10000;
         uint64_t end;
         size_t got = 0;
-        if (args) sscanf(args, "%lu:%lu", &want, &timeout_ms);
+        if (args) {
+            sscanf(args, "%lu:%lu", &want, &timeout_ms);
+        }
         end = dan_posix_now_us() + timeout_ms * 1000u;
         printf("{\"step\": \"candump\", \"frames\": [");
         while (got < want && dan_posix_now_us() < end) {
@@ -537,17 +609,27 @@ static int do_step(char *step)
             dan_gw_can_recv_t h;
             dan_can_frame_t f;
             rc = dan_gw_can_recv(&g_gw, DAN_GW_CAN_FRAMES_MAX, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc != DAN_OK || dan_gw_can_begin(&g_gw, &r, &h) != DAN_OK) continue;
+            if (rc == DAN_OK) {
+                rc = run();
+            }
+            if (rc != DAN_OK || dan_gw_can_begin(&g_gw, &r, &h) != DAN_OK) {
+                continue;
+            }
             for (i = 0; i < h.count; i++) {
                 size_t k;
-                if (dan_gw_can_next(&r, &f) != DAN_OK) break;
+                if (dan_gw_can_next(&r, &f) != DAN_OK) {
+                    break;
+                }
                 printf("%s\"%0*X#", got ? ", " : "", (f.flags & DAN_CAN_EXT) ? 8 : 3, (unsigned)f.id);
-                for (k = 0; k < f.dlc; k++) printf("%02X", f.data[k]);
+                for (k = 0; k < f.dlc; k++) {
+                    printf("%02X", f.data[k]);
+                }
                 printf("\"");
                 got++;
             }
-            if (h.count == 0) sleep_us(10000);
+            if (h.count == 0) {
+                sleep_us(10000);
+            }
         }
         printf("], \"ok\": %s, \"dropped\": %u}\n", got >= want ? "true" : "false", g_gw.can_rx_dropped);
         return got >= want ? 0 : 1;

@@ -74,13 +74,19 @@ int main(int argc, char **argv)
             fprintf(stderr, "dan-testperiph: bad or incomplete option %s\n", argv[i]);
             return 2;
         }
-        if (strcmp(argv[i], "--port") == 0) path = v;
-        else if (strcmp(argv[i], "--types") == 0) types_arg = v;
-        else if (strcmp(argv[i], "--mask") == 0) mask = strtoul(v, NULL, 0);
-        else if (strcmp(argv[i], "--window-ms") == 0) window_ms = strtoul(v, NULL, 0);
-        else if (strcmp(argv[i], "--gap-ms") == 0) gap_ms = strtoul(v, NULL, 0);
-        else if (strcmp(argv[i], "--baud") == 0) baud = strtoul(v, NULL, 0);
-        else {
+        if (strcmp(argv[i], "--port") == 0) {
+            path = v;
+        } else if (strcmp(argv[i], "--types") == 0) {
+            types_arg = v;
+        } else if (strcmp(argv[i], "--mask") == 0) {
+            mask = strtoul(v, NULL, 0);
+        } else if (strcmp(argv[i], "--window-ms") == 0) {
+            window_ms = strtoul(v, NULL, 0);
+        } else if (strcmp(argv[i], "--gap-ms") == 0) {
+            gap_ms = strtoul(v, NULL, 0);
+        } else if (strcmp(argv[i], "--baud") == 0) {
+            baud = strtoul(v, NULL, 0);
+        } else {
             fprintf(stderr, "dan-testperiph: unknown option %s\n", argv[i]);
             return 2;
         }

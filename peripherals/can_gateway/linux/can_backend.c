@@ -8,8 +8,9 @@
 static int set_err(char *err, size_t errlen, int code, const char *msg,
                    const char *spec)
 {
-    if (err && errlen)
+    if (err && errlen) {
         snprintf(err, errlen, "%s: %s", spec, msg);
+    }
     return code;
 }
 
@@ -17,11 +18,13 @@ static int set_err(char *err, size_t errlen, int code, const char *msg,
 static unsigned long parse_baud(const char *s)
 {
     unsigned long v = 0;
-    if (*s == '\0')
+    if (*s == '\0') {
         return 0;
+    }
     for (; *s; s++) {
-        if (*s < '0' || *s > '9' || v > 100000000ul)
+        if (*s < '0' || *s > '9' || v > 100000000ul) {
             return 0;
+        }
         v = v * 10u + (unsigned long)(*s - '0');
     }
     return v;
@@ -35,19 +38,22 @@ int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen)
 int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, char *err,
                       size_t errlen)
 {
-    if (err && errlen)
+    if (err && errlen) {
         err[0] = '\0';
-    if (!c || !spec)
+    }
+    if (!c || !spec) {
         return set_err(err, errlen, DAN_ERR_ARG, "no interface given", "can");
+    }
     memset(c, 0, sizeof *c);
     c->fd = -1;
     c->open_timeout_ms = timeout_ms ? timeout_ms : DAN_SLCAN_OPEN_TIMEOUT_MS;
 
     if (strncmp(spec, "socketcan:", 10) == 0) {
         const char *ifname = spec + 10;
-        if (*ifname == '\0')
+        if (*ifname == '\0') {
             return set_err(err, errlen, DAN_ERR_ARG,
                            "missing interface name (socketcan:can0)", spec);
+        }
         return dan_canif_socketcan_open(c, ifname, err, errlen);
     }
     if (strncmp(spec, "slcan:", 6) == 0) {
@@ -58,17 +64,20 @@ int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, cha
         size_t n = strlen(p);
         if (at && at[1] >= '0' && at[1] <= '9') {
             baud = parse_baud(at + 1);
-            if (baud == 0)
+            if (baud == 0) {
                 return set_err(err, errlen, DAN_ERR_ARG,
                                "bad serial baud after '@'", spec);
+            }
             n = (size_t)(at - p);
         }
-        if (n == 0)
+        if (n == 0) {
             return set_err(err, errlen, DAN_ERR_ARG,
                            "missing device path (slcan:/dev/ttyACM0)", spec);
-        if (n >= sizeof path)
+        }
+        if (n >= sizeof path) {
             return set_err(err, errlen, DAN_ERR_ARG, "device path too long",
                            spec);
+        }
         memcpy(path, p, n);
         path[n] = '\0';
         return dan_canif_slcan_open(c, path, (unsigned)baud, err, errlen);
@@ -85,8 +94,9 @@ int dan_canif_fd(const dan_canif_t *c)
 
 int dan_canif_send(dan_canif_t *c, const dan_can_frame_t *f)
 {
-    if (!c || !f)
+    if (!c || !f) {
         return DAN_ERR_ARG;
+    }
     switch (c->kind) {
     case DAN_CANIF_SLCAN:
         return dan_canif_slcan_send(c, f);
@@ -99,8 +109,9 @@ int dan_canif_send(dan_canif_t *c, const dan_can_frame_t *f)
 
 int dan_canif_recv(dan_canif_t *c, dan_can_frame_t *f)
 {
-    if (!c || !f)
+    if (!c || !f) {
         return DAN_ERR_ARG;
+    }
     switch (c->kind) {
     case DAN_CANIF_SLCAN:
         return dan_canif_slcan_recv(c, f);
@@ -118,17 +129,20 @@ int dan_canif_tx_pending(const dan_canif_t *c)
 
 int dan_canif_flush(dan_canif_t *c)
 {
-    if (!c)
+    if (!c) {
         return DAN_ERR_ARG;
-    if (c->kind == DAN_CANIF_SLCAN)
+    }
+    if (c->kind == DAN_CANIF_SLCAN) {
         return dan_canif_slcan_flush(c);
+    }
     return c->kind == DAN_CANIF_NONE ? DAN_ERR_IO : 0;
 }
 
 void dan_canif_close(dan_canif_t *c)
 {
-    if (!c)
+    if (!c) {
         return;
+    }
     switch (c->kind) {
     case DAN_CANIF_SLCAN:
         dan_canif_slcan_close(c);

@@ -24,12 +24,15 @@
 
 static int hexval(char ch)
 {
-    if (ch >= '0' && ch <= '9')
+    if (ch >= '0' && ch <= '9') {
         return ch - '0';
-    if (ch >= 'a' && ch <= 'f')
+    }
+    if (ch >= 'a' && ch <= 'f') {
         return ch - 'a' + 10;
-    if (ch >= 'A' && ch <= 'F')
+    }
+    if (ch >= 'A' && ch <= 'F') {
         return ch - 'A' + 10;
+    }
     return -1;
 }
 
@@ -39,8 +42,9 @@ static int parse_hex(const char *s, size_t n, uint32_t *v)
     uint32_t x = 0;
     for (size_t i = 0; i < n; i++) {
         int h = hexval(s[i]);
-        if (h < 0)
+        if (h < 0) {
             return DAN_ERR_MALFORMED;
+        }
         x = (x << 4) | (uint32_t)h;
     }
     *v = x;
@@ -54,10 +58,12 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     uint8_t flags = 0;
     int dlc;
 
-    if (!line || !f)
+    if (!line || !f) {
         return DAN_ERR_ARG;
-    if (len == 0)
+    }
+    if (len == 0) {
         return 0;
+    }
     switch (line[0]) {
     case 'z':
     case 'Z':
@@ -69,22 +75,28 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     default:
         return DAN_ERR_MALFORMED;
     }
-    if (len < 1 + idlen + 1)
+    if (len < 1 + idlen + 1) {
         return DAN_ERR_MALFORMED;
-    if (parse_hex(line + 1, idlen, &id) < 0)
+    }
+    if (parse_hex(line + 1, idlen, &id) < 0) {
         return DAN_ERR_MALFORMED;
-    if (id > ((flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+    }
+    if (id > ((flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
         return DAN_ERR_MALFORMED;
+    }
     dlc = hexval(line[1 + idlen]);
-    if (dlc < 0 || dlc > 8)
+    if (dlc < 0 || dlc > 8) {
         return DAN_ERR_MALFORMED;
+    }
     pos = 2 + idlen;
     need = pos + ((flags & DAN_CAN_RTR) ? 0u : 2u * (size_t)dlc);
     /* Exactly the frame, or the frame and a 4-digit timestamp. */
-    if (len != need && len != need + 4)
+    if (len != need && len != need + 4) {
         return DAN_ERR_MALFORMED;
-    if (len == need + 4 && parse_hex(line + need, 4, &v) < 0)
+    }
+    if (len == need + 4 && parse_hex(line + need, 4, &v) < 0) {
         return DAN_ERR_MALFORMED;
+    }
 
     memset(f, 0, sizeof *f);
     f->id = id;
@@ -92,8 +104,9 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     f->dlc = (uint8_t)dlc;
     if (!(flags & DAN_CAN_RTR)) {
         for (int i = 0; i < dlc; i++) {
-            if (parse_hex(line + pos + 2 * (size_t)i, 2, &v) < 0)
+            if (parse_hex(line + pos + 2 * (size_t)i, 2, &v) < 0) {
                 return DAN_ERR_MALFORMED;
+            }
             f->data[i] = (uint8_t)v;
         }
     }
@@ -107,17 +120,20 @@ int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap)
     size_t n = 0, idlen;
     int ext, rtr;
 
-    if (!f || !out)
+    if (!f || !out) {
         return DAN_ERR_ARG;
+    }
     ext = (f->flags & DAN_CAN_EXT) != 0;
     rtr = (f->flags & DAN_CAN_RTR) != 0;
     if ((f->flags & DAN_CAN_ERR) || f->dlc > 8 ||
-        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
         return DAN_ERR_ARG;
+    }
     idlen = ext ? 8u : 3u;
     buf[n++] = ext ? (rtr ? 'R' : 'T') : (rtr ? 'r' : 't');
-    for (size_t i = 0; i < idlen; i++)
+    for (size_t i = 0; i < idlen; i++) {
         buf[n++] = hex[(f->id >> (4u * (idlen - 1u - i))) & 0xFu];
+    }
     buf[n++] = hex[f->dlc];
     if (!rtr) {
         for (size_t i = 0; i < f->dlc; i++) {
@@ -126,8 +142,9 @@ int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap)
         }
     }
     buf[n++] = '\r';
-    if (cap < n + 1)
+    if (cap < n + 1) {
         return DAN_ERR_OVERFLOW;
+    }
     memcpy(out, buf, n);
     out[n] = '\0';
     return (int)n;
@@ -139,11 +156,12 @@ static int fail(char *err, size_t errlen, int code, const char *path,
                 const char *what, int errnum)
 {
     if (err && errlen) {
-        if (errnum)
+        if (errnum) {
             snprintf(err, errlen, "slcan:%s: %s: %s", path, what,
                      strerror(errnum));
-        else
+        } else {
             snprintf(err, errlen, "slcan:%s: %s", path, what);
+        }
     }
     return code;
 }
@@ -188,15 +206,18 @@ static int write_all(int fd, const char *s, size_t n,
             n -= (size_t)w;
             continue;
         }
-        if (w < 0 && errno == EINTR)
+        if (w < 0 && errno == EINTR) {
             continue;
+        }
         if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
             long left = ms_left(deadline);
             struct pollfd p = { .fd = fd, .events = POLLOUT, .revents = 0 };
-            if (left <= 0)
+            if (left <= 0) {
                 return DAN_ERR_TIMEOUT;
-            if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
+            }
+            if (poll(&p, 1, (int)left) < 0 && errno != EINTR) {
                 return DAN_ERR_IO;
+            }
             continue;
         }
         return DAN_ERR_IO;
@@ -219,14 +240,15 @@ static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
             for (size_t i = 0; i < (size_t)n; i++) {
                 char b = (char)c->rxbuf[i];
                 int r = 1;
-                if (b == '\a')
+                if (b == '\a') {
                     r = DAN_ERR_REMOTE;
-                else if (b == '\r' && linelen == 0)
+                } else if (b == '\r' && linelen == 0) {
                     r = 0;
-                else if (b == '\r')
+                } else if (b == '\r') {
                     linelen = 0;
-                else if (b != '\n')
+                } else if (b != '\n') {
                     linelen++;
+                }
                 if (r <= 0) {
                     c->rx_pos = i + 1;
                     c->rx_len = (size_t)n;
@@ -235,26 +257,32 @@ static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
             }
             continue;
         }
-        if (n == 0)
+        if (n == 0) {
             return DAN_ERR_IO;
-        if (errno == EINTR)
+        }
+        if (errno == EINTR) {
             continue;
-        if (errno != EAGAIN && errno != EWOULDBLOCK)
+        }
+        if (errno != EAGAIN && errno != EWOULDBLOCK) {
             return DAN_ERR_IO;
+        }
         long left = ms_left(deadline);
-        if (left <= 0)
+        if (left <= 0) {
             return DAN_ERR_TIMEOUT;
+        }
         struct pollfd p = { .fd = c->fd, .events = POLLIN, .revents = 0 };
-        if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
+        if (poll(&p, 1, (int)left) < 0 && errno != EINTR) {
             return DAN_ERR_IO;
+        }
     }
 }
 
 static void restore_and_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
-        if (c->have_old_tio)
+        if (c->have_old_tio) {
             tcsetattr(c->fd, TCSADRAIN, &c->old_tio);
+        }
         close(c->fd);
     }
     c->fd = -1;
@@ -269,10 +297,11 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
     speed_t speed = baud_to_speed(baud);
     int fd, r;
 
-    if (speed == B0)
+    if (speed == B0) {
         return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
                     "unsupported serial baud (use 9600..4000000, a standard "
                     "rate)", 0);
+    }
     fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (fd < 0) {
         int e = errno;
@@ -321,20 +350,24 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
      * fine (some adapters refuse C when closed). Then drop whatever frames
      * were still arriving. */
     r = write_all(fd, "C\r", 2, &deadline);
-    if (r == 0)
+    if (r == 0) {
         r = wait_ack(c, &deadline);
-    if (r == DAN_ERR_REMOTE)
+    }
+    if (r == DAN_ERR_REMOTE) {
         r = 0;
+    }
     if (r == 0) {
         tcflush(fd, TCIFLUSH);
         c->rx_pos = c->rx_len = 0;
         r = write_all(fd, "S8\r", 3, &deadline);
-        if (r == 0)
+        if (r == 0) {
             r = wait_ack(c, &deadline);
+        }
         if (r == 0) {
             r = write_all(fd, "O\r", 2, &deadline);
-            if (r == 0)
+            if (r == 0) {
                 r = wait_ack(c, &deadline);
+            }
             if (r < 0) {
                 restore_and_close(c);
                 c->kind = DAN_CANIF_NONE;
@@ -382,10 +415,12 @@ int dan_canif_slcan_flush(dan_canif_t *c)
             c->tx_len -= (size_t)w;
             continue;
         }
-        if (w < 0 && errno == EINTR)
+        if (w < 0 && errno == EINTR) {
             continue;
-        if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+        }
+        if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
             return DAN_ERR_BUSY;
+        }
         c->stats.errors++;
         return DAN_ERR_IO;
     }
@@ -398,21 +433,24 @@ int dan_canif_slcan_send(dan_canif_t *c, const dan_can_frame_t *f)
     int n = dan_slcan_format(f, line, sizeof line);
     ssize_t w;
 
-    if (n < 0)
+    if (n < 0) {
         return DAN_ERR_ARG;
+    }
     if (c->tx_len > 0) {
         int r = dan_canif_slcan_flush(c);
         if (r == DAN_ERR_BUSY) {
             c->stats.tx_dropped++;
             return DAN_ERR_BUSY;
         }
-        if (r < 0)
+        if (r < 0) {
             return r;
+        }
     }
     for (;;) {
         w = write(c->fd, line, (size_t)n);
-        if (w < 0 && errno == EINTR)
+        if (w < 0 && errno == EINTR) {
             continue;
+        }
         break;
     }
     if (w < 0) {
@@ -446,10 +484,11 @@ static int feed(dan_canif_t *c, char b, dan_can_frame_t *f)
         return 0;
     }
     if (b != '\r' && b != '\n') {
-        if (c->line_len < DAN_SLCAN_LINE_MAX)
+        if (c->line_len < DAN_SLCAN_LINE_MAX) {
             c->line[c->line_len++] = b;
-        else
+        } else {
             c->line_overflow = 1;
+        }
         return 0;
     }
     /* End of a line. */
@@ -461,15 +500,17 @@ static int feed(dan_canif_t *c, char b, dan_can_frame_t *f)
         return 0;
     }
     r = dan_slcan_parse_line(c->line, c->line_len, f);
-    if (r == 0 && c->line_len == 1)
+    if (r == 0 && c->line_len == 1) {
         c->stats.tx_ack++;
+    }
     c->line_len = 0;
     if (r == 1) {
         c->stats.rx++;
         return 1;
     }
-    if (r < 0)
+    if (r < 0) {
         c->stats.errors++;
+    }
     return 0;
 }
 
@@ -480,8 +521,9 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
     for (int reads = 0; reads < 4; reads++) {
         while (c->rx_pos < c->rx_len) {
             char b = (char)c->rxbuf[c->rx_pos++];
-            if (feed(c, b, f) == 1)
+            if (feed(c, b, f) == 1) {
                 return 1;
+            }
         }
         c->rx_pos = c->rx_len = 0;
         ssize_t n = read(c->fd, c->rxbuf, sizeof c->rxbuf);
@@ -497,8 +539,9 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
             reads--;
             continue;
         }
-        if (errno == EAGAIN || errno == EWOULDBLOCK)
+        if (errno == EAGAIN || errno == EWOULDBLOCK) {
             return 0;
+        }
         c->stats.errors++;
         return DAN_ERR_IO;
     }
@@ -506,8 +549,9 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
      * again for a while, and complete frames must not wait for it. */
     while (c->rx_pos < c->rx_len) {
         char b = (char)c->rxbuf[c->rx_pos++];
-        if (feed(c, b, f) == 1)
+        if (feed(c, b, f) == 1) {
             return 1;
+        }
     }
     return 0;
 }
@@ -537,8 +581,9 @@ void dan_canif_slcan_close(dan_canif_t *c)
             struct timespec settle = {0, 20000000L}; /* the adapter sends them on CAN */
             (void)nanosleep(&settle, NULL);
         }
-        if (write_all(c->fd, "C\r", 2, &deadline) == 0)
+        if (write_all(c->fd, "C\r", 2, &deadline) == 0) {
             (void)wait_ack(c, &deadline);
+        }
         (void)tcdrain(c->fd);
     }
     restore_and_close(c);

@@ -338,9 +338,15 @@ int main(int argc, char **argv)
         now = dan_posix_now_us();
         next = dan_periph_next_us(&d->periph);
         t2 = dan_gw_node_next_us(&d->node, now);
-        if (t2 < next) next = t2;
-        if (!d->can_up && d->reopen_us < next) next = d->reopen_us;
-        if (d->stats_file && d->stats_due_us < next) next = d->stats_due_us;
+        if (t2 < next) {
+            next = t2;
+        }
+        if (!d->can_up && d->reopen_us < next) {
+            next = d->reopen_us;
+        }
+        if (d->stats_file && d->stats_due_us < next) {
+            next = d->stats_due_us;
+        }
         if (next <= now || (d->can_up && dan_canif_rx_pending(&d->can))) {
             timeout_ms = 0; /* due now, or received CAN bytes wait parsed */
         } else {
@@ -427,7 +433,9 @@ int main(int argc, char **argv)
                dan_posix_now_us() < end) {
             struct pollfd pf;
             can_drain(d, dan_posix_now_us());
-            if (!d->can_up) break;
+            if (!d->can_up) {
+                break;
+            }
             pf.fd = dan_canif_fd(&d->can);
             pf.events = POLLOUT;
             (void)poll(&pf, 1, 10);
