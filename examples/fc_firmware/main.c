@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "dan/dan.h"
+#include "dan/identity_json.h"
 #include "dan/rxring.h"
 #include "dan/can_gw/client.h"
 #include "board.h"
@@ -81,24 +82,10 @@ static void o_hex(const uint8_t *p, size_t n)
     }
 }
 
-/* A JSON string: quoted, with quotes, backslashes and control bytes escaped. */
+/* A JSON string, escaped by libdan's one JSON formatter. */
 static void o_jstr(const char *s)
 {
-    o_str("\"");
-    for (; *s != '\0'; s++) {
-        unsigned char ch = (unsigned char)*s;
-        char one[2] = {0, 0};
-        if (ch == '"' || ch == '\\') {
-            o_str(ch == '"' ? "\\\"" : "\\\\");
-        } else if (ch < 0x20u || ch >= 0x7Fu) {
-            o_str("\\u00");
-            o_hex(&ch, 1);
-        } else {
-            one[0] = (char)ch;
-            o_str(one);
-        }
-    }
-    o_str("\"");
+    out_len += dan_json_str(out_line + out_len, sizeof out_line - 1u - out_len, s);
 }
 
 /* ,"key": */
@@ -171,12 +158,6 @@ struct app {
 
 static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST, DAN_TYPE_CAN_GW_FIRST};
 
-static const char *type_name(uint32_t first)
-{
-    const dan_type_info_t *t = dan_type_of_code(first);
-    return (t != NULL) ? t->name : "?";
-}
-
 /* -- discover -- */
 
 static int discover_start(app_t *a, uint64_t now)
@@ -201,21 +182,8 @@ static step_t discover_done(app_t *a, int r, uint64_t now)
         if (!p->present) {
             continue;
         }
-        o_str(first ? "{\"type\":" : ",{\"type\":");
-        o_jstr(type_name(p->first_code));
-        o_key("baud");
-        o_u32(p->baud);
-        o_key("dan_version");
-        o_u32(p->identity.dan_version);
-        o_key("manufacturer");
-        o_jstr(p->identity.manufacturer);
-        o_key("model");
-        o_jstr(p->identity.model);
-        o_key("sw_version");
-        o_jstr(p->identity.sw_version);
-        o_key("baud_mask");
-        o_u32(p->identity.baud_mask);
-        o_str("}");
+        o_str(first ? "" : ",");
+        out_len += dan_peer_json(out_line + out_len, sizeof out_line - 1u - out_len, p, 0);
         first = false;
     }
     o_str("]");

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "dan/dan.h"
+#include "dan/identity_json.h"
 #include "dan/posix.h"
 
 static volatile sig_atomic_t stop_flag;
@@ -101,20 +102,12 @@ static int run_op(ctx_t *c)
     }
 }
 
+/* A JSON string (error texts and names: short), escaped by libdan. */
 static void json_str(const char *s)
 {
-    putchar('"');
-    for (; *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\') {
-            printf("\\%c", ch);
-        } else if (ch < 0x20 || ch >= 0x7F) {
-            printf("\\u%04x", ch);
-        } else {
-            putchar(ch);
-        }
-    }
-    putchar('"');
+    char buf[6u * DAN_MAX_STRING + 3u];
+    dan_json_str(buf, sizeof buf, s);
+    fputs(buf, stdout);
 }
 
 static const char *type_name(uint32_t first)
@@ -125,6 +118,7 @@ static const char *type_name(uint32_t first)
 
 static void print_peers(ctx_t *c, int r, double ms)
 {
+    char obj[DAN_PEER_JSON_MAX];
     size_t i;
     bool first = true;
     if (c->json) {
@@ -136,18 +130,8 @@ static void print_peers(ctx_t *c, int r, double ms)
             if (!p->present) {
                 continue;
             }
-            printf("%s{\"type\":", first ? "" : ",");
-            json_str(type_name(p->first_code));
-            printf(",\"first_code\":%u,\"baud\":%u,\"dan_version\":%u,\"manufacturer\":", p->first_code,
-                   p->baud, p->identity.dan_version);
-            json_str(p->identity.manufacturer);
-            printf(",\"model\":");
-            json_str(p->identity.model);
-            printf(",\"hw_version\":");
-            json_str(p->identity.hw_version);
-            printf(",\"sw_version\":");
-            json_str(p->identity.sw_version);
-            printf(",\"baud_mask\":%u,\"capabilities\":%u}", p->identity.baud_mask, p->identity.capabilities);
+            dan_peer_json(obj, sizeof obj, p, DAN_PEER_JSON_FULL);
+            printf("%s%s", first ? "" : ",", obj);
             first = false;
         }
         printf("]}\n");
