@@ -181,6 +181,11 @@ $(BUILD)/bin/%: $(BUILD)/obj/host_tools/c/%.o $(ALL_LIBS)
 $(BUILD)/bin/%: $(BUILD)/obj/tests/tools/%.o $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
+# The test-a type's handlers, shared with the unit tests.
+$(BUILD)/bin/dan-testperiph: $(BUILD)/obj/tests/tools/dan-testperiph.o \
+                             $(BUILD)/obj/tests/unit/handlers_test_a.o $(ALL_LIBS)
+	@mkdir -p $(@D)
+	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 $(BUILD)/bin/dan-gatewayd: $(call obj,$(GWD_MAIN)) $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)

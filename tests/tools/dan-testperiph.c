@@ -16,6 +16,7 @@
 
 #include "dan/dan.h"
 #include "dan/posix.h"
+#include "handlers_test_a.h"
 
 static volatile sig_atomic_t stop_flag;
 
@@ -25,36 +26,12 @@ static void on_signal(int sig)
     stop_flag = 1;
 }
 
-static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now)
-{
-    size_t i;
-    (void)user; (void)code; (void)now;
-    if (len == 0) {
-        *err = "empty payload";
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = len; i-- > 0;) {
-        dan_put_u8(resp, req[i]);
-    }
-    return DAN_OK;
-}
-
-static int h_silent(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                    const char **err, uint64_t now)
-{
-    (void)code; (void)req; (void)len; (void)resp; (void)err; (void)now;
-    (*(unsigned *)user)++;
-    return DAN_PERIPH_NO_REPLY;
-}
-
 int main(int argc, char **argv)
 {
     static dan_posix_port_t port;
     static dan_periph_t p;
     static dan_identity_t ids[4];
     static dan_ptype_t types[4];
-    static const dan_handler_t handlers_a[] = {{0x62, h_reverse}, {0x63, h_silent}};
     static unsigned silent;
     const char *path = NULL, *types_arg = "test-a";
     unsigned long mask = 0x0F, window_ms = 50, gap_ms = 20, baud = 9600;
@@ -112,8 +89,8 @@ int main(int argc, char **argv)
         types[ntypes].first = t->first;
         types[ntypes].identity = &ids[ntypes];
         if (t->first == DAN_TYPE_TEST_A_FIRST) {
-            types[ntypes].handlers = handlers_a;
-            types[ntypes].nhandlers = 2;
+            types[ntypes].handlers = test_a_handlers;
+            types[ntypes].nhandlers = TEST_A_NHANDLERS;
             types[ntypes].user = &silent;
         }
         ntypes++;
