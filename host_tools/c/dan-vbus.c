@@ -25,13 +25,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
+
+#include "dan/posix.h"
 
 #define PROG          "dan-vbus"
 #define EP_MIN        2
@@ -49,70 +50,17 @@
 
 typedef int64_t ns_t;
 
-/* ------------------------------------------------------------------------ */
-/* Baud rate of a pty, including non-standard rates set with BOTHER.
- *
- * glibc's <termios.h> only knows the Bnnn constants; the kernel keeps the
- * real speed in c_ispeed/c_ospeed of struct termios2 (ioctl TCGETS2).
- * <asm/termbits.h> would clash with <termios.h>, so the kernel's generic
- * layout is declared here under our own name and the ioctl number is built
- * from it (_IOR('T', 0x2A, ...), exactly as the kernel defines TCGETS2).
- * On a pty master, TCGETS/TCGETS2 report the slave's termios (the kernel's
- * tty_mode_ioctl uses tty->link), which is what the user program set. */
-
-#if defined(__x86_64__) || defined(__i386__) || defined(__arm__) || defined(__aarch64__) ||        \
-    defined(__riscv) || defined(__s390__) || defined(__loongarch__)
-#define VBUS_HAVE_TERMIOS2 1
-struct vbus_termios2 {
-    unsigned int c_iflag, c_oflag, c_cflag, c_lflag;
-    unsigned char c_line;
-    unsigned char c_cc[19];
-    unsigned int c_ispeed, c_ospeed;
-};
-typedef char vbus_termios2_size_check[sizeof(struct vbus_termios2) == 44 ? 1 : -1];
-#define VBUS_TCGETS2 _IOR('T', 0x2A, struct vbus_termios2)
-#endif
-
-static uint32_t speed_to_baud(speed_t s)
-{
-    static const struct {
-        speed_t s;
-        uint32_t b;
-    } tab[] = {
-        {B50, 50},           {B75, 75},           {B110, 110},         {B134, 134},
-        {B150, 150},         {B200, 200},         {B300, 300},         {B600, 600},
-        {B1200, 1200},       {B1800, 1800},       {B2400, 2400},       {B4800, 4800},
-        {B9600, 9600},       {B19200, 19200},     {B38400, 38400},     {B57600, 57600},
-        {B115200, 115200},   {B230400, 230400},   {B460800, 460800},   {B500000, 500000},
-        {B576000, 576000},   {B921600, 921600},   {B1000000, 1000000}, {B1152000, 1152000},
-        {B1500000, 1500000}, {B2000000, 2000000}, {B2500000, 2500000}, {B3000000, 3000000},
-        {B3500000, 3500000}, {B4000000, 4000000},
-    };
-    for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++) {
-        if (tab[i].s == s) {
-            return tab[i].b;
-        }
-    }
-    return 0;
-}
-
-/* Returns the output (want_input == 0) or input speed of the pty's slave,
+/* Returns the output (want_input == 0) or input speed of the pty's slave
+ * (the port reads termios2, so BOTHER rates work: on a pty master the
+ * kernel reports the slave's termios, which is what the user program set),
  * clamped to at least MIN_BAUD; INIT_BAUD if it cannot be read. */
 static uint32_t pty_baud(int fd, int want_input)
 {
-    uint32_t b = 0;
-#ifdef VBUS_HAVE_TERMIOS2
-    struct vbus_termios2 t2;
-    if (ioctl(fd, VBUS_TCGETS2, &t2) == 0) {
-        b = want_input && t2.c_ispeed ? t2.c_ispeed : t2.c_ospeed;
-        return b < MIN_BAUD ? MIN_BAUD : b;
-    }
-#endif
-    struct termios t;
-    if (tcgetattr(fd, &t) != 0) {
+    uint32_t in, out, b;
+    if (dan_posix_get_speeds(fd, &in, &out) != 0) {
         return INIT_BAUD;
     }
-    b = speed_to_baud(want_input && cfgetispeed(&t) ? cfgetispeed(&t) : cfgetospeed(&t));
+    b = (want_input && in != 0u) ? in : out;
     return b < MIN_BAUD ? MIN_BAUD : b;
 }
 
