@@ -150,6 +150,59 @@ int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap)
     return (int)n;
 }
 
+/* The part after "ID#R": nothing, or one dlc digit 0..8. */
+static int parse_rtr_dlc(const char *s, dan_can_frame_t *f)
+{
+    f->flags |= DAN_CAN_RTR;
+    if (s[0] == '\0') {
+        return 0;
+    }
+    if (s[0] < '0' || s[0] > '8' || s[1] != '\0') {
+        return DAN_ERR_MALFORMED;
+    }
+    f->dlc = (uint8_t)(s[0] - '0');
+    return 0;
+}
+
+int dan_can_parse_cansend(const char *s, dan_can_frame_t *f)
+{
+    const char *hash = strchr(s, '#');
+    size_t idlen;
+    uint32_t id, v;
+
+    memset(f, 0, sizeof *f);
+    if (!hash) {
+        return DAN_ERR_MALFORMED;
+    }
+    idlen = (size_t)(hash - s);
+    if ((idlen != 3 && idlen != 8) || parse_hex(s, idlen, &id) < 0) {
+        return DAN_ERR_MALFORMED;
+    }
+    if (idlen == 8) {
+        f->flags |= DAN_CAN_EXT;
+    }
+    if (id > (idlen == 8 ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
+        return DAN_ERR_MALFORMED;
+    }
+    f->id = id;
+    s = hash + 1;
+    if (*s == 'R' || *s == 'r') {
+        return parse_rtr_dlc(s + 1, f);
+    }
+    while (*s) {
+        if (*s == '.') {
+            s++;
+            continue;
+        }
+        if (f->dlc >= 8 || parse_hex(s, 2, &v) < 0) {
+            return DAN_ERR_MALFORMED;
+        }
+        f->data[f->dlc++] = (uint8_t)v;
+        s += 2;
+    }
+    return 0;
+}
+
 /* ---- tty helpers ---- */
 
 static int fail(char *err, size_t errlen, int code, const char *path,
