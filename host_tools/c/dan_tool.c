@@ -2,7 +2,6 @@
 #include "dan_tool.h"
 
 #include <errno.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -27,13 +26,18 @@ void tool_catch_signal(int sig)
     sigaction(sig, &sa, NULL);
 }
 
+void tool_verror(const char *fmt, va_list ap)
+{
+    fprintf(stderr, "%s: ", tool_prog);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+}
+
 void tool_error(const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    fprintf(stderr, "%s: ", tool_prog);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    tool_verror(fmt, ap);
     va_end(ap);
 }
 

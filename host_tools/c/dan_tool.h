@@ -11,6 +11,7 @@
 
 #include <poll.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -29,6 +30,7 @@ void tool_catch_signal(int sig);
 
 /* "PROG: message\n" on stderr. */
 void tool_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+void tool_verror(const char *fmt, va_list ap) __attribute__((format(printf, 1, 0)));
 
 /* poll()'s timeout from now_us until deadline_us: 0 when due, else rounded
  * up (never wakes before the deadline) and at most cap_ms. */
