@@ -33,6 +33,7 @@
 #include <unistd.h>
 
 #include "dan/posix.h"
+#include "dan_tool.h"
 
 #define PROG          "dan-vbus"
 #define EP_MIN        2
@@ -47,6 +48,15 @@
 #define MIN_BAUD      50u
 #define DEFAULT_SEED  1u
 #define TOLERANCE_PCT 3u
+#define BITS_PER_CHAR 10 /* 8N1: start bit, 8 data bits, stop bit */
+#define NS_PER_S      1000000000LL
+/* An arbitrary odd constant (drand48's multiplier): the garbage stream
+ * starts apart from the noise stream for the same --seed. */
+#define GARBAGE_SEED_XOR 0x5DEECE66DULL
+/* --link PREFIX: room for the endpoint index and NUL ... */
+#define LINK_INDEX_ROOM 4
+/* ... and, with the temporary link's ".vbusPID" suffix, below PATH_MAX. */
+#define LINK_SUFFIX_ROOM 32
 
 typedef int64_t ns_t;
 
@@ -64,10 +74,10 @@ static uint32_t pty_baud(int fd, int want_input)
     return b < MIN_BAUD ? MIN_BAUD : b;
 }
 
-/* One character at 8N1 is 10 bits: 1e10 / baud nanoseconds. */
+/* One character at 8N1 is BITS_PER_CHAR bits: 1e10 / baud nanoseconds. */
 static ns_t char_ns(uint32_t baud)
 {
-    ns_t t = (ns_t)(10000000000LL / (int64_t)baud);
+    ns_t t = (ns_t)(BITS_PER_CHAR * NS_PER_S / (int64_t)baud);
     return t > 0 ? t : 1;
 }
 
@@ -81,7 +91,7 @@ static ns_t now_ns(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (ns_t)ts.tv_sec * 1000000000LL + (ns_t)ts.tv_nsec;
+    return (ns_t)ts.tv_sec * NS_PER_S + (ns_t)ts.tv_nsec;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -171,14 +181,6 @@ struct vbus {
     uint64_t mismatched_bytes, dropped, wire_bytes;
 };
 
-static volatile sig_atomic_t g_stop;
-
-static void on_signal(int sig)
-{
-    (void)sig;
-    g_stop = 1;
-}
-
 static void vlog(const struct vbus *vb, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static void vlog(const struct vbus *vb, const char *fmt, ...)
 {
@@ -187,20 +189,7 @@ static void vlog(const struct vbus *vb, const char *fmt, ...)
         return;
     }
     va_start(ap, fmt);
-    fprintf(stderr, PROG ": ");
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-}
-
-static void err(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-static void err(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fprintf(stderr, PROG ": ");
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    tool_verror(fmt, ap);
     va_end(ap);
 }
 
@@ -227,8 +216,8 @@ static void burst_flush(struct vbus *vb, int src)
         d = 0;
     }
     FILE *f = vb->capture;
-    fprintf(f, "%" PRId64 ".%06" PRId64 " %d %" PRIu32 " ", (int64_t)(d / 1000000000),
-            (int64_t)((d % 1000000000) / 1000), src, b->baud);
+    fprintf(f, "%" PRId64 ".%06" PRId64 " %d %" PRIu32 " ", (int64_t)(d / NS_PER_S),
+            (int64_t)((d % NS_PER_S) / 1000), src, b->baud);
     for (size_t i = 0; i < b->len; i++) {
         fprintf(f, "%02x", b->tx[i]);
     }
@@ -626,13 +615,13 @@ static int control_open(struct vbus *vb, const char *path)
 
     if (lstat(path, &st) == 0) {
         if (!S_ISSOCK(st.st_mode)) {
-            err("refusing to replace %s: it exists and is not a socket", path);
+            tool_error("refusing to replace %s: it exists and is not a socket", path);
             return -1;
         }
         int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
         if (probe >= 0 && connect(probe, (struct sockaddr *)&sa, sizeof sa) == 0) {
             close(probe);
-            err("control socket %s is in use by another program", path);
+            tool_error("control socket %s is in use by another program", path);
             return -1;
         }
         if (probe >= 0) {
@@ -642,16 +631,16 @@ static int control_open(struct vbus *vb, const char *path)
     }
     vb->lfd = socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (vb->lfd < 0) {
-        err("socket: %s", strerror(errno));
+        tool_error("socket: %s", strerror(errno));
         return -1;
     }
     if (bind(vb->lfd, (struct sockaddr *)&sa, sizeof sa) < 0) {
-        err("cannot create control socket %s: %s", path, strerror(errno));
+        tool_error("cannot create control socket %s: %s", path, strerror(errno));
         return -1;
     }
     vb->control_bound = 1;
     if (listen(vb->lfd, MAX_CLIENTS) < 0) {
-        err("listen on %s: %s", path, strerror(errno));
+        tool_error("listen on %s: %s", path, strerror(errno));
         return -1;
     }
     return 0;
@@ -667,30 +656,30 @@ static int ep_open(struct vbus *vb, int i)
 
     e->mfd = posix_openpt(O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (e->mfd < 0) {
-        err("cannot open a pseudo-terminal: %s", strerror(errno));
+        tool_error("cannot open a pseudo-terminal: %s", strerror(errno));
         return -1;
     }
     if (grantpt(e->mfd) < 0 || unlockpt(e->mfd) < 0 ||
         ptsname_r(e->mfd, e->path, sizeof e->path) != 0) {
-        err("cannot set up pseudo-terminal: %s", strerror(errno));
+        tool_error("cannot set up pseudo-terminal: %s", strerror(errno));
         return -1;
     }
     /* Holding the slave open keeps the pty alive while users close and
      * reopen it (no POLLHUP/EIO on the master). */
     e->sfd = open(e->path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (e->sfd < 0) {
-        err("cannot open %s: %s", e->path, strerror(errno));
+        tool_error("cannot open %s: %s", e->path, strerror(errno));
         return -1;
     }
     if (tcgetattr(e->sfd, &t) < 0) {
-        err("tcgetattr %s: %s", e->path, strerror(errno));
+        tool_error("tcgetattr %s: %s", e->path, strerror(errno));
         return -1;
     }
     cfmakeraw(&t);
     cfsetispeed(&t, B9600);
     cfsetospeed(&t, B9600);
     if (tcsetattr(e->sfd, TCSANOW, &t) < 0) {
-        err("tcsetattr %s: %s", e->path, strerror(errno));
+        tool_error("tcsetattr %s: %s", e->path, strerror(errno));
         return -1;
     }
     vlog(vb, "endpoint %d is %s", i, e->path);
@@ -702,11 +691,11 @@ static int link_check(const char *link)
     struct stat st;
     if (lstat(link, &st) == 0) {
         if (!S_ISLNK(st.st_mode)) {
-            err("refusing to replace %s: it exists and is not a symbolic link", link);
+            tool_error("refusing to replace %s: it exists and is not a symbolic link", link);
             return -1;
         }
     } else if (errno != ENOENT) {
-        err("cannot use %s: %s", link, strerror(errno));
+        tool_error("cannot use %s: %s", link, strerror(errno));
         return -1;
     }
     return 0;
@@ -714,15 +703,15 @@ static int link_check(const char *link)
 
 static int link_make(struct ep *e)
 {
-    char tmp[PATH_MAX + 32];
+    char tmp[PATH_MAX + LINK_SUFFIX_ROOM];
     snprintf(tmp, sizeof tmp, "%s.vbus%ld", e->link, (long)getpid());
     unlink(tmp);
     if (symlink(e->path, tmp) < 0) {
-        err("cannot create symbolic link %s: %s", e->link, strerror(errno));
+        tool_error("cannot create symbolic link %s: %s", e->link, strerror(errno));
         return -1;
     }
     if (rename(tmp, e->link) < 0) {
-        err("cannot create symbolic link %s: %s", e->link, strerror(errno));
+        tool_error("cannot create symbolic link %s: %s", e->link, strerror(errno));
         unlink(tmp);
         return -1;
     }
@@ -884,7 +873,43 @@ static void bad_arg(const char *fmt, ...)
     exit(2);
 }
 
-int main(int argc, char **argv)
+/* The options that take a path: non-empty, and short enough. */
+static const char *path_arg(int c, const char *arg)
+{
+    struct sockaddr_un sa;
+    if (c == 'l' && !*arg) {
+        bad_arg("--link needs a non-empty PREFIX");
+    }
+    if (c == 'l' && strlen(arg) > PATH_MAX - LINK_SUFFIX_ROOM) {
+        bad_arg("--link PREFIX is too long");
+    }
+    if (c == 'c' && !*arg) {
+        bad_arg("--capture needs a file name");
+    }
+    if (c == 'C' && !*arg) {
+        bad_arg("--control needs a socket path");
+    }
+    if (c == 'C' && strlen(arg) >= sizeof sa.sun_path) {
+        bad_arg("--control path is too long (at most %zu characters)", sizeof sa.sun_path - 1);
+    }
+    return arg;
+}
+
+static uint64_t parse_seed(const char *arg)
+{
+    char *end;
+    unsigned long long v;
+    errno = 0;
+    v = strtoull(arg, &end, 0);
+    if (errno || end == arg || *end || strchr(arg, '-')) {
+        bad_arg("--seed must be a whole number from 0 to 2^64-1, not '%s'", arg);
+    }
+    return (uint64_t)v;
+}
+
+/* Exits on --help and on bad arguments (status 2). */
+static void parse_options(int argc, char **argv, struct vbus *vb, const char **link_prefix,
+                          uint64_t *seed)
 {
     static const struct option opts[] = {
         {"endpoints", required_argument, NULL, 'n'},
@@ -897,75 +922,29 @@ int main(int argc, char **argv)
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
-    static struct vbus vbs;
-    struct vbus *vb = &vbs;
-    const char *link_prefix = NULL;
-    uint64_t seed = DEFAULT_SEED;
-    int c, rc = 0;
-
-    vb->n = 2;
-    vb->lfd = -1;
-    for (int i = 0; i < MAX_CLIENTS; i++) {
-        vb->cl[i].fd = -1;
-    }
-
+    unsigned long n;
+    int c;
     opterr = 0;
     while ((c = getopt_long(argc, argv, ":n:l:vh", opts, NULL)) != -1) {
-        char *end;
         switch (c) {
-        case 'n': {
-            errno = 0;
-            long v = strtol(optarg, &end, 10);
-            if (errno || end == optarg || *end || v < EP_MIN || v > EP_MAX) {
+        case 'n':
+            if (tool_parse_ulong(optarg, 10, EP_MIN, EP_MAX, &n) != 0) {
                 bad_arg("-n/--endpoints must be a whole number from %d to %d, not '%s'", EP_MIN,
                         EP_MAX, optarg);
             }
-            vb->n = (int)v;
+            vb->n = (int)n;
             break;
-        }
-        case 'l':
-            if (!*optarg) {
-                bad_arg("--link needs a non-empty PREFIX");
-            }
-            if (strlen(optarg) > PATH_MAX - 32) {
-                bad_arg("--link PREFIX is too long");
-            }
-            link_prefix = optarg;
-            break;
+        case 'l': *link_prefix = path_arg(c, optarg); break;
         case 'b':
             if (parse_ber(optarg, &vb->ber) < 0) {
                 bad_arg("--ber must be a number from 0 to 1, not '%s'", optarg);
             }
             break;
-        case 's': {
-            errno = 0;
-            unsigned long long v = strtoull(optarg, &end, 0);
-            if (errno || end == optarg || *end || strchr(optarg, '-')) {
-                bad_arg("--seed must be a whole number from 0 to 2^64-1, not '%s'", optarg);
-            }
-            seed = (uint64_t)v;
-            break;
-        }
-        case 'c':
-            if (!*optarg) {
-                bad_arg("--capture needs a file name");
-            }
-            vb->capture_path = optarg;
-            break;
-        case 'C': {
-            struct sockaddr_un sa;
-            if (!*optarg) {
-                bad_arg("--control needs a socket path");
-            }
-            if (strlen(optarg) >= sizeof sa.sun_path) {
-                bad_arg("--control path is too long (at most %zu characters)",
-                        sizeof sa.sun_path - 1);
-            }
-            vb->control_path = optarg;
-            break;
-        }
+        case 's': *seed = parse_seed(optarg); break;
+        case 'c': vb->capture_path = path_arg(c, optarg); break;
+        case 'C': vb->control_path = path_arg(c, optarg); break;
         case 'v': vb->verbose = 1; break;
-        case 'h': usage(stdout); return 0;
+        case 'h': usage(stdout); exit(0);
         case ':': bad_arg("option '%s' needs a value", argv[optind - 1]);
         default:
             if (optopt) {
@@ -977,177 +956,231 @@ int main(int argc, char **argv)
     if (optind < argc) {
         bad_arg("unexpected argument '%s'", argv[optind]);
     }
+}
 
-    vb->noise.s = seed;
-    vb->garbage.s = seed ^ 0x5DEECE66DULL;
-
-    /* Signals: handlers set a flag; they are blocked except inside ppoll. */
-    sigset_t block, orig;
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
+/* Handlers set tool_stop; the signals are blocked except inside ppoll,
+ * whose mask (orig) lets them through. */
+static void setup_signals(sigset_t *orig)
+{
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+    sigset_t block;
+    size_t i;
     sigemptyset(&block);
-    sigaddset(&block, SIGINT);
-    sigaddset(&block, SIGTERM);
-    sigaddset(&block, SIGHUP);
-    sigprocmask(SIG_BLOCK, &block, &orig);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGHUP, &sa, NULL);
+    for (i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
+        sigaddset(&block, sigs[i]);
+    }
+    sigprocmask(SIG_BLOCK, &block, orig);
+    for (i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
+        tool_catch_signal(sigs[i]);
+        sigdelset(orig, sigs[i]);
+    }
     signal(SIGPIPE, SIG_IGN);
-    sigdelset(&orig, SIGINT);
-    sigdelset(&orig, SIGTERM);
-    sigdelset(&orig, SIGHUP);
+}
 
+/* Allocates the endpoints and checks their link names; 0 or -1. */
+static int alloc_endpoints(struct vbus *vb, const char *link_prefix)
+{
     for (int i = 0; i < vb->n; i++) {
         vb->ep[i] = calloc(1, sizeof *vb->ep[i]);
         if (!vb->ep[i]) {
-            err("out of memory");
-            rc = 1;
-            goto out;
+            tool_error("out of memory");
+            return -1;
         }
         vb->ep[i]->mfd = vb->ep[i]->sfd = -1;
         if (link_prefix) {
-            size_t len = strlen(link_prefix) + 4;
+            size_t len = strlen(link_prefix) + LINK_INDEX_ROOM;
             vb->ep[i]->link = malloc(len);
             if (!vb->ep[i]->link) {
-                err("out of memory");
-                rc = 1;
-                goto out;
+                tool_error("out of memory");
+                return -1;
             }
             snprintf(vb->ep[i]->link, len, "%s%d", link_prefix, i);
             if (link_check(vb->ep[i]->link) < 0) {
-                rc = 1;
-                goto out;
+                return -1;
             }
         }
     }
+    return 0;
+}
+
+static int open_capture(struct vbus *vb)
+{
+    vb->capture = fopen(vb->capture_path, "w");
+    if (!vb->capture) {
+        tool_error("cannot open capture file %s: %s", vb->capture_path, strerror(errno));
+        return -1;
+    }
+    fprintf(vb->capture,
+            "# dan-vbus capture: <time> <source> <baud> <hex> [collision] [noise] [rx=<hex>]\n#");
+    for (int i = 0; i < vb->n; i++) {
+        fprintf(vb->capture, " %d=%s", i, vb->ep[i]->path);
+    }
+    fputc('\n', vb->capture);
+    fflush(vb->capture);
+    return 0;
+}
+
+/* Everything before READY: endpoints, control socket, ptys, capture file,
+ * links; 0 or -1 after a message. */
+static int setup(struct vbus *vb, const char *link_prefix)
+{
+    if (alloc_endpoints(vb, link_prefix) < 0) {
+        return -1;
+    }
     if (vb->control_path && control_open(vb, vb->control_path) < 0) {
-        rc = 1;
-        goto out;
+        return -1;
     }
     for (int i = 0; i < vb->n; i++) {
         if (ep_open(vb, i) < 0) {
-            rc = 1;
-            goto out;
+            return -1;
         }
     }
-    if (vb->capture_path) {
-        vb->capture = fopen(vb->capture_path, "w");
-        if (!vb->capture) {
-            err("cannot open capture file %s: %s", vb->capture_path, strerror(errno));
-            rc = 1;
-            goto out;
-        }
-        fprintf(
-            vb->capture,
-            "# dan-vbus capture: <time> <source> <baud> <hex> [collision] [noise] [rx=<hex>]\n#");
-        for (int i = 0; i < vb->n; i++) {
-            fprintf(vb->capture, " %d=%s", i, vb->ep[i]->path);
-        }
-        fputc('\n', vb->capture);
-        fflush(vb->capture);
+    if (vb->capture_path && open_capture(vb) < 0) {
+        return -1;
     }
     for (int i = 0; i < vb->n; i++) {
         if (vb->ep[i]->link && link_make(vb->ep[i]) < 0) {
-            rc = 1;
-            goto out;
+            return -1;
         }
     }
+    return 0;
+}
 
-    vb->t0 = now_ns();
-    fputs("READY", stdout);
+/* The fds of one ppoll round: endpoints, then the listening socket, then
+ * the connected clients (who[k] is the client of pfd[cidx + k]). */
+struct pollset {
+    struct pollfd pfd[EP_MAX + 1 + MAX_CLIENTS];
+    int who[MAX_CLIENTS];
+    nfds_t nfd, lidx, cidx;
+    int ncl;
+};
+
+static void pollset_add(struct pollset *ps, int fd, short events)
+{
+    ps->pfd[ps->nfd].fd = fd;
+    ps->pfd[ps->nfd].events = events;
+    ps->pfd[ps->nfd].revents = 0;
+    ps->nfd++;
+}
+
+static void pollset_fill(struct vbus *vb, struct pollset *ps)
+{
+    ps->nfd = 0;
     for (int i = 0; i < vb->n; i++) {
-        printf(" %s", vb->ep[i]->path);
+        /* A full transmit queue stops reading: the writer blocks, like a
+         * UART with a full FIFO. Reading resumes once a useful amount of
+         * room is free again. */
+        pollset_add(ps, vb->ep[i]->mfd, vb->ep[i]->qlen <= TXQ_CAP - TXQ_LOW ? POLLIN : 0);
     }
-    putchar('\n');
-    fflush(stdout);
-
-    while (!g_stop && !vb->quit) {
-        struct pollfd pfd[EP_MAX + 1 + MAX_CLIENTS];
-        int who[MAX_CLIENTS];
-        nfds_t nfd = 0;
-        ns_t now = now_ns();
-
-        deliver_due(vb, now);
-
-        for (int i = 0; i < vb->n; i++) {
-            pfd[nfd].fd = vb->ep[i]->mfd;
-            /* A full transmit queue stops reading: the writer blocks,
-             * like a UART with a full FIFO. Reading resumes once a
-             * useful amount of room is free again. */
-            pfd[nfd].events = vb->ep[i]->qlen <= TXQ_CAP - TXQ_LOW ? POLLIN : 0;
-            pfd[nfd].revents = 0;
-            nfd++;
+    ps->lidx = ps->nfd;
+    if (vb->lfd >= 0) {
+        pollset_add(ps, vb->lfd, POLLIN);
+    }
+    ps->cidx = ps->nfd;
+    ps->ncl = 0;
+    for (int i = 0; i < MAX_CLIENTS; i++) {
+        if (vb->cl[i].fd >= 0) {
+            pollset_add(ps, vb->cl[i].fd, POLLIN);
+            ps->who[ps->ncl++] = i;
         }
-        nfds_t lidx = nfd;
-        if (vb->lfd >= 0) {
-            pfd[nfd].fd = vb->lfd;
-            pfd[nfd].events = POLLIN;
-            pfd[nfd].revents = 0;
-            nfd++;
-        }
-        nfds_t cidx = nfd;
-        int ncl = 0;
-        for (int i = 0; i < MAX_CLIENTS; i++) {
-            if (vb->cl[i].fd < 0) {
-                continue;
-            }
-            pfd[nfd].fd = vb->cl[i].fd;
-            pfd[nfd].events = POLLIN;
-            pfd[nfd].revents = 0;
-            who[ncl++] = i;
-            nfd++;
-        }
+    }
+}
 
-        struct timespec ts, *tsp = NULL;
-        ns_t dl = next_deadline(vb);
-        if (dl >= 0) {
-            ns_t wait = dl - now_ns();
-            if (wait < 0) {
-                wait = 0;
-            }
-            ts.tv_sec = (time_t)(wait / 1000000000LL);
-            ts.tv_nsec = (long)(wait % 1000000000LL);
-            tsp = &ts;
+/* ppoll until an fd is ready or the next delivery or burst end is due. */
+static int pollset_wait(struct vbus *vb, struct pollset *ps, const sigset_t *orig)
+{
+    struct timespec ts, *tsp = NULL;
+    ns_t dl = next_deadline(vb);
+    if (dl >= 0) {
+        ns_t wait = dl - now_ns();
+        if (wait < 0) {
+            wait = 0;
         }
-        int pr = ppoll(pfd, nfd, tsp, &orig);
+        ts.tv_sec = (time_t)(wait / NS_PER_S);
+        ts.tv_nsec = (long)(wait % NS_PER_S);
+        tsp = &ts;
+    }
+    return ppoll(ps->pfd, ps->nfd, tsp, orig);
+}
+
+static void pollset_handle(struct vbus *vb, const struct pollset *ps, ns_t now)
+{
+    for (int i = 0; i < vb->n; i++) {
+        if (ps->pfd[i].revents & POLLIN) {
+            read_endpoint(vb, i, now);
+        }
+    }
+    if (vb->lfd >= 0 && (ps->pfd[ps->lidx].revents & POLLIN)) {
+        client_accept(vb);
+    }
+    for (int k = 0; k < ps->ncl; k++) {
+        struct client *cl = &vb->cl[ps->who[k]];
+        if (cl->fd >= 0 && (ps->pfd[ps->cidx + (nfds_t)k].revents & (POLLIN | POLLHUP | POLLERR))) {
+            client_read(vb, cl);
+        }
+    }
+}
+
+/* The bus, until a signal or "quit"; 0, or 1 when poll fails. */
+static int run(struct vbus *vb, const sigset_t *orig)
+{
+    static struct pollset ps;
+    while (!tool_stop && !vb->quit) {
+        int pr;
+        deliver_due(vb, now_ns());
+        pollset_fill(vb, &ps);
+        pr = pollset_wait(vb, &ps, orig);
         if (pr < 0) {
             if (errno == EINTR) {
                 continue;
             }
-            err("poll: %s", strerror(errno));
-            rc = 1;
-            break;
+            tool_error("poll: %s", strerror(errno));
+            return 1;
         }
         if (pr == 0) {
             continue;
         }
-        now = now_ns();
+        ns_t now = now_ns();
         /* Deliver what is due before new bytes join the wire, so a
          * character that already ended cannot collide. */
         deliver_due(vb, now);
-        for (int i = 0; i < vb->n; i++) {
-            if (pfd[i].revents & POLLIN) {
-                read_endpoint(vb, i, now);
-            }
-        }
-        if (vb->lfd >= 0 && (pfd[lidx].revents & POLLIN)) {
-            client_accept(vb);
-        }
-        for (int k = 0; k < ncl; k++) {
-            struct client *cl = &vb->cl[who[k]];
-            if (cl->fd >= 0 && (pfd[cidx + (nfds_t)k].revents & (POLLIN | POLLHUP | POLLERR))) {
-                client_read(vb, cl);
-            }
-        }
+        pollset_handle(vb, &ps, now);
     }
-    if (g_stop) {
+    if (tool_stop) {
         vlog(vb, "signal received, exiting");
     }
+    return 0;
+}
 
-out:
+int main(int argc, char **argv)
+{
+    static struct vbus vbs;
+    struct vbus *vb = &vbs;
+    const char *link_prefix = NULL;
+    uint64_t seed = DEFAULT_SEED;
+    sigset_t orig;
+    int rc = 1;
+
+    tool_prog = PROG;
+    vb->n = 2;
+    vb->lfd = -1;
+    for (int i = 0; i < MAX_CLIENTS; i++) {
+        vb->cl[i].fd = -1;
+    }
+    parse_options(argc, argv, vb, &link_prefix, &seed);
+    vb->noise.s = seed;
+    vb->garbage.s = seed ^ GARBAGE_SEED_XOR;
+    setup_signals(&orig);
+    if (setup(vb, link_prefix) == 0) {
+        vb->t0 = now_ns();
+        fputs("READY", stdout);
+        for (int i = 0; i < vb->n; i++) {
+            printf(" %s", vb->ep[i]->path);
+        }
+        putchar('\n');
+        fflush(stdout);
+        rc = run(vb, &orig);
+    }
     cleanup(vb);
     return rc;
 }
