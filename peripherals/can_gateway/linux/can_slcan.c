@@ -12,6 +12,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <poll.h>
 #include <stdio.h>
 #include <string.h>
@@ -19,6 +20,12 @@
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
+
+#include "dan/posix.h"
+#include "dan_tool.h"
+
+#define CLOSE_ACK_US 100000u /* closing: how long the adapter gets to ACK "C" */
+#define SETTLE_NS 20000000L  /* closing: time for the last frames to reach CAN */
 
 /* ---- pure line codec ---- */
 
@@ -240,20 +247,25 @@ static speed_t baud_to_speed(unsigned baud)
     }
 }
 
-static long ms_left(const struct timespec *deadline)
+/* Waits for fd until deadline (dan_posix_now_us() time): 0 when it may be
+ * ready, DAN_ERR_TIMEOUT with less than a millisecond left, DAN_ERR_IO. */
+static int wait_ready(int fd, short events, uint64_t deadline)
 {
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (long)(deadline->tv_sec - now.tv_sec) * 1000L +
-           (deadline->tv_nsec - now.tv_nsec) / 1000000L;
+    if (dan_posix_now_us() + 1000u > deadline) {
+        return DAN_ERR_TIMEOUT;
+    }
+    if (tool_wait_fd(fd, events, deadline, INT_MAX) < 0 && errno != EINTR) {
+        return DAN_ERR_IO;
+    }
+    return 0;
 }
 
 /* Writes all of s (a short command) before the deadline. */
-static int write_all(int fd, const char *s, size_t n,
-                     const struct timespec *deadline)
+static int write_all(int fd, const char *s, size_t n, uint64_t deadline)
 {
     while (n > 0) {
         ssize_t w = write(fd, s, n);
+        int r;
         if (w > 0) {
             s += w;
             n -= (size_t)w;
@@ -263,13 +275,9 @@ static int write_all(int fd, const char *s, size_t n,
             continue;
         }
         if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-            long left = ms_left(deadline);
-            struct pollfd p = { .fd = fd, .events = POLLOUT, .revents = 0 };
-            if (left <= 0) {
-                return DAN_ERR_TIMEOUT;
-            }
-            if (poll(&p, 1, (int)left) < 0 && errno != EINTR) {
-                return DAN_ERR_IO;
+            r = wait_ready(fd, POLLOUT, deadline);
+            if (r < 0) {
+                return r;
             }
             continue;
         }
@@ -283,7 +291,7 @@ static int write_all(int fd, const char *s, size_t n,
  * are skipped. Bytes read after the answer are kept in c->rxbuf for
  * dan_canif_recv(), so frames that follow the ACK of O are not lost.
  * Returns 0 for ACK, DAN_ERR_REMOTE for BEL, DAN_ERR_TIMEOUT, DAN_ERR_IO. */
-static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
+static int wait_ack(dan_canif_t *c, uint64_t deadline)
 {
     size_t linelen = 0;
     c->rx_pos = c->rx_len = 0;
@@ -319,13 +327,9 @@ static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
         if (errno != EAGAIN && errno != EWOULDBLOCK) {
             return DAN_ERR_IO;
         }
-        long left = ms_left(deadline);
-        if (left <= 0) {
-            return DAN_ERR_TIMEOUT;
-        }
-        struct pollfd p = { .fd = c->fd, .events = POLLIN, .revents = 0 };
-        if (poll(&p, 1, (int)left) < 0 && errno != EINTR) {
-            return DAN_ERR_IO;
+        int r = wait_ready(c->fd, POLLIN, deadline);
+        if (r < 0) {
+            return r;
         }
     }
 }
@@ -342,37 +346,32 @@ static void restore_and_close(dan_canif_t *c)
     c->have_old_tio = 0;
 }
 
-int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
-                         char *err, size_t errlen)
+/* Closes what open got so far and reports why. */
+static int close_fail(dan_canif_t *c, char *err, size_t errlen, int code, const char *path,
+                      const char *what, int errnum)
+{
+    restore_and_close(c);
+    c->kind = DAN_CANIF_NONE;
+    return fail(err, errlen, code, path, what, errnum);
+}
+
+/* Opens path raw at speed, non-blocking, keeping the old settings. */
+static int open_tty(dan_canif_t *c, const char *path, speed_t speed, char *err, size_t errlen)
 {
     struct termios tio;
-    struct timespec deadline;
-    speed_t speed = baud_to_speed(baud);
-    int fd, r;
-
-    if (speed == B0) {
-        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
-                    "unsupported serial baud (use 9600..4000000, a standard "
-                    "rate)", 0);
-    }
-    fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    int fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (fd < 0) {
         int e = errno;
         return fail(err, errlen,
-                    e == ENOENT || e == ENODEV || e == ENXIO
-                        ? DAN_ERR_NOTFOUND : DAN_ERR_IO,
-                    path, e == ENOENT ? "no such device" : "cannot open", e);
+                    e == ENOENT || e == ENODEV || e == ENXIO ? DAN_ERR_NOTFOUND : DAN_ERR_IO, path,
+                    e == ENOENT ? "no such device" : "cannot open", e);
     }
     c->kind = DAN_CANIF_SLCAN;
     c->fd = fd;
     snprintf(c->name, sizeof c->name, "%s", path);
-
     if (tcgetattr(fd, &c->old_tio) < 0) {
-        int e = errno;
-        restore_and_close(c);
-        c->kind = DAN_CANIF_NONE;
-        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
-                    "not a serial port (tcgetattr)", e);
+        return close_fail(c, err, errlen, DAN_ERR_UNSUPPORTED, path,
+                          "not a serial port (tcgetattr)", errno);
     }
     c->have_old_tio = 1;
     tio = c->old_tio;
@@ -384,75 +383,68 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
     cfsetispeed(&tio, speed);
     cfsetospeed(&tio, speed);
     if (tcsetattr(fd, TCSANOW, &tio) < 0) {
-        int e = errno;
-        restore_and_close(c);
-        c->kind = DAN_CANIF_NONE;
-        return fail(err, errlen, DAN_ERR_IO, path, "tcsetattr", e);
+        return close_fail(c, err, errlen, DAN_ERR_IO, path, "tcsetattr", errno);
     }
     tcflush(fd, TCIOFLUSH);
+    return 0;
+}
 
-    clock_gettime(CLOCK_MONOTONIC, &deadline);
-    deadline.tv_sec += (time_t)(c->open_timeout_ms / 1000u);
-    deadline.tv_nsec += (long)(c->open_timeout_ms % 1000u) * 1000000L;
-    if (deadline.tv_nsec >= 1000000000L) {
-        deadline.tv_sec++;
-        deadline.tv_nsec -= 1000000000L;
-    }
+/* The handshake's commands, in order, and what to say when one fails. */
+static const struct {
+    const char *cmd;
+    const char *refused;   /* answered with BEL; NULL: a BEL is fine too */
+    const char *no_answer; /* DAN_ERR_TIMEOUT */
+    const char *io;        /* any other error */
+} handshake[] = {
+    /* Close the channel in case it was left open: ACK or BEL are both fine
+     * (some adapters refuse C when closed). */
+    {"C\r", NULL,
+     "no answer from adapter to C in time (not an SLCAN adapter, or wrong baud?)",
+     "I/O error during C (close channel)"},
+    {"S8\r", "adapter refused S8 (1 Mbit/s) with BEL",
+     "no answer from adapter to S8 in time (not an SLCAN adapter, or wrong baud?)",
+     "I/O error during S8 (set bitrate)"},
+    {"O\r", "adapter refused O (open channel) with BEL", "no answer from adapter to O",
+     "I/O error during O (open channel)"},
+};
 
-    /* Close the channel in case it was left open: ACK or BEL are both
-     * fine (some adapters refuse C when closed). Then drop whatever frames
-     * were still arriving. */
-    r = write_all(fd, "C\r", 2, &deadline);
-    if (r == 0) {
-        r = wait_ack(c, &deadline);
+int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *err,
+                         size_t errlen)
+{
+    speed_t speed = baud_to_speed(baud);
+    uint64_t deadline;
+    size_t i;
+    int r;
+
+    if (speed == B0) {
+        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
+                    "unsupported serial baud (use 9600..4000000, a standard rate)", 0);
     }
-    if (r == DAN_ERR_REMOTE) {
-        r = 0;
+    r = open_tty(c, path, speed, err, errlen);
+    if (r < 0) {
+        return r;
     }
-    if (r == 0) {
-        tcflush(fd, TCIFLUSH);
-        c->rx_pos = c->rx_len = 0;
-        r = write_all(fd, "S8\r", 3, &deadline);
+    deadline = dan_posix_now_us() + (uint64_t)c->open_timeout_ms * 1000u;
+    for (i = 0; i < sizeof handshake / sizeof handshake[0]; i++) {
+        r = write_all(c->fd, handshake[i].cmd, strlen(handshake[i].cmd), deadline);
         if (r == 0) {
-            r = wait_ack(c, &deadline);
+            r = wait_ack(c, deadline);
         }
-        if (r == 0) {
-            r = write_all(fd, "O\r", 2, &deadline);
-            if (r == 0) {
-                r = wait_ack(c, &deadline);
-            }
-            if (r < 0) {
-                restore_and_close(c);
-                c->kind = DAN_CANIF_NONE;
-                return fail(err, errlen, r, path,
-                            r == DAN_ERR_REMOTE
-                                ? "adapter refused O (open channel) with BEL"
-                                : r == DAN_ERR_TIMEOUT
-                                      ? "no answer from adapter to O"
-                                      : "I/O error during O (open channel)",
-                            0);
-            }
-        } else {
-            restore_and_close(c);
-            c->kind = DAN_CANIF_NONE;
-            return fail(err, errlen, r, path,
-                        r == DAN_ERR_REMOTE
-                            ? "adapter refused S8 (1 Mbit/s) with BEL"
-                            : r == DAN_ERR_TIMEOUT
-                                  ? "no answer from adapter to S8 in time "
-                                    "(not an SLCAN adapter, or wrong baud?)"
-                                  : "I/O error during S8 (set bitrate)",
-                        0);
+        if (r == DAN_ERR_REMOTE && handshake[i].refused == NULL) {
+            r = 0;
         }
-    } else {
-        restore_and_close(c);
-        c->kind = DAN_CANIF_NONE;
-        return fail(err, errlen, r, path,
-                    r == DAN_ERR_TIMEOUT
-                        ? "no answer from adapter to C in time "
-                          "(not an SLCAN adapter, or wrong baud?)"
-                        : "I/O error during C (close channel)",
-                    0);
+        if (r < 0) {
+            return close_fail(c, err, errlen, r, path,
+                              r == DAN_ERR_REMOTE    ? handshake[i].refused
+                              : r == DAN_ERR_TIMEOUT ? handshake[i].no_answer
+                                                     : handshake[i].io,
+                              0);
+        }
+        if (i == 0) {
+            /* Drop whatever frames were still arriving on the old channel. */
+            tcflush(c->fd, TCIFLUSH);
+            c->rx_pos = c->rx_len = 0;
+        }
     }
     return 0;
 }
@@ -612,30 +604,22 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 void dan_canif_slcan_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
-        struct timespec deadline;
-        /* Best effort: close the CAN channel, give the adapter 100 ms to
-         * take it, then restore the tty. */
-        clock_gettime(CLOCK_MONOTONIC, &deadline);
-        deadline.tv_nsec += 100000000L;
-        if (deadline.tv_nsec >= 1000000000L) {
-            deadline.tv_sec++;
-            deadline.tv_nsec -= 1000000000L;
-        }
+        /* Best effort: close the CAN channel, give the adapter
+         * CLOSE_ACK_US to take it, then restore the tty. */
+        uint64_t deadline = dan_posix_now_us() + CLOSE_ACK_US;
+        struct timespec settle = {0, SETTLE_NS};
         /* The last frames written are the failsafe's: let them leave the
          * tty and reach the bus before the channel closes (adapters may
          * drop frames still queued on C). A line cut short gets its end so
          * "C" is not glued to it. */
         if (c->tx_len > 0) {
-            (void)write_all(c->fd, "\r", 1, &deadline);
+            (void)write_all(c->fd, "\r", 1, deadline);
         }
         c->tx_len = 0;
         (void)tcdrain(c->fd);
-        {
-            struct timespec settle = {0, 20000000L}; /* the adapter sends them on CAN */
-            (void)nanosleep(&settle, NULL);
-        }
-        if (write_all(c->fd, "C\r", 2, &deadline) == 0) {
-            (void)wait_ack(c, &deadline);
+        (void)nanosleep(&settle, NULL); /* the adapter sends them on CAN */
+        if (write_all(c->fd, "C\r", 2, deadline) == 0) {
+            (void)wait_ack(c, deadline);
         }
         (void)tcdrain(c->fd);
     }
