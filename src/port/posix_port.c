@@ -13,6 +13,11 @@
 
 #include "dan/posix.h"
 
+/* A full tty buffer is waited out for at most WRITE_SPINS * WRITE_SPIN_US
+ * (0.1 s) before a write counts as failed. */
+#define WRITE_SPINS   1000
+#define WRITE_SPIN_US 100u
+
 uint64_t dan_posix_now_us(void)
 {
     struct timespec ts;
@@ -34,10 +39,10 @@ static int port_write(void *ctx, const uint8_t *data, size_t len)
         if (n < 0 && errno == EINTR) {
             continue;
         }
-        if (n < 0 && errno == EAGAIN && spins++ < 1000) {
+        if (n < 0 && errno == EAGAIN && spins++ < WRITE_SPINS) {
             /* The kernel buffer (4 KiB) is far larger than a frame; it is
              * only full if the line is stuck. Wait for room, briefly. */
-            usleep(100);
+            usleep(WRITE_SPIN_US);
             continue;
         }
         p->write_errors++;

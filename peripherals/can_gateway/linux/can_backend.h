@@ -139,6 +139,12 @@ int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap);
 int dan_can_parse_cansend(const char *s, dan_can_frame_t *f);
 
 /* ---- backend entry points, used by the dispatcher ---- */
+
+/* A backend's error message, "KIND:NAME: WHAT[: strerror(errnum)]" (none
+ * when err is NULL or errlen 0); returns code. */
+int dan_canif_errf(char *err, size_t errlen, int code, const char *kind, const char *name,
+                   const char *what, int errnum);
+
 int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
                          char *err, size_t errlen);
 int dan_canif_slcan_send(dan_canif_t *c, const dan_can_frame_t *f);

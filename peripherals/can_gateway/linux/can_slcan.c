@@ -24,6 +24,8 @@
 #include "dan/posix.h"
 #include "dan_tool.h"
 
+#define READS_PER_CALL 4 /* recv: reads at most, so garbage cannot hold the loop */
+#define US_PER_MS      1000u
 #define CLOSE_ACK_US 100000u /* closing: how long the adapter gets to ACK "C" */
 #define SETTLE_NS 20000000L  /* closing: time for the last frames to reach CAN */
 
@@ -212,18 +214,9 @@ int dan_can_parse_cansend(const char *s, dan_can_frame_t *f)
 
 /* ---- tty helpers ---- */
 
-static int fail(char *err, size_t errlen, int code, const char *path,
-                const char *what, int errnum)
+static int fail(char *err, size_t errlen, int code, const char *path, const char *what, int errnum)
 {
-    if (err && errlen) {
-        if (errnum) {
-            snprintf(err, errlen, "slcan:%s: %s: %s", path, what,
-                     strerror(errnum));
-        } else {
-            snprintf(err, errlen, "slcan:%s: %s", path, what);
-        }
-    }
-    return code;
+    return dan_canif_errf(err, errlen, code, "slcan", path, what, errnum);
 }
 
 static speed_t baud_to_speed(unsigned baud)
@@ -251,7 +244,7 @@ static speed_t baud_to_speed(unsigned baud)
  * ready, DAN_ERR_TIMEOUT with less than a millisecond left, DAN_ERR_IO. */
 static int wait_ready(int fd, short events, uint64_t deadline)
 {
-    if (dan_posix_now_us() + 1000u > deadline) {
+    if (dan_posix_now_us() + US_PER_MS > deadline) {
         return DAN_ERR_TIMEOUT;
     }
     if (tool_wait_fd(fd, events, deadline, INT_MAX) < 0 && errno != EINTR) {
@@ -424,7 +417,7 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *
     if (r < 0) {
         return r;
     }
-    deadline = dan_posix_now_us() + (uint64_t)c->open_timeout_ms * 1000u;
+    deadline = dan_posix_now_us() + (uint64_t)c->open_timeout_ms * US_PER_MS;
     for (i = 0; i < sizeof handshake / sizeof handshake[0]; i++) {
         r = write_all(c->fd, handshake[i].cmd, strlen(handshake[i].cmd), deadline);
         if (r == 0) {
@@ -563,7 +556,7 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 {
     /* A few reads at most per call, so a flood of garbage cannot keep the
      * caller's loop here; the fd stays readable and poll comes back. */
-    for (int reads = 0; reads < 4; reads++) {
+    for (int reads = 0; reads < READS_PER_CALL; reads++) {
         while (c->rx_pos < c->rx_len) {
             char b = (char)c->rxbuf[c->rx_pos++];
             if (feed(c, b, f) == 1) {

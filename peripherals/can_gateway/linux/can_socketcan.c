@@ -18,27 +18,24 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+/* Reads per recv call at most (bad frames are skipped), so a flood of
+ * them cannot keep the caller's loop here. */
+#define READS_PER_CALL 8
+
 #ifndef PF_CAN
 #define PF_CAN 29
 #endif
 
-static int fail(dan_canif_t *c, char *err, size_t errlen, int code,
-                const char *ifname, const char *what, int errnum)
+/* Closes what open got so far and reports why. */
+static int fail(dan_canif_t *c, char *err, size_t errlen, int code, const char *ifname,
+                const char *what, int errnum)
 {
     if (c->fd >= 0) {
         close(c->fd);
     }
     c->fd = -1;
     c->kind = DAN_CANIF_NONE;
-    if (err && errlen) {
-        if (errnum) {
-            snprintf(err, errlen, "socketcan:%s: %s: %s", ifname, what,
-                     strerror(errnum));
-        } else {
-            snprintf(err, errlen, "socketcan:%s: %s", ifname, what);
-        }
-    }
-    return code;
+    return dan_canif_errf(err, errlen, code, "socketcan", ifname, what, errnum);
 }
 
 int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
@@ -145,7 +142,7 @@ int dan_canif_socketcan_send(dan_canif_t *c, const dan_can_frame_t *f)
 
 int dan_canif_socketcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 {
-    for (int tries = 0; tries < 8; tries++) {
+    for (int tries = 0; tries < READS_PER_CALL; tries++) {
         struct can_frame cf;
         ssize_t n = read(c->fd, &cf, sizeof cf);
         if (n < 0) {
