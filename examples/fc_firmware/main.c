@@ -162,7 +162,8 @@ struct app {
     int gw_result;
 };
 
-static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST, DAN_TYPE_CAN_GW_FIRST};
+static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST,
+                                     DAN_TYPE_CAN_GW_FIRST};
 
 /* -- discover -- */
 

@@ -157,7 +157,9 @@ static void print_txn(ctx_t *c, const char *step, uint32_t code, int r, double m
     size_t i;
     if (c->json) {
         printf("{\"step\":\"%s\",\"code\":%u,\"result\":%d,\"error\":", step, code, r);
-        tool_json_str(stdout, r == DAN_OK ? "" : r == DAN_ERR_REMOTE ? c->m.remote_error.text : dan_strerror(r));
+        tool_json_str(stdout, r == DAN_OK           ? ""
+                              : r == DAN_ERR_REMOTE ? c->m.remote_error.text
+                                                    : dan_strerror(r));
         printf(",\"ms\":%.2f,\"payload\":\"", ms);
         for (i = 0; r == DAN_OK && i < c->m.resp_len; i++) {
             printf("%02x", c->m.resp[i]);
@@ -183,15 +185,16 @@ static void print_stats(ctx_t *c)
     const dan_master_stats_t *s = &c->m.stats;
     const dan_link_stats_t *l = &c->m.link.stats;
     const dan_decoder_stats_t *d = &c->m.link.dec.stats;
-    printf("%s\"step\":\"stats\",\"transactions\":%u,\"ok\":%u,\"timeouts\":%u,\"retries\":%u,"
-           "\"remote_errors\":%u,\"stray\":%u,\"lbt_waits\":%u,\"busy_failures\":%u,\"recoveries\":%u,"
-           "\"tx_frames\":%u,\"tx_bytes\":%u,\"rx_bytes\":%u,\"collisions\":%u,\"echo_timeouts\":%u,"
-           "\"rx_frames\":%u,\"crc_errors\":%u,\"oversize\":%u,\"bad_varint\":%u,\"garbage\":%u,"
-           "\"aborted\":%u%s\n",
-           c->json ? "{" : "stats: {", s->transactions, s->ok, s->timeouts, s->retries, s->remote_errors,
-           s->stray, s->lbt_waits, s->busy_failures, s->recoveries, l->tx_frames, l->tx_bytes,
-           l->rx_bytes, l->collisions, l->echo_timeouts, d->frames, d->crc_errors, d->oversize,
-           d->bad_varint, d->garbage, d->aborted, "}");
+    printf(
+        "%s\"step\":\"stats\",\"transactions\":%u,\"ok\":%u,\"timeouts\":%u,\"retries\":%u,"
+        "\"remote_errors\":%u,\"stray\":%u,\"lbt_waits\":%u,\"busy_failures\":%u,\"recoveries\":%u,"
+        "\"tx_frames\":%u,\"tx_bytes\":%u,\"rx_bytes\":%u,\"collisions\":%u,\"echo_timeouts\":%u,"
+        "\"rx_frames\":%u,\"crc_errors\":%u,\"oversize\":%u,\"bad_varint\":%u,\"garbage\":%u,"
+        "\"aborted\":%u%s\n",
+        c->json ? "{" : "stats: {", s->transactions, s->ok, s->timeouts, s->retries,
+        s->remote_errors, s->stray, s->lbt_waits, s->busy_failures, s->recoveries, l->tx_frames,
+        l->tx_bytes, l->rx_bytes, l->collisions, l->echo_timeouts, d->frames, d->crc_errors,
+        d->oversize, d->bad_varint, d->garbage, d->aborted, "}");
 }
 
 static double ms_since(uint64_t t0)

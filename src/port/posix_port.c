@@ -114,7 +114,9 @@ int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud,
     if (p->fd < 0) {
         int e = errno;
         snprintf(err, errlen, "%s: %s", path, strerror(e));
-        return (e == ENOENT) ? DAN_ERR_NOTFOUND : (e == EBUSY || e == EACCES) ? DAN_ERR_BUSY : DAN_ERR_IO;
+        return (e == ENOENT)                 ? DAN_ERR_NOTFOUND
+               : (e == EBUSY || e == EACCES) ? DAN_ERR_BUSY
+                                             : DAN_ERR_IO;
     }
     if (tcgetattr(p->fd, &t) != 0) {
         snprintf(err, errlen, "%s: not a serial port (%s)", path, strerror(errno));

@@ -194,8 +194,10 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
         next += hz ? 1000000u / hz : 0u;
         for (i = 0; i < n; i++) {
             if (to != NULL && ms > 0u) {
-                uint64_t el = now - start > (uint64_t)ms * 1000u ? (uint64_t)ms * 1000u : now - start;
-                v[i] = (int16_t)(from[i] + (int32_t)((to[i] - from[i]) * (int64_t)el / ((int64_t)ms * 1000)));
+                uint64_t el =
+                    now - start > (uint64_t)ms * 1000u ? (uint64_t)ms * 1000u : now - start;
+                v[i] = (int16_t)(from[i] +
+                                 (int32_t)((to[i] - from[i]) * (int64_t)el / ((int64_t)ms * 1000)));
             } else {
                 v[i] = from[i];
             }
@@ -265,7 +267,9 @@ static int step_xfer(const char *step, char *args)
     uint32_t xfers = 0;
     uint64_t start, deadline;
     int rc;
-    if (sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms) < 4) {
+    int fields =
+        sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms);
+    if (fields < 4) {
         return fail(step, DAN_ERR_ARG);
     }
     if (strcmp(infile, "-") != 0) {
@@ -606,7 +610,8 @@ static size_t split_commas(char *args, char **tok, size_t cap)
 {
     char *t, *save = NULL;
     size_t n = 0;
-    for (t = args ? strtok_r(args, ",", &save) : NULL; t && n < cap; t = strtok_r(NULL, ",", &save)) {
+    for (t = args ? strtok_r(args, ",", &save) : NULL; t && n < cap;
+         t = strtok_r(NULL, ",", &save)) {
         tok[n++] = t;
     }
     return n;
@@ -771,7 +776,8 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[i], "--recover") && i + 1 < argc) {
             g_recover = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--help")) {
-            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N] STEP...\n"
+            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] "
+                   "[--recover N] STEP...\n"
                    "(steps: see the comment at the top of tests/tools/dan-fcsim.c)\n");
             return 0;
         } else if (argv[i][0] == '-') {
@@ -795,7 +801,8 @@ int main(int argc, char **argv)
     mc.resp_latency_us = latency_ms * 1000u;
     mc.gap_us = gap_ms * 1000u;
     mc.retries = 3;
-    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, 9600, dan_posix_now_us()) != DAN_OK) {
+    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, 9600, dan_posix_now_us()) !=
+        DAN_OK) {
         tool_error("master init failed");
         return 2;
     }

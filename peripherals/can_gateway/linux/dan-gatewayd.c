@@ -73,24 +73,24 @@ static void logmsg(int prio, const char *fmt, ...)
 
 static void usage(FILE *o)
 {
-    fprintf(o,
-        "usage: dan-gatewayd --uart TTY --can BACKEND [options]\n"
-        "  --uart TTY            DAN UART (single-wire bus)\n"
-        "  --can SPEC            socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
-        "  --node-id N           DroneCAN node id, 1..127 (default 10)\n"
-        "  --uart-baud B         start baud (default 9600, the DAN power-up baud)\n"
-        "  --no-echo             the UART does not hear its own bytes\n"
-        "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod)\n"
-        "  --de-active-low       the pin is active low\n"
-        "  --esc-timeout-ms N    failsafe after N ms without ESC commands (50..60000, default 500)\n"
-        "  --arming-rate-hz N    ArmingStatus rate, 1..50 (default 2)\n"
-        "  --gap-ms N            DAN inter-byte gap (default 20; ptys and USB add latency)\n"
-        "  --reply-window-ms N   DAN reply window (default 50)\n"
-        "  --stats-file PATH     write counters as JSON every second\n"
-        "  --syslog              log to syslog instead of stderr\n"
-        "  --verbose             more log lines\n"
-        "  --help\n"
-        "exit: 0 after SIGTERM/SIGINT, 1 runtime failure, 2 bad arguments or device\n");
+    fprintf(o, "usage: dan-gatewayd --uart TTY --can BACKEND [options]\n"
+               "  --uart TTY            DAN UART (single-wire bus)\n"
+               "  --can SPEC            socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
+               "  --node-id N           DroneCAN node id, 1..127 (default 10)\n"
+               "  --uart-baud B         start baud (default 9600, the DAN power-up baud)\n"
+               "  --no-echo             the UART does not hear its own bytes\n"
+               "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod)\n"
+               "  --de-active-low       the pin is active low\n"
+               "  --esc-timeout-ms N    failsafe after N ms without ESC commands (50..60000, "
+               "default 500)\n"
+               "  --arming-rate-hz N    ArmingStatus rate, 1..50 (default 2)\n"
+               "  --gap-ms N            DAN inter-byte gap (default 20; ptys and USB add latency)\n"
+               "  --reply-window-ms N   DAN reply window (default 50)\n"
+               "  --stats-file PATH     write counters as JSON every second\n"
+               "  --syslog              log to syslog instead of stderr\n"
+               "  --verbose             more log lines\n"
+               "  --help\n"
+               "exit: 0 after SIGTERM/SIGINT, 1 runtime failure, 2 bad arguments or device\n");
 }
 
 typedef struct {
