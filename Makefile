@@ -45,7 +45,9 @@ GW_NODE_SRC   := $(wildcard $(GW_DIR)/gw_node*.c) $(GW_DIR)/dronecan.c $(GW_DIR)
 GW_LINUX_SRC  := $(filter-out $(GW_DIR)/linux/dan-gatewayd.c,$(wildcard $(GW_DIR)/linux/*.c))
 GWD_MAIN      := $(GW_DIR)/linux/dan-gatewayd.c
 
-TOOL_SRC  := $(wildcard host_tools/c/*.c)
+# The tools' shared helper (dan_tool.c) is a library, not a program.
+TOOL_LIB_SRC := host_tools/c/dan_tool.c
+TOOL_SRC  := $(filter-out $(TOOL_LIB_SRC),$(wildcard host_tools/c/*.c))
 TTOOL_SRC := $(wildcard tests/tools/*.c)
 UNIT_SRC  := $(wildcard tests/unit/test_*.c)
 UNIT_HELP := $(filter-out $(UNIT_SRC),$(wildcard tests/unit/*.c))
@@ -56,7 +58,7 @@ PORTABLE_SRC := $(CORE_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC)
 INCLUDES := -Iinclude $(patsubst %,-I%,$(wildcard peripherals/*/include))
 CFLAGS_ALL   = $(WARN) $(OPT) $(INCLUDES) -MMD -MP $(EXTRA_CFLAGS)
 # POSIX code (the port, tools, daemons, tests) may use POSIX and Linux.
-CFLAGS_POSIX = $(CFLAGS_ALL) -D_GNU_SOURCE $(GPIOD_CFLAGS)
+CFLAGS_POSIX = $(CFLAGS_ALL) -D_GNU_SOURCE $(GPIOD_CFLAGS) -Ihost_tools/c
 
 # libgpiod (v1 API) drives a direction pin. GPIOD=0 builds without it.
 GPIOD ?= 1
@@ -72,7 +74,8 @@ LIBPOSIX   := $(BUILD)/libdan_posix.a
 LIBGW      := $(BUILD)/libdan_can_gw.a
 LIBGWNODE  := $(BUILD)/libdan_can_gw_node.a
 LIBGWLINUX := $(BUILD)/libdan_can_gw_linux.a
-ALL_LIBS   := $(LIBGWLINUX) $(LIBGWNODE) $(LIBGW) $(LIBPOSIX) $(LIB)
+LIBTOOL    := $(BUILD)/libdan_tool.a
+ALL_LIBS   := $(LIBGWLINUX) $(LIBTOOL) $(LIBGWNODE) $(LIBGW) $(LIBPOSIX) $(LIB)
 BINS       := $(patsubst host_tools/c/%.c,$(BUILD)/bin/%,$(TOOL_SRC)) \
               $(patsubst tests/tools/%.c,$(BUILD)/bin/%,$(TTOOL_SRC)) \
               $(BUILD)/bin/dan-gatewayd
@@ -156,7 +159,7 @@ $(BUILD)/obj/%.o: %.c
 # Naming every object here keeps them from being treated as intermediate
 # files (deleted after linking, and not rebuilt when a header changes).
 objects: $(call obj,$(CORE_SRC) $(PORT_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC) $(GW_LINUX_SRC) \
-                    $(GWD_MAIN) $(TOOL_SRC) $(TTOOL_SRC) $(UNIT_SRC) $(UNIT_HELP))
+                    $(GWD_MAIN) $(TOOL_SRC) $(TOOL_LIB_SRC) $(TTOOL_SRC) $(UNIT_SRC) $(UNIT_HELP))
 
 # $(call archive,objects)
 define archive
@@ -173,12 +176,19 @@ $(LIBGWNODE): $(call obj,$(GW_NODE_SRC))
 	$(call archive,$^)
 $(LIBGWLINUX): $(call obj,$(GW_LINUX_SRC))
 	$(call archive,$^)
+$(LIBTOOL): $(call obj,$(TOOL_LIB_SRC))
+	$(call archive,$^)
 
 LDLIBS := $(GPIOD_LIBS) -lutil -lm
 $(BUILD)/bin/%: $(BUILD)/obj/host_tools/c/%.o $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 $(BUILD)/bin/%: $(BUILD)/obj/tests/tools/%.o $(ALL_LIBS)
+	@mkdir -p $(@D)
+	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
+# The test-a type's handlers, shared with the unit tests.
+$(BUILD)/bin/dan-testperiph: $(BUILD)/obj/tests/tools/dan-testperiph.o \
+                             $(BUILD)/obj/tests/unit/handlers_test_a.o $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 $(BUILD)/bin/dan-gatewayd: $(call obj,$(GWD_MAIN)) $(ALL_LIBS)

@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "dan/dan.h"
+#include "dan/identity_json.h"
 #include "dan/rxring.h"
 #include "dan/can_gw/client.h"
 #include "board.h"
@@ -30,6 +31,12 @@
 #define RAMP_PERIOD_US 20000u        /* 50 Hz command rate */
 #define RAMP_MAX 2000                /* raw command at the top (of 8191) */
 #define NUM_ESC 4u
+#define DAN_START_BAUD 9600u         /* DAN starts at 9600 */
+#define REPLY_LATENCY_US 50000u      /* a reply may start this late (QEMU, the pty) */
+#define GAP_US 20000u                /* bytes may come in bursts this far apart */
+#define RETRIES 2u                   /* extra attempts per transaction */
+#define BACKOFF_SEED 0x5EEDu         /* any value: the backoff jitter's seed */
+#define IDLE_MIN_US 1000u            /* sleep only when nothing is due within a SysTick */
 
 /* ---- output: one JSON object per line ---- */
 
@@ -81,24 +88,10 @@ static void o_hex(const uint8_t *p, size_t n)
     }
 }
 
-/* A JSON string: quoted, with quotes, backslashes and control bytes escaped. */
+/* A JSON string, escaped by libdan's one JSON formatter. */
 static void o_jstr(const char *s)
 {
-    o_str("\"");
-    for (; *s != '\0'; s++) {
-        unsigned char ch = (unsigned char)*s;
-        char one[2] = {0, 0};
-        if (ch == '"' || ch == '\\') {
-            o_str(ch == '"' ? "\\\"" : "\\\\");
-        } else if (ch < 0x20u || ch >= 0x7Fu) {
-            o_str("\\u00");
-            o_hex(&ch, 1);
-        } else {
-            one[0] = (char)ch;
-            o_str(one);
-        }
-    }
-    o_str("\"");
+    out_len += dan_json_str(out_line + out_len, sizeof out_line - 1u - out_len, s);
 }
 
 /* ,"key": */
@@ -169,13 +162,8 @@ struct app {
     int gw_result;
 };
 
-static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST, DAN_TYPE_CAN_GW_FIRST};
-
-static const char *type_name(uint32_t first)
-{
-    const dan_type_info_t *t = dan_type_of_code(first);
-    return (t != NULL) ? t->name : "?";
-}
+static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST,
+                                     DAN_TYPE_CAN_GW_FIRST};
 
 /* -- discover -- */
 
@@ -201,21 +189,8 @@ static step_t discover_done(app_t *a, int r, uint64_t now)
         if (!p->present) {
             continue;
         }
-        o_str(first ? "{\"type\":" : ",{\"type\":");
-        o_jstr(type_name(p->first_code));
-        o_key("baud");
-        o_u32(p->baud);
-        o_key("dan_version");
-        o_u32(p->identity.dan_version);
-        o_key("manufacturer");
-        o_jstr(p->identity.manufacturer);
-        o_key("model");
-        o_jstr(p->identity.model);
-        o_key("sw_version");
-        o_jstr(p->identity.sw_version);
-        o_key("baud_mask");
-        o_u32(p->identity.baud_mask);
-        o_str("}");
+        o_str(first ? "" : ",");
+        out_len += dan_peer_json(out_line + out_len, sizeof out_line - 1u - out_len, p, 0);
         first = false;
     }
     o_str("]");
@@ -526,108 +501,127 @@ static int parse_gw_mode(const char *cmdline)
     return GW_TRY;
 }
 
-int main(void)
+static void next_phase(app_t *a)
 {
-    static app_t a;
-    static char cmdline[128];
-    dan_master_config_t cfg;
-    uint64_t now, deadline;
-    int code = 0;
+    a->phase++;
+    a->k = 0;
+    a->not_before = 0;
+}
 
-    clock_init();
-    uart0_init(9600);                   /* DAN starts at 9600 */
-    sh_cmdline(cmdline, sizeof cmdline);
-    a.gw_mode = parse_gw_mode(cmdline);
+/* Starts the phase's next operation, or skips the phase. Returns DAN_OK
+ * (started or skipped: go straight on), FW_WAIT (not before
+ * a->not_before) or an error (reported: the run fails). */
+static int start_phase(app_t *a, uint64_t now)
+{
+    int r = phases[a->phase].start(a, now);
+    if (r == DAN_OK) {
+        a->op_running = true;
+        a->op_t0 = now;
+    } else if (r == FW_SKIP) {
+        next_phase(a);
+        r = DAN_OK;
+    } else if (r != FW_WAIT) {
+        o_begin(phases[a->phase].name);
+        o_result(r);
+        o_end();
+    }
+    return r;
+}
 
-    /* The same settings as dan-master on a pty: a reply may start 50 ms
-     * late and bytes may come in bursts (QEMU and the pty, not the wire). */
-    dan_master_config_default(&cfg);
-    cfg.resp_latency_us = 50000u;
-    cfg.gap_us = 20000u;
-    cfg.retries = 2;
-    cfg.seed = 0x5EEDu;
+/* One turn of the main loop: -1 to go on, else the exit code. */
+static int tick(app_t *a, uint64_t deadline)
+{
+    uint8_t buf[64];
+    size_t n;
+    uint64_t now, next;
+
+    /* The only consumer of the ring: bytes go to the engine in order,
+     * stamped with the time they are handed over. */
+    while ((n = dan_rxring_get_many(&uart0_rx, buf, sizeof buf)) > 0u) {
+        dan_master_rx(&a->m, buf, n, clock_now_us());
+    }
     now = clock_now_us();
-    deadline = now + FW_RUN_LIMIT_US;
-    if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types, sizeof bus_types / sizeof bus_types[0], 9600,
-                        now) != DAN_OK) {
-        sh_puts("{\"event\":\"init failed\"}\n");
+    if (now > deadline) {
+        o_begin(phases[a->phase].name);
+        o_result(DAN_ERR_TIMEOUT);
+        o_key("note");
+        o_jstr("run limit");
+        o_end();
         return 1;
     }
+    if (dan_master_poll(&a->m, now) && a->op_running) {
+        step_t st;
+        a->op_running = false;
+        st = phases[a->phase].done(a, dan_master_result(&a->m), now);
+        if (st == STEP_NEXT) {
+            next_phase(a);
+        }
+        return st == STEP_FAIL ? 1 : -1;
+    }
+    if (!a->op_running) {
+        int r = start_phase(a, now);
+        if (r != FW_WAIT) {
+            return r == DAN_OK ? -1 : 1;
+        }
+        next = a->not_before;
+    } else {
+        next = dan_master_next_us(&a->m);
+    }
+    if (next > now + IDLE_MIN_US) {
+        board_idle(); /* wakes on the next SysTick (1 ms) or byte */
+    }
+    return -1;
+}
+
+static void print_boot(const app_t *a, const char *cmdline)
+{
     o_begin("boot");
     o_key("fw");
     o_jstr("fc_firmware");
     o_key("cmdline");
     o_jstr(cmdline);
     o_key("gw_mode");
-    o_jstr(a.gw_mode == GW_OFF ? "off" : a.gw_mode == GW_REQUIRE ? "require" : "try");
+    o_jstr(a->gw_mode == GW_OFF ? "off" : a->gw_mode == GW_REQUIRE ? "require" : "try");
     o_key("rxring");
     o_u32(DAN_RXRING_SIZE);
     o_key("master_bytes");
-    o_u32((uint32_t)sizeof a.m);
+    o_u32((uint32_t)sizeof a->m);
     o_end();
+}
 
-    while (a.phase < NUM_PHASES) {
-        uint8_t buf[64];
-        size_t n;
-        uint64_t next;
+int main(void)
+{
+    static app_t a;
+    static char cmdline[128];
+    dan_master_config_t cfg;
+    uint64_t now, deadline;
+    int code = -1;
 
-        /* The only consumer of the ring: bytes go to the engine in order,
-         * stamped with the time they are handed over. */
-        while ((n = dan_rxring_get_many(&uart0_rx, buf, sizeof buf)) > 0u) {
-            dan_master_rx(&a.m, buf, n, clock_now_us());
-        }
-        now = clock_now_us();
-        if (now > deadline) {
-            o_begin(phases[a.phase].name);
-            o_result(DAN_ERR_TIMEOUT);
-            o_key("note");
-            o_jstr("run limit");
-            o_end();
-            code = 1;
-            break;
-        }
-        if (dan_master_poll(&a.m, now) && a.op_running) {
-            step_t st;
-            a.op_running = false;
-            st = phases[a.phase].done(&a, dan_master_result(&a.m), now);
-            if (st == STEP_FAIL) {
-                code = 1;
-                break;
-            }
-            if (st == STEP_NEXT) {
-                a.phase++;
-                a.k = 0;
-                a.not_before = 0;
-            }
-            continue;
-        }
-        if (!a.op_running) {
-            int r = phases[a.phase].start(&a, now);
-            if (r == DAN_OK) {
-                a.op_running = true;
-                a.op_t0 = now;
-                continue;
-            }
-            if (r == FW_SKIP) {
-                a.phase++;
-                a.k = 0;
-                a.not_before = 0;
-                continue;
-            }
-            if (r != FW_WAIT) {
-                o_begin(phases[a.phase].name);
-                o_result(r);
-                o_end();
-                code = 1;
-                break;
-            }
-            next = a.not_before;
-        } else {
-            next = dan_master_next_us(&a.m);
-        }
-        if (next > now + 1000u) {
-            board_idle();   /* wakes on the next SysTick (1 ms) or byte */
-        }
+    clock_init();
+    uart0_init(DAN_START_BAUD);
+    sh_cmdline(cmdline, sizeof cmdline);
+    a.gw_mode = parse_gw_mode(cmdline);
+
+    /* The same settings as dan-master on a pty: a reply may start 50 ms
+     * late and bytes may come in bursts (QEMU and the pty, not the wire). */
+    dan_master_config_default(&cfg);
+    cfg.resp_latency_us = REPLY_LATENCY_US;
+    cfg.gap_us = GAP_US;
+    cfg.retries = RETRIES;
+    cfg.seed = BACKOFF_SEED;
+    now = clock_now_us();
+    deadline = now + FW_RUN_LIMIT_US;
+    if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types,
+                        sizeof bus_types / sizeof bus_types[0], DAN_START_BAUD, now) != DAN_OK) {
+        sh_puts("{\"event\":\"init failed\"}\n");
+        return 1;
+    }
+    print_boot(&a, cmdline);
+    while (code < 0 && a.phase < NUM_PHASES) {
+        code = tick(&a, deadline);
+    }
+    if (code < 0) {
+        code = 0;
     }
     print_stats(&a, code);
     return code;

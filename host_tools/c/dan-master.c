@@ -8,24 +8,20 @@
  * the process: a new run is a master restart). Exit: 0 all steps OK, 1 a
  * step failed, 2 bad arguments or port error.
  */
-#include <errno.h>
 #include <poll.h>
-#include <signal.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "dan/dan.h"
+#include "dan/identity_json.h"
 #include "dan/posix.h"
+#include "dan_tool.h"
 
-static volatile sig_atomic_t stop_flag;
-
-static void on_signal(int sig)
-{
-    (void)sig;
-    stop_flag = 1;
-}
+/* Longest a poll() waits: a signal or the step's timeout is seen this soon. */
+#define POLL_CAP_MS 100
+/* --retries above this would make a dead peer block a step for minutes. */
+#define MAX_RETRIES 10u
 
 static void usage(FILE *f)
 {
@@ -64,32 +60,32 @@ typedef struct {
     uint64_t timeout_us;
 } ctx_t;
 
+/* The command line: options, then steps from argv[first_step] on. */
+typedef struct {
+    const char *port, *types, *de;
+    uint32_t baud, latency_ms, gap_ms, retries, timeout_ms;
+    bool no_echo, json;
+    int first_step;
+} opts_t;
+
 /* Runs the poll loop until the current operation completes. */
 static int run_op(ctx_t *c)
 {
     uint64_t deadline = dan_posix_now_us() + c->timeout_us;
     uint8_t buf[512];
     for (;;) {
-        uint64_t now = dan_posix_now_us(), next;
-        struct pollfd pfd;
-        int n, ms;
+        uint64_t now = dan_posix_now_us();
+        int n;
         if (dan_master_poll(&c->m, now)) {
             return dan_master_result(&c->m);
         }
-        if (stop_flag) {
+        if (tool_stop) {
             return DAN_ERR_ARG;
         }
         if (now > deadline) {
             return DAN_ERR_TIMEOUT;
         }
-        next = dan_master_next_us(&c->m);
-        ms = (next == UINT64_MAX) ? 100 : (next <= now) ? 0 : (int)((next - now + 999u) / 1000u);
-        if (ms > 100) {
-            ms = 100;
-        }
-        pfd.fd = c->port.fd;
-        pfd.events = POLLIN;
-        if (poll(&pfd, 1, ms) > 0) {
+        if (tool_wait_fd(c->port.fd, POLLIN, dan_master_next_us(&c->m), POLL_CAP_MS) > 0) {
             n = dan_posix_read(&c->port, buf, sizeof buf);
             if (n < 0) {
                 return DAN_ERR_IO;
@@ -101,22 +97,6 @@ static int run_op(ctx_t *c)
     }
 }
 
-static void json_str(const char *s)
-{
-    putchar('"');
-    for (; *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\') {
-            printf("\\%c", ch);
-        } else if (ch < 0x20 || ch >= 0x7F) {
-            printf("\\u%04x", ch);
-        } else {
-            putchar(ch);
-        }
-    }
-    putchar('"');
-}
-
 static const char *type_name(uint32_t first)
 {
     const dan_type_info_t *t = dan_type_of_code(first);
@@ -125,29 +105,20 @@ static const char *type_name(uint32_t first)
 
 static void print_peers(ctx_t *c, int r, double ms)
 {
+    char obj[DAN_PEER_JSON_MAX];
     size_t i;
     bool first = true;
     if (c->json) {
         printf("{\"step\":\"discover\",\"result\":%d,\"error\":", r);
-        json_str(r == DAN_OK ? "" : dan_strerror(r));
+        tool_json_str(stdout, r == DAN_OK ? "" : dan_strerror(r));
         printf(",\"ms\":%.1f,\"baud\":%u,\"peers\":[", ms, dan_master_baud(&c->m));
         for (i = 0; i < c->m.ntypes; i++) {
             const dan_peer_t *p = &c->m.peers[i];
             if (!p->present) {
                 continue;
             }
-            printf("%s{\"type\":", first ? "" : ",");
-            json_str(type_name(p->first_code));
-            printf(",\"first_code\":%u,\"baud\":%u,\"dan_version\":%u,\"manufacturer\":", p->first_code,
-                   p->baud, p->identity.dan_version);
-            json_str(p->identity.manufacturer);
-            printf(",\"model\":");
-            json_str(p->identity.model);
-            printf(",\"hw_version\":");
-            json_str(p->identity.hw_version);
-            printf(",\"sw_version\":");
-            json_str(p->identity.sw_version);
-            printf(",\"baud_mask\":%u,\"capabilities\":%u}", p->identity.baud_mask, p->identity.capabilities);
+            dan_peer_json(obj, sizeof obj, p, DAN_PEER_JSON_FULL);
+            printf("%s%s", first ? "" : ",", obj);
             first = false;
         }
         printf("]}\n");
@@ -186,7 +157,9 @@ static void print_txn(ctx_t *c, const char *step, uint32_t code, int r, double m
     size_t i;
     if (c->json) {
         printf("{\"step\":\"%s\",\"code\":%u,\"result\":%d,\"error\":", step, code, r);
-        json_str(r == DAN_OK ? "" : r == DAN_ERR_REMOTE ? c->m.remote_error.text : dan_strerror(r));
+        tool_json_str(stdout, r == DAN_OK           ? ""
+                              : r == DAN_ERR_REMOTE ? c->m.remote_error.text
+                                                    : dan_strerror(r));
         printf(",\"ms\":%.2f,\"payload\":\"", ms);
         for (i = 0; r == DAN_OK && i < c->m.resp_len; i++) {
             printf("%02x", c->m.resp[i]);
@@ -212,212 +185,318 @@ static void print_stats(ctx_t *c)
     const dan_master_stats_t *s = &c->m.stats;
     const dan_link_stats_t *l = &c->m.link.stats;
     const dan_decoder_stats_t *d = &c->m.link.dec.stats;
-    printf("%s\"step\":\"stats\",\"transactions\":%u,\"ok\":%u,\"timeouts\":%u,\"retries\":%u,"
-           "\"remote_errors\":%u,\"stray\":%u,\"lbt_waits\":%u,\"busy_failures\":%u,\"recoveries\":%u,"
-           "\"tx_frames\":%u,\"tx_bytes\":%u,\"rx_bytes\":%u,\"collisions\":%u,\"echo_timeouts\":%u,"
-           "\"rx_frames\":%u,\"crc_errors\":%u,\"oversize\":%u,\"bad_varint\":%u,\"garbage\":%u,"
-           "\"aborted\":%u%s\n",
-           c->json ? "{" : "stats: {", s->transactions, s->ok, s->timeouts, s->retries, s->remote_errors,
-           s->stray, s->lbt_waits, s->busy_failures, s->recoveries, l->tx_frames, l->tx_bytes,
-           l->rx_bytes, l->collisions, l->echo_timeouts, d->frames, d->crc_errors, d->oversize,
-           d->bad_varint, d->garbage, d->aborted, "}");
+    printf(
+        "%s\"step\":\"stats\",\"transactions\":%u,\"ok\":%u,\"timeouts\":%u,\"retries\":%u,"
+        "\"remote_errors\":%u,\"stray\":%u,\"lbt_waits\":%u,\"busy_failures\":%u,\"recoveries\":%u,"
+        "\"tx_frames\":%u,\"tx_bytes\":%u,\"rx_bytes\":%u,\"collisions\":%u,\"echo_timeouts\":%u,"
+        "\"rx_frames\":%u,\"crc_errors\":%u,\"oversize\":%u,\"bad_varint\":%u,\"garbage\":%u,"
+        "\"aborted\":%u%s\n",
+        c->json ? "{" : "stats: {", s->transactions, s->ok, s->timeouts, s->retries,
+        s->remote_errors, s->stray, s->lbt_waits, s->busy_failures, s->recoveries, l->tx_frames,
+        l->tx_bytes, l->rx_bytes, l->collisions, l->echo_timeouts, d->frames, d->crc_errors,
+        d->oversize, d->bad_varint, d->garbage, d->aborted, "}");
 }
 
-static int parse_u32(const char *s, uint32_t *v)
+static double ms_since(uint64_t t0)
 {
-    char *end;
-    unsigned long x;
-    errno = 0;
-    x = strtoul(s, &end, 0);
-    if (errno != 0 || end == s || *end != '\0' || x > 0xFFFFFFFFul) {
-        return -1;
+    return (double)(dan_posix_now_us() - t0) / 1000.0;
+}
+
+/* The uint32_t an option sets, or NULL for any other option. */
+static uint32_t *number_option(opts_t *o, const char *a)
+{
+    const struct {
+        const char *name;
+        uint32_t *dst;
+    } nums[] = {
+        {"--baud", &o->baud},       {"--latency-ms", &o->latency_ms}, {"--gap-ms", &o->gap_ms},
+        {"--retries", &o->retries}, {"--timeout-ms", &o->timeout_ms},
+    };
+    size_t i;
+    for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
+        if (strcmp(a, nums[i].name) == 0) {
+            return nums[i].dst;
+        }
     }
-    *v = (uint32_t)x;
+    return NULL;
+}
+
+/* The string an option sets, or NULL for any other option. */
+static const char **string_option(opts_t *o, const char *a)
+{
+    if (strcmp(a, "--port") == 0) {
+        return &o->port;
+    }
+    if (strcmp(a, "--types") == 0) {
+        return &o->types;
+    }
+    if (strcmp(a, "--de-gpio") == 0) {
+        return &o->de;
+    }
+    return NULL;
+}
+
+/* Options up to the first step. Returns -1 to go on, else the exit code. */
+static int parse_options(int argc, char **argv, opts_t *o)
+{
+    int i;
+    for (i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
+        uint32_t *num = number_option(o, a);
+        const char **str = string_option(o, a);
+        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "--json") == 0) {
+            o->json = true;
+        } else if (strcmp(a, "--no-echo") == 0) {
+            o->no_echo = true;
+        } else if (str != NULL) {
+            if (v == NULL) {
+                tool_error("%s needs a value", a);
+                return 2;
+            }
+            *str = v;
+            i++;
+        } else if (num != NULL) {
+            if (v == NULL || tool_parse_u32(v, 0, UINT32_MAX, num) != 0) {
+                tool_error("%s needs a number", a);
+                return 2;
+            }
+            i++;
+        } else if (a[0] == '-') {
+            tool_error("unknown option %s (see --help)", a);
+            return 2;
+        } else {
+            o->first_step = i;
+            break;
+        }
+    }
+    return -1;
+}
+
+static bool known_step(const char *s)
+{
+    return strcmp(s, "discover") == 0 || strncmp(s, "configure", 9) == 0 ||
+           strncmp(s, "request:", 8) == 0 || strncmp(s, "repeat:", 7) == 0 ||
+           strcmp(s, "stats") == 0;
+}
+
+/* Checks the whole command line before the port is touched: -1 to go on,
+ * else the exit code. */
+static int check_args(int argc, char **argv, opts_t *o, uint32_t *types, size_t *ntypes)
+{
+    const dan_type_info_t *t[DAN_MASTER_MAX_TYPES];
+    char bad[128];
+    size_t k;
+    int i;
+    if (o->port == NULL) {
+        tool_error("--port is required (see --help)");
+        return 2;
+    }
+    if (o->first_step == 0) {
+        tool_error("no step given (see --help)");
+        return 2;
+    }
+    if (o->baud == 0 || o->retries > MAX_RETRIES) {
+        tool_error("bad --baud or --retries");
+        return 2;
+    }
+    if (tool_parse_types(o->types, t, DAN_MASTER_MAX_TYPES, ntypes, bad, sizeof bad) != 0) {
+        tool_error("unknown type '%s' (vtx, can-gw, test-a, test-b or a code)", bad);
+        return 2;
+    }
+    for (k = 0; k < *ntypes; k++) {
+        types[k] = t[k]->first;
+    }
+    for (i = o->first_step; i < argc; i++) {
+        if (!known_step(argv[i])) {
+            tool_error("unknown step '%s' (see --help)", argv[i]);
+            return 2;
+        }
+    }
+    return -1;
+}
+
+/* Opens the port and starts the master: 0, or 2 after a message. */
+static int start(ctx_t *c, const opts_t *o, const uint32_t *types, size_t ntypes)
+{
+    dan_master_config_t cfg;
+    char err[256];
+    bool no_echo = o->no_echo || o->de != NULL; /* a direction pin hides our echo */
+    if (dan_posix_open(&c->port, o->port, o->baud, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO,
+                       err, sizeof err) != DAN_OK) {
+        tool_error("%s", err);
+        return 2;
+    }
+    if (o->de != NULL && dan_posix_de_gpio(&c->port, o->de, false, err, sizeof err) != DAN_OK) {
+        tool_error("%s", err);
+        dan_posix_close(&c->port);
+        return 2;
+    }
+    tool_catch_signal(SIGINT);
+    tool_catch_signal(SIGTERM);
+    dan_master_config_default(&cfg);
+    cfg.resp_latency_us = o->latency_ms * 1000u;
+    cfg.gap_us = o->gap_ms * 1000u;
+    cfg.retries = (uint8_t)o->retries;
+    cfg.seed = (uint32_t)getpid();
+    c->json = o->json;
+    c->timeout_us = (uint64_t)o->timeout_ms * 1000u;
+    dan_master_init(&c->m, dan_posix_port(&c->port), &cfg, types, ntypes, o->baud,
+                    dan_posix_now_us());
     return 0;
+}
+
+static int step_discover(ctx_t *c, uint64_t t0)
+{
+    int r;
+    dan_master_discover(&c->m, t0);
+    r = run_op(c);
+    print_peers(c, r, ms_since(t0));
+    return r;
+}
+
+/* configure[:BAUD]; 2 for a bad BAUD (the run stops). */
+static int step_configure(ctx_t *c, const char *s, uint64_t t0)
+{
+    uint32_t target = 0;
+    int r;
+    if (s[9] == ':' && tool_parse_u32(s + 10, 0, UINT32_MAX, &target) != 0) {
+        tool_error("bad baud in '%s'", s);
+        return 2;
+    }
+    r = dan_master_configure(&c->m, target, t0);
+    if (r == DAN_OK) {
+        r = run_op(c);
+    }
+    if (c->json) {
+        printf("{\"step\":\"configure\",\"result\":%d,\"error\":", r);
+        tool_json_str(stdout, r == DAN_OK ? "" : dan_strerror(r));
+        printf(",\"baud\":%u,\"ms\":%.1f,\"recoveries\":%u}\n", dan_master_baud(&c->m),
+               ms_since(t0), c->m.stats.recoveries);
+    } else {
+        printf("configure: %s, bus at %u baud (%.1f ms)\n", r == DAN_OK ? "ok" : dan_strerror(r),
+               dan_master_baud(&c->m), ms_since(t0));
+    }
+    return r == DAN_OK ? 0 : 1;
+}
+
+/* request:CODE[:HEX] or repeat:N:CODE[:HEX], split and checked. */
+typedef struct {
+    bool rep;
+    uint32_t code, count;
+    uint8_t payload[DAN_MAX_PAYLOAD];
+    size_t plen;
+} txn_args_t;
+
+static int parse_txn(const char *s, txn_args_t *t)
+{
+    char tmp[1024], *parts[5], *save = NULL;
+    int np = 0;
+    t->rep = (s[1] == 'e' && s[2] == 'p'); /* "repeat:", not "request:" */
+    t->count = 1;
+    t->plen = 0;
+    snprintf(tmp, sizeof tmp, "%s", s);
+    for (parts[np] = strtok_r(tmp, ":", &save); parts[np] != NULL && np < 4;
+         parts[++np] = strtok_r(NULL, ":", &save)) {
+    }
+    if (t->rep) {
+        return (np < 3 || tool_parse_u32(parts[1], 0, UINT32_MAX, &t->count) != 0 ||
+                tool_parse_u32(parts[2], 0, UINT32_MAX, &t->code) != 0 ||
+                (np == 4 && parse_hex(parts[3], t->payload, sizeof t->payload, &t->plen) != 0))
+                   ? -1
+                   : 0;
+    }
+    return (np < 2 || tool_parse_u32(parts[1], 0, UINT32_MAX, &t->code) != 0 ||
+            (np >= 3 && parse_hex(parts[2], t->payload, sizeof t->payload, &t->plen) != 0))
+               ? -1
+               : 0;
+}
+
+static void print_repeat(const ctx_t *c, const txn_args_t *t, int r, uint32_t done, uint64_t t0)
+{
+    double secs = (double)(dan_posix_now_us() - t0) / 1e6;
+    if (c->json) {
+        printf("{\"step\":\"repeat\",\"code\":%u,\"result\":%d,\"done\":%u,\"seconds\":%.4f,"
+               "\"per_second\":%.1f}\n",
+               t->code, r, done, secs, secs > 0 ? done / secs : 0.0);
+    } else {
+        printf("repeat 0x%02X: %u done in %.3f s (%.1f/s)%s%s\n", t->code, done, secs,
+               secs > 0 ? done / secs : 0.0, r == DAN_OK ? "" : ", stopped: ",
+               r == DAN_OK ? "" : dan_strerror(r));
+    }
+}
+
+/* request / repeat; 2 for a bad step (the run stops). */
+static int step_txn(ctx_t *c, const char *s, uint64_t t0)
+{
+    static txn_args_t t;
+    uint32_t k;
+    int r = DAN_OK;
+    if (parse_txn(s, &t) != 0) {
+        tool_error("bad step '%s'", s);
+        return 2;
+    }
+    for (k = 0; k < t.count && r == DAN_OK && !tool_stop; k++) {
+        r = dan_master_request(&c->m, t.code, t.payload, t.plen, dan_posix_now_us());
+        if (r == DAN_OK) {
+            r = run_op(c);
+        }
+    }
+    if (t.rep) {
+        print_repeat(c, &t, r, k, t0);
+    } else {
+        print_txn(c, "request", t.code, r, ms_since(t0));
+    }
+    return r == DAN_OK ? 0 : 1;
+}
+
+/* One step: 0 ok, 1 failed, 2 malformed (stops the run). */
+static int run_step(ctx_t *c, const char *s)
+{
+    uint64_t t0 = dan_posix_now_us();
+    if (strcmp(s, "discover") == 0) {
+        return step_discover(c, t0) == DAN_OK ? 0 : 1;
+    }
+    if (strncmp(s, "configure", 9) == 0) {
+        return step_configure(c, s, t0);
+    }
+    if (strcmp(s, "stats") == 0) {
+        print_stats(c);
+        return 0;
+    }
+    return step_txn(c, s, t0);
 }
 
 int main(int argc, char **argv)
 {
     static ctx_t c;
-    const char *port = NULL, *types_arg = "vtx,can-gw", *de = NULL;
-    uint32_t baud = 9600, latency_ms = 50, gap_ms = 20, retries = 2, timeout_ms = 30000;
-    bool no_echo = false;
+    opts_t o = {NULL, "vtx,can-gw", NULL, 9600, 50, 20, 2, 30000, false, false, 0};
     uint32_t types[DAN_MASTER_MAX_TYPES];
     size_t ntypes = 0;
-    dan_master_config_t cfg;
-    char err[256], tbuf[128];
-    int i, first_step = 0, failed = 0, r;
+    int i, failed = 0, r;
 
-    for (i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
-        uint32_t *num = NULL;
-        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
-            usage(stdout);
-            return 0;
-        } else if (strcmp(a, "--json") == 0) {
-            c.json = true;
-        } else if (strcmp(a, "--no-echo") == 0) {
-            no_echo = true;
-        } else if (strcmp(a, "--port") == 0 || strcmp(a, "--types") == 0 || strcmp(a, "--de-gpio") == 0) {
-            if (v == NULL) {
-                fprintf(stderr, "dan-master: %s needs a value\n", a);
-                return 2;
-            }
-            if (a[2] == 'p') port = v; else if (a[2] == 't') types_arg = v; else de = v;
-            i++;
-        } else if (strcmp(a, "--baud") == 0) { num = &baud;
-        } else if (strcmp(a, "--latency-ms") == 0) { num = &latency_ms;
-        } else if (strcmp(a, "--gap-ms") == 0) { num = &gap_ms;
-        } else if (strcmp(a, "--retries") == 0) { num = &retries;
-        } else if (strcmp(a, "--timeout-ms") == 0) { num = &timeout_ms;
-        } else if (a[0] == '-') {
-            fprintf(stderr, "dan-master: unknown option %s (see --help)\n", a);
-            return 2;
-        } else {
-            first_step = i;
+    tool_prog = "dan-master";
+    r = parse_options(argc, argv, &o);
+    if (r < 0) {
+        r = check_args(argc, argv, &o, types, &ntypes);
+    }
+    if (r >= 0) {
+        return r;
+    }
+    if (start(&c, &o, types, ntypes) != 0) {
+        return 2;
+    }
+    for (i = o.first_step; i < argc && !tool_stop; i++) {
+        r = run_step(&c, argv[i]);
+        if (r == 2) {
+            failed = 1;
             break;
         }
-        if (num != NULL) {
-            if (v == NULL || parse_u32(v, num) != 0) {
-                fprintf(stderr, "dan-master: %s needs a number\n", a);
-                return 2;
-            }
-            i++;
-        }
-    }
-    if (port == NULL) {
-        fprintf(stderr, "dan-master: --port is required (see --help)\n");
-        return 2;
-    }
-    if (first_step == 0) {
-        fprintf(stderr, "dan-master: no step given (see --help)\n");
-        return 2;
-    }
-    if (baud == 0 || retries > 10) {
-        fprintf(stderr, "dan-master: bad --baud or --retries\n");
-        return 2;
-    }
-    snprintf(tbuf, sizeof tbuf, "%s", types_arg);
-    {
-        char *save = NULL, *tok;
-        for (tok = strtok_r(tbuf, ",", &save); tok != NULL; tok = strtok_r(NULL, ",", &save)) {
-            const dan_type_info_t *t = dan_type_lookup(tok);
-            if (t == NULL || ntypes >= DAN_MASTER_MAX_TYPES) {
-                fprintf(stderr, "dan-master: unknown type '%s' (vtx, can-gw, test-a, test-b or a code)\n", tok);
-                return 2;
-            }
-            types[ntypes++] = t->first;
-        }
-    }
-    /* Check every step's syntax before touching the port. */
-    for (i = first_step; i < argc; i++) {
-        const char *s = argv[i];
-        if (strcmp(s, "discover") != 0 && strncmp(s, "configure", 9) != 0 && strncmp(s, "request:", 8) != 0 &&
-            strncmp(s, "repeat:", 7) != 0 && strcmp(s, "stats") != 0) {
-            fprintf(stderr, "dan-master: unknown step '%s' (see --help)\n", s);
-            return 2;
-        }
-    }
-    r = dan_posix_open(&c.port, port, baud, (no_echo || de != NULL) ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
-                       sizeof err);
-    if (r != DAN_OK) {
-        fprintf(stderr, "dan-master: %s\n", err);
-        return 2;
-    }
-    if (de != NULL && dan_posix_de_gpio(&c.port, de, false, err, sizeof err) != DAN_OK) {
-        fprintf(stderr, "dan-master: %s\n", err);
-        dan_posix_close(&c.port);
-        return 2;
-    }
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
-    dan_master_config_default(&cfg);
-    cfg.resp_latency_us = latency_ms * 1000u;
-    cfg.gap_us = gap_ms * 1000u;
-    cfg.retries = (uint8_t)retries;
-    cfg.seed = (uint32_t)getpid();
-    c.timeout_us = (uint64_t)timeout_ms * 1000u;
-    dan_master_init(&c.m, dan_posix_port(&c.port), &cfg, types, ntypes, baud, dan_posix_now_us());
-
-    for (i = first_step; i < argc && !stop_flag; i++) {
-        const char *s = argv[i];
-        uint64_t t0 = dan_posix_now_us();
-        if (strcmp(s, "discover") == 0) {
-            dan_master_discover(&c.m, t0);
-            r = run_op(&c);
-            print_peers(&c, r, (double)(dan_posix_now_us() - t0) / 1000.0);
-        } else if (strncmp(s, "configure", 9) == 0) {
-            uint32_t target = 0;
-            if (s[9] == ':' && parse_u32(s + 10, &target) != 0) {
-                fprintf(stderr, "dan-master: bad baud in '%s'\n", s);
-                failed = 1;
-                break;
-            }
-            r = dan_master_configure(&c.m, target, t0);
-            if (r == DAN_OK) {
-                r = run_op(&c);
-            }
-            if (c.json) {
-                printf("{\"step\":\"configure\",\"result\":%d,\"error\":", r);
-                json_str(r == DAN_OK ? "" : dan_strerror(r));
-                printf(",\"baud\":%u,\"ms\":%.1f,\"recoveries\":%u}\n", dan_master_baud(&c.m),
-                       (double)(dan_posix_now_us() - t0) / 1000.0, c.m.stats.recoveries);
-            } else {
-                printf("configure: %s, bus at %u baud (%.1f ms)\n", r == DAN_OK ? "ok" : dan_strerror(r),
-                       dan_master_baud(&c.m), (double)(dan_posix_now_us() - t0) / 1000.0);
-            }
-        } else if (strcmp(s, "stats") == 0) {
-            print_stats(&c);
-            r = DAN_OK;
-        } else {
-            /* request:CODE[:HEX] or repeat:N:CODE[:HEX] */
-            char tmp[1024], *parts[5], *save = NULL;
-            int np = 0;
-            uint32_t code, count = 1, k;
-            uint8_t payload[DAN_MAX_PAYLOAD];
-            size_t plen = 0;
-            bool rep = (s[1] == 'e' && s[2] == 'p');
-            snprintf(tmp, sizeof tmp, "%s", s);
-            for (parts[np] = strtok_r(tmp, ":", &save); parts[np] != NULL && np < 4;
-                 parts[++np] = strtok_r(NULL, ":", &save)) {
-            }
-            if (rep) {
-                if (np < 3 || parse_u32(parts[1], &count) != 0 || parse_u32(parts[2], &code) != 0 ||
-                    (np == 4 && parse_hex(parts[3], payload, sizeof payload, &plen) != 0)) {
-                    fprintf(stderr, "dan-master: bad step '%s'\n", s);
-                    failed = 1;
-                    break;
-                }
-            } else if (np < 2 || parse_u32(parts[1], &code) != 0 ||
-                       (np >= 3 && parse_hex(parts[2], payload, sizeof payload, &plen) != 0)) {
-                fprintf(stderr, "dan-master: bad step '%s'\n", s);
-                failed = 1;
-                break;
-            }
-            r = DAN_OK;
-            for (k = 0; k < count && r == DAN_OK && !stop_flag; k++) {
-                r = dan_master_request(&c.m, code, payload, plen, dan_posix_now_us());
-                if (r == DAN_OK) {
-                    r = run_op(&c);
-                }
-            }
-            if (rep) {
-                double secs = (double)(dan_posix_now_us() - t0) / 1e6;
-                if (c.json) {
-                    printf("{\"step\":\"repeat\",\"code\":%u,\"result\":%d,\"done\":%u,\"seconds\":%.4f,"
-                           "\"per_second\":%.1f}\n", code, r, k, secs, secs > 0 ? k / secs : 0.0);
-                } else {
-                    printf("repeat 0x%02X: %u done in %.3f s (%.1f/s)%s%s\n", code, k, secs,
-                           secs > 0 ? k / secs : 0.0, r == DAN_OK ? "" : ", stopped: ",
-                           r == DAN_OK ? "" : dan_strerror(r));
-                }
-            } else {
-                print_txn(&c, "request", code, r, (double)(dan_posix_now_us() - t0) / 1000.0);
-            }
-        }
         fflush(stdout);
-        if (r != DAN_OK) {
+        if (r != 0) {
             failed = 1;
         }
     }

@@ -67,6 +67,10 @@ int dan_posix_read(dan_posix_port_t *p, uint8_t *buf, size_t cap);
 int dan_posix_set_speed(int fd, uint32_t baud);
 /* Reads the output baud of an fd (for a pty master: the slave's). 0 on error. */
 uint32_t dan_posix_get_speed(int fd);
+/* Reads both bauds as the kernel keeps them (termios2, so non-standard
+ * rates too; for a pty master: the slave's). An input speed of 0 means
+ * "the same as the output speed". 0, or -1 when fd is no tty. */
+int dan_posix_get_speeds(int fd, uint32_t *ispeed, uint32_t *ospeed);
 
 /* CLOCK_MONOTONIC in microseconds. */
 uint64_t dan_posix_now_us(void);

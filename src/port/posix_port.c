@@ -13,6 +13,11 @@
 
 #include "dan/posix.h"
 
+/* A full tty buffer is waited out for at most WRITE_SPINS * WRITE_SPIN_US
+ * (0.1 s) before a write counts as failed. */
+#define WRITE_SPINS   1000
+#define WRITE_SPIN_US 100u
+
 uint64_t dan_posix_now_us(void)
 {
     struct timespec ts;
@@ -34,10 +39,10 @@ static int port_write(void *ctx, const uint8_t *data, size_t len)
         if (n < 0 && errno == EINTR) {
             continue;
         }
-        if (n < 0 && errno == EAGAIN && spins++ < 1000) {
+        if (n < 0 && errno == EAGAIN && spins++ < WRITE_SPINS) {
             /* The kernel buffer (4 KiB) is far larger than a frame; it is
              * only full if the line is stuck. Wait for room, briefly. */
-            usleep(100);
+            usleep(WRITE_SPIN_US);
             continue;
         }
         p->write_errors++;
@@ -109,7 +114,9 @@ int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud,
     if (p->fd < 0) {
         int e = errno;
         snprintf(err, errlen, "%s: %s", path, strerror(e));
-        return (e == ENOENT) ? DAN_ERR_NOTFOUND : (e == EBUSY || e == EACCES) ? DAN_ERR_BUSY : DAN_ERR_IO;
+        return (e == ENOENT)                 ? DAN_ERR_NOTFOUND
+               : (e == EBUSY || e == EACCES) ? DAN_ERR_BUSY
+                                             : DAN_ERR_IO;
     }
     if (tcgetattr(p->fd, &t) != 0) {
         snprintf(err, errlen, "%s: not a serial port (%s)", path, strerror(errno));

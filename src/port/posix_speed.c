@@ -6,6 +6,7 @@
 #include <sys/ioctl.h>
 
 int dan_posix_set_speed(int fd, uint32_t baud);
+int dan_posix_get_speeds(int fd, uint32_t *ispeed, uint32_t *ospeed);
 uint32_t dan_posix_get_speed(int fd);
 
 int dan_posix_set_speed(int fd, uint32_t baud)
@@ -21,11 +22,19 @@ int dan_posix_set_speed(int fd, uint32_t baud)
     return ioctl(fd, TCSETS2, &t);
 }
 
-uint32_t dan_posix_get_speed(int fd)
+int dan_posix_get_speeds(int fd, uint32_t *ispeed, uint32_t *ospeed)
 {
     struct termios2 t;
     if (ioctl(fd, TCGETS2, &t) != 0) {
-        return 0;
+        return -1;
     }
-    return t.c_ospeed;
+    *ispeed = t.c_ispeed;
+    *ospeed = t.c_ospeed;
+    return 0;
+}
+
+uint32_t dan_posix_get_speed(int fd)
+{
+    uint32_t in, out;
+    return dan_posix_get_speeds(fd, &in, &out) == 0 ? out : 0u;
 }

@@ -30,8 +30,10 @@
  * Exit: 0 all steps OK, 1 a step failed, 2 bad arguments or port.
  */
 #include <errno.h>
+#include <limits.h>
 #include <poll.h>
 #include <signal.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,6 +42,16 @@
 #include "dan/can_gw/client.h"
 #include "dan/master.h"
 #include "dan/posix.h"
+#include "dan_tool.h"
+
+#define POLL_CAP_MS 50             /* longest poll() while an operation runs */
+#define RAMP_HZ 50u                /* esc-ramp's command rate */
+#define TELEM_MAX_PAGES 8          /* telemetry pages read at most (8 ESCs a page is plenty) */
+#define NODES_MAX 128u             /* DroneCAN node ids 0..127 */
+#define TUN_PROTOCOL_UNDEFINED 255 /* tunnel protocol UNDEFINED, as ArduPilot sends */
+#define TUN_OPTION_LOCK_PORT 1     /* tunnel option: lock the serial port */
+#define CANDUMP_TIMEOUT_MS 10000u  /* candump's default timeout */
+#define CANDUMP_IDLE_US 10000u     /* candump's pause when nothing was queued */
 
 static dan_posix_port_t g_port;
 static dan_master_t g_m;
@@ -48,19 +60,15 @@ static dan_gw_t g_gw;
 /* Pumps the port until the operation in flight completes; returns its result. */
 static int run(void)
 {
+    uint8_t buf[512];
     for (;;) {
-        uint64_t now = dan_posix_now_us(), next = dan_master_next_us(&g_m);
-        struct pollfd pf;
-        int to, n;
-        uint8_t buf[512];
+        uint64_t now = dan_posix_now_us();
+        int n;
         if (dan_gw_poll(&g_gw, now)) {
             return g_gw.result;
         }
-        next = dan_master_next_us(&g_m);
-        to = next <= now ? 0 : (next - now > 50000u ? 50 : (int)((next - now + 999u) / 1000u));
-        pf.fd = g_port.fd;
-        pf.events = POLLIN;
-        if (poll(&pf, 1, to) < 0 && errno != EINTR) {
+        if (tool_wait_fd(g_port.fd, POLLIN, dan_master_next_us(&g_m), POLL_CAP_MS) < 0 &&
+            errno != EINTR) {
             return DAN_ERR_IO;
         }
         now = dan_posix_now_us();
@@ -73,14 +81,13 @@ static int run(void)
     }
 }
 
+/* Waits us, dropping whatever the port receives meanwhile. */
 static void sleep_us(uint64_t us)
 {
     uint64_t end = dan_posix_now_us() + us;
     uint8_t buf[256];
     while (dan_posix_now_us() < end) {
-        struct pollfd pf = {g_port.fd, POLLIN, 0};
-        uint64_t left = end - dan_posix_now_us();
-        (void)poll(&pf, 1, (int)(left / 1000u) + 1);
+        (void)tool_wait_fd(g_port.fd, POLLIN, end, INT_MAX);
         while (dan_posix_read(&g_port, buf, sizeof buf) > 0) {
         }
     }
@@ -146,7 +153,6 @@ static int parse_values(char *s, int16_t *v, size_t *n)
     return *n > 0 ? 0 : -1;
 }
 
-/* ESC commands for ms at hz; values may ramp (to != NULL). */
 /* --recover N: after N ESC exchanges failed in a row, discover and
  * configure again (the gateway was power-cycled: back at 9600), as an FC
  * should; 0 = never. */
@@ -155,13 +161,22 @@ static uint32_t g_recover;
 static int recover_bus(void)
 {
     int rc = dan_master_discover(&g_m, dan_posix_now_us());
-    if (rc == DAN_OK) rc = run();
-    if (rc == DAN_OK && dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST) == NULL) rc = DAN_ERR_NOTFOUND;
-    if (rc == DAN_OK) rc = dan_master_configure(&g_m, 0, dan_posix_now_us());
-    if (rc == DAN_OK) rc = run();
+    if (rc == DAN_OK) {
+        rc = run();
+    }
+    if (rc == DAN_OK && dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST) == NULL) {
+        rc = DAN_ERR_NOTFOUND;
+    }
+    if (rc == DAN_OK) {
+        rc = dan_master_configure(&g_m, 0, dan_posix_now_us());
+    }
+    if (rc == DAN_OK) {
+        rc = run();
+    }
     return rc;
 }
 
+/* ESC commands for ms at hz; values may ramp (to != NULL). */
 static int esc_run(const char *step, const int16_t *from, const int16_t *to, size_t n,
                    uint32_t ms, uint32_t hz)
 {
@@ -179,8 +194,10 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
         next += hz ? 1000000u / hz : 0u;
         for (i = 0; i < n; i++) {
             if (to != NULL && ms > 0u) {
-                uint64_t el = now - start > (uint64_t)ms * 1000u ? (uint64_t)ms * 1000u : now - start;
-                v[i] = (int16_t)(from[i] + (int32_t)((to[i] - from[i]) * (int64_t)el / ((int64_t)ms * 1000)));
+                uint64_t el =
+                    now - start > (uint64_t)ms * 1000u ? (uint64_t)ms * 1000u : now - start;
+                v[i] = (int16_t)(from[i] +
+                                 (int32_t)((to[i] - from[i]) * (int64_t)el / ((int64_t)ms * 1000)));
             } else {
                 v[i] = from[i];
             }
@@ -250,7 +267,9 @@ static int step_xfer(const char *step, char *args)
     uint32_t xfers = 0;
     uint64_t start, deadline;
     int rc;
-    if (sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms) < 4) {
+    int fields =
+        sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms);
+    if (fields < 4) {
         return fail(step, DAN_ERR_ARG);
     }
     if (strcmp(infile, "-") != 0) {
@@ -298,261 +317,440 @@ static int step_xfer(const char *step, char *args)
     return (wpos == wlen && got >= want) ? 0 : 1;
 }
 
+/* Each step is a row in the table below: its name and a function that
+ * gets the name, the whole step (for the JSON line) and the text after
+ * the first ':' (NULL without one; the functions may cut it up). Returns
+ * 0 ok, 1 failed, 2 bad step (the run stops). */
+typedef int (*step_fn)(const char *name, const char *step, char *args);
+
+/* The started operation's result once it ran (rc when it did not start). */
+static int finish(int rc)
+{
+    return rc == DAN_OK ? run() : rc;
+}
+
+static int step_stop(const char *name, const char *step, char *args)
+{
+    (void)name;
+    (void)step;
+    (void)args;
+    printf("{\"step\": \"stop\", \"ok\": true}\n");
+    fflush(stdout);
+    _exit(0);
+}
+
+static int step_sleep(const char *name, const char *step, char *args)
+{
+    (void)name;
+    (void)step;
+    sleep_us(args ? strtoull(args, NULL, 0) * 1000u : 0u);
+    printf("{\"step\": \"sleep\", \"ok\": true}\n");
+    return 0;
+}
+
+static int step_discover(const char *name, const char *step, char *args)
+{
+    const dan_peer_t *p;
+    int rc = finish(dan_master_discover(&g_m, dan_posix_now_us()));
+    (void)name;
+    (void)args;
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    p = dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST);
+    if (p == NULL) {
+        return fail(step, DAN_ERR_NOTFOUND);
+    }
+    printf("{\"step\": \"discover\", \"ok\": true, \"baud\": %u, \"manufacturer\": \"%s\", "
+           "\"model\": \"%s\", \"baud_mask\": %u}\n",
+           p->baud, p->identity.manufacturer, p->identity.model, p->identity.baud_mask);
+    return 0;
+}
+
+static int step_configure(const char *name, const char *step, char *args)
+{
+    uint32_t baud = args ? (uint32_t)strtoul(args, NULL, 0) : 0u;
+    int rc = finish(dan_master_configure(&g_m, baud, dan_posix_now_us()));
+    (void)name;
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u}\n", dan_master_baud(&g_m));
+    return 0;
+}
+
+/* arm | disarm */
+static int step_arm(const char *name, const char *step, char *args)
+{
+    int rc = finish(dan_gw_arm(&g_gw, name[0] == 'a', dan_posix_now_us()));
+    (void)args;
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u}\n", name, g_gw.gw_flags);
+    return 0;
+}
+
+static int step_config(const char *name, const char *step, char *args)
+{
+    dan_gw_config_t c;
+    char *tok, *save = NULL;
+    int rc;
+    (void)name;
+    memset(&c, 0, sizeof c);
+    for (tok = args ? strtok_r(args, ":", &save) : NULL; tok; tok = strtok_r(NULL, ":", &save)) {
+        if (!strncmp(tok, "timeout=", 8)) {
+            c.set_mask |= DAN_GW_CFG_ESC_TIMEOUT;
+            c.esc_timeout_ms = (uint32_t)strtoul(tok + 8, NULL, 0);
+        } else if (!strncmp(tok, "rate=", 5)) {
+            c.set_mask |= DAN_GW_CFG_ARMING_RATE;
+            c.arming_rate_hz = (uint32_t)strtoul(tok + 5, NULL, 0);
+        }
+    }
+    rc = finish(dan_gw_config(&g_gw, &c, dan_posix_now_us()));
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"config\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
+           "\"arming_rate_hz\": %u, \"flags\": %u}\n",
+           g_gw.config.node_id, g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz,
+           g_gw.config.gw_flags);
+    return 0;
+}
+
+/* esc-ramp:N:FROM:TO:MS */
+static int step_esc_ramp(const char *name, const char *step, char *args)
+{
+    int16_t from[DAN_GW_ESC_MAX], to[DAN_GW_ESC_MAX];
+    uint32_t ms = 0;
+    unsigned nn, i;
+    long a, b;
+    (void)name;
+    if (args == NULL || sscanf(args, "%u:%ld:%ld:%u", &nn, &a, &b, &ms) != 4 || nn < 1 ||
+        nn > DAN_GW_ESC_MAX) {
+        return fail(step, DAN_ERR_ARG);
+    }
+    for (i = 0; i < nn; i++) {
+        from[i] = (int16_t)a;
+        to[i] = (int16_t)b;
+    }
+    return esc_run("esc-ramp", from, to, nn, ms, RAMP_HZ);
+}
+
+/* esc:V1,V2,..[@MS[@HZ]] */
+static int step_esc(const char *name, const char *step, char *args)
+{
+    int16_t from[DAN_GW_ESC_MAX];
+    size_t n;
+    uint32_t ms = 0, hz = 0;
+    char *at;
+    (void)name;
+    if (args == NULL) {
+        return fail(step, DAN_ERR_ARG);
+    }
+    at = strchr(args, '@');
+    if (at) {
+        *at++ = '\0';
+        ms = (uint32_t)strtoul(at, &at, 0);
+        if (*at == '@') {
+            hz = (uint32_t)strtoul(at + 1, NULL, 0);
+        }
+    }
+    if (parse_values(args, from, &n)) {
+        return fail(step, DAN_ERR_ARG);
+    }
+    return esc_run("esc", from, NULL, n, ms, hz);
+}
+
+static int step_telemetry(const char *name, const char *step, char *args)
+{
+    uint8_t first = 0;
+    int pages = 0;
+    (void)name;
+    (void)args;
+    do {
+        int rc = finish(dan_gw_telemetry(&g_gw, first, dan_posix_now_us()));
+        if (rc != DAN_OK) {
+            return fail(step, rc);
+        }
+        first = g_gw.telem_next;
+    } while (first != DAN_GW_NONE && ++pages < TELEM_MAX_PAGES);
+    printf("{\"step\": \"telemetry\", \"ok\": true, \"flags\": %u, ", g_gw.gw_flags);
+    print_all_telem();
+    printf("}\n");
+    return 0;
+}
+
+/* The node table, page by page, into list; DAN_OK or the failure. */
+static int read_nodes(dan_gw_node_entry_t *list, size_t cap, size_t *nn)
+{
+    uint8_t first = 1;
+    *nn = 0;
+    do {
+        dan_reader_t r;
+        dan_gw_nodes_hdr_t h;
+        size_t i;
+        int rc = finish(dan_gw_nodes(&g_gw, first, dan_posix_now_us()));
+        if (rc == DAN_OK) {
+            rc = dan_gw_nodes_begin(&g_gw, &r, &h);
+        }
+        if (rc != DAN_OK) {
+            return rc;
+        }
+        for (i = 0; i < h.count && *nn < cap; i++) {
+            if (dan_gw_nodes_next(&r, &list[*nn]) == DAN_OK) {
+                (*nn)++;
+            }
+        }
+        first = h.next;
+    } while (first != 0);
+    return DAN_OK;
+}
+
+/* One node as JSON, with its GetNodeInfo data (zeros when it fails). */
+static void print_node(const dan_gw_node_entry_t *e, bool first)
+{
+    dan_gw_node_info_t ni;
+    size_t k;
+    memset(&ni, 0, sizeof ni);
+    if (finish(dan_gw_node_info(&g_gw, e->node_id, dan_posix_now_us())) == DAN_OK) {
+        (void)dan_gw_node_info_get(&g_gw, &ni);
+    }
+    printf("%s{\"id\": %u, \"health\": %u, \"mode\": %u, \"sub_mode\": %u, \"uptime\": %lu, "
+           "\"vendor\": %u, \"age_ms\": %lu, \"info\": %u, \"name\": \"%s\", "
+           "\"sw\": [%u, %u], \"hw\": [%u, %u], \"uid\": \"",
+           first ? "" : ", ", e->node_id, e->health, e->mode, e->sub_mode,
+           (unsigned long)e->uptime_sec, e->vendor_status, (unsigned long)e->age_ms,
+           ni.info_state, ni.name, ni.sw_major, ni.sw_minor, ni.hw_major, ni.hw_minor);
+    for (k = 0; k < sizeof ni.unique_id; k++) {
+        printf("%02x", ni.unique_id[k]);
+    }
+    printf("\"}");
+}
+
+static int step_nodes(const char *name, const char *step, char *args)
+{
+    static dan_gw_node_entry_t list[NODES_MAX];
+    size_t nn, i;
+    int rc = read_nodes(list, NODES_MAX, &nn);
+    (void)name;
+    (void)args;
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"nodes\", \"ok\": true, \"nodes\": [");
+    for (i = 0; i < nn; i++) {
+        print_node(&list[i], i == 0);
+    }
+    printf("]}\n");
+    return 0;
+}
+
+static int step_stats(const char *name, const char *step, char *args)
+{
+    unsigned i;
+    int rc = finish(dan_gw_stats(&g_gw, dan_posix_now_us()));
+    (void)name;
+    (void)args;
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"stats\", \"ok\": true");
+    for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
+        printf(", \"%s\": %u", dan_gw_stat_name(i), g_gw.stats[i]);
+    }
+    printf(", \"master_timeouts\": %u, \"master_retries\": %u, \"master_bad_replies\": %u}\n",
+           g_m.stats.timeouts, g_m.stats.retries, g_m.stats.bad_replies);
+    return 0;
+}
+
+/* tunnel:PORT:targetted:NODE:SERIAL[:BAUD] | tunnel:PORT:broadcast:PROTO:CHANNEL */
+static int step_tunnel(const char *name, const char *step, char *args)
+{
+    dan_gw_tun_open_t o;
+    unsigned port, a = 0;
+    int serial = 0, rc;
+    unsigned long baud = 0;
+    char mode[16];
+    (void)name;
+    memset(&o, 0, sizeof o);
+    if (args == NULL ||
+        sscanf(args, "%u:%15[^:]:%u:%d:%lu", &port, mode, &a, &serial, &baud) < 4) {
+        return fail(step, DAN_ERR_ARG);
+    }
+    o.port = (uint8_t)port;
+    if (!strcmp(mode, "targetted")) {
+        o.mode = DAN_GW_TUN_TARGETTED;
+        o.protocol = TUN_PROTOCOL_UNDEFINED;
+        o.target = (uint8_t)a;
+        o.serial_id = (int8_t)serial;
+        o.options = TUN_OPTION_LOCK_PORT;
+        o.baud = (uint32_t)baud;
+    } else {
+        o.mode = DAN_GW_TUN_BROADCAST;
+        o.protocol = (uint8_t)a;
+        o.target = (uint8_t)serial; /* the channel */
+    }
+    rc = finish(dan_gw_tunnel_open(&g_gw, &o, dan_posix_now_us()));
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"tunnel\", \"ok\": true, \"port\": %u}\n", port);
+    return 0;
+}
+
+static int step_xfer_args(const char *name, const char *step, char *args)
+{
+    (void)name;
+    return args ? step_xfer("xfer", args) : fail(step, DAN_ERR_ARG);
+}
+
+/* Splits args at commas into at most cap tokens (none for NULL). */
+static size_t split_commas(char *args, char **tok, size_t cap)
+{
+    char *t, *save = NULL;
+    size_t n = 0;
+    for (t = args ? strtok_r(args, ",", &save) : NULL; t && n < cap;
+         t = strtok_r(NULL, ",", &save)) {
+        tok[n++] = t;
+    }
+    return n;
+}
+
+/* filter:ID/MASK[,...] */
+static int step_filter(const char *name, const char *step, char *args)
+{
+    dan_gw_filter_t f[DAN_GW_FILTERS_MAX];
+    char *tok[DAN_GW_FILTERS_MAX];
+    size_t n = split_commas(args, tok, DAN_GW_FILTERS_MAX), i;
+    int rc;
+    (void)name;
+    for (i = 0; i < n; i++) {
+        char *slash = strchr(tok[i], '/');
+        if (slash == NULL) {
+            return fail(step, DAN_ERR_ARG);
+        }
+        f[i].id = (uint32_t)strtoul(tok[i], NULL, 16) |
+                  ((slash - tok[i]) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
+        f[i].mask = (uint32_t)strtoul(slash + 1, NULL, 16);
+    }
+    rc = finish(dan_gw_can_filter(&g_gw, DAN_GW_FILTER_REPLACE, f, n, dan_posix_now_us()));
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"filter\", \"ok\": true, \"count\": %zu}\n", n);
+    return 0;
+}
+
+/* cansend:ID#DATA[,...] */
+static int step_cansend(const char *name, const char *step, char *args)
+{
+    dan_can_frame_t f[DAN_GW_CAN_FRAMES_MAX];
+    char *tok[DAN_GW_CAN_FRAMES_MAX];
+    size_t n = split_commas(args, tok, DAN_GW_CAN_FRAMES_MAX), i;
+    int rc;
+    (void)name;
+    for (i = 0; i < n; i++) {
+        if (parse_frame(tok[i], &f[i])) {
+            return fail(step, DAN_ERR_ARG);
+        }
+    }
+    rc = finish(dan_gw_can_send(&g_gw, f, n, dan_posix_now_us()));
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"cansend\", \"ok\": %s, \"accepted\": %u}\n",
+           g_gw.can_accepted == n ? "true" : "false", g_gw.can_accepted);
+    return g_gw.can_accepted == n ? 0 : 1;
+}
+
+/* One CAN_RECV exchange; prints its frames as JSON strings, counts them in
+ * *got; the number of frames the gateway sent (0 after a failure). */
+static size_t candump_once(size_t *got)
+{
+    dan_reader_t r;
+    dan_gw_can_recv_t h;
+    dan_can_frame_t f;
+    size_t i, k;
+    int rc = finish(dan_gw_can_recv(&g_gw, DAN_GW_CAN_FRAMES_MAX, dan_posix_now_us()));
+    if (rc != DAN_OK || dan_gw_can_begin(&g_gw, &r, &h) != DAN_OK) {
+        return SIZE_MAX;
+    }
+    for (i = 0; i < h.count; i++) {
+        if (dan_gw_can_next(&r, &f) != DAN_OK) {
+            break;
+        }
+        printf("%s\"%0*X#", *got ? ", " : "", (f.flags & DAN_CAN_EXT) ? 8 : 3, (unsigned)f.id);
+        for (k = 0; k < f.dlc; k++) {
+            printf("%02X", f.data[k]);
+        }
+        printf("\"");
+        (*got)++;
+    }
+    return h.count;
+}
+
+/* candump:N[:TIMEOUT_MS] */
+static int step_candump(const char *name, const char *step, char *args)
+{
+    unsigned long want = 1, timeout_ms = CANDUMP_TIMEOUT_MS;
+    uint64_t end;
+    size_t got = 0;
+    (void)name;
+    (void)step;
+    if (args) {
+        sscanf(args, "%lu:%lu", &want, &timeout_ms);
+    }
+    end = dan_posix_now_us() + timeout_ms * 1000u;
+    printf("{\"step\": \"candump\", \"frames\": [");
+    while (got < want && dan_posix_now_us() < end) {
+        if (candump_once(&got) == 0) {
+            sleep_us(CANDUMP_IDLE_US); /* nothing queued: do not spin */
+        }
+    }
+    printf("], \"ok\": %s, \"dropped\": %u}\n", got >= want ? "true" : "false",
+           g_gw.can_rx_dropped);
+    return got >= want ? 0 : 1;
+}
+
+static const struct {
+    const char *name;
+    step_fn fn;
+} steps[] = {
+    {"stop", step_stop},
+    {"sleep", step_sleep},
+    {"discover", step_discover},
+    {"configure", step_configure},
+    {"arm", step_arm},
+    {"disarm", step_arm},
+    {"config", step_config},
+    {"esc", step_esc},
+    {"esc-ramp", step_esc_ramp},
+    {"telemetry", step_telemetry},
+    {"nodes", step_nodes},
+    {"stats", step_stats},
+    {"tunnel", step_tunnel},
+    {"xfer", step_xfer_args},
+    {"filter", step_filter},
+    {"cansend", step_cansend},
+    {"candump", step_candump},
+};
+
 static int do_step(char *step)
 {
     char name[64];
     char *args = strchr(step, ':');
-    int rc;
     size_t i;
     snprintf(name, sizeof name, "%.*s", args ? (int)(args - step) : (int)strlen(step), step);
     if (args) {
         args++;
     }
-    if (!strcmp(name, "stop")) {
-        printf("{\"step\": \"stop\", \"ok\": true}\n");
-        fflush(stdout);
-        _exit(0);
-    }
-    if (!strcmp(name, "sleep")) {
-        sleep_us(args ? strtoull(args, NULL, 0) * 1000u : 0u);
-        printf("{\"step\": \"sleep\", \"ok\": true}\n");
-        return 0;
-    }
-    if (!strcmp(name, "discover")) {
-        const dan_peer_t *p;
-        rc = dan_master_discover(&g_m, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        p = dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST);
-        if (p == NULL) return fail(step, DAN_ERR_NOTFOUND);
-        printf("{\"step\": \"discover\", \"ok\": true, \"baud\": %u, \"manufacturer\": \"%s\", "
-               "\"model\": \"%s\", \"baud_mask\": %u}\n", p->baud, p->identity.manufacturer,
-               p->identity.model, p->identity.baud_mask);
-        return 0;
-    }
-    if (!strcmp(name, "configure")) {
-        rc = dan_master_configure(&g_m, args ? (uint32_t)strtoul(args, NULL, 0) : 0u, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u}\n", dan_master_baud(&g_m));
-        return 0;
-    }
-    if (!strcmp(name, "arm") || !strcmp(name, "disarm")) {
-        rc = dan_gw_arm(&g_gw, name[0] == 'a', dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u}\n", name, g_gw.gw_flags);
-        return 0;
-    }
-    if (!strcmp(name, "config")) {
-        dan_gw_config_t c;
-        char *tok, *save = NULL;
-        memset(&c, 0, sizeof c);
-        for (tok = args ? strtok_r(args, ":", &save) : NULL; tok; tok = strtok_r(NULL, ":", &save)) {
-            if (!strncmp(tok, "timeout=", 8)) {
-                c.set_mask |= DAN_GW_CFG_ESC_TIMEOUT;
-                c.esc_timeout_ms = (uint32_t)strtoul(tok + 8, NULL, 0);
-            } else if (!strncmp(tok, "rate=", 5)) {
-                c.set_mask |= DAN_GW_CFG_ARMING_RATE;
-                c.arming_rate_hz = (uint32_t)strtoul(tok + 5, NULL, 0);
-            }
+    for (i = 0; i < sizeof steps / sizeof steps[0]; i++) {
+        if (!strcmp(name, steps[i].name)) {
+            return steps[i].fn(name, step, args);
         }
-        rc = dan_gw_config(&g_gw, &c, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"config\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
-               "\"arming_rate_hz\": %u, \"flags\": %u}\n", g_gw.config.node_id,
-               g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz, g_gw.config.gw_flags);
-        return 0;
     }
-    if (!strcmp(name, "esc") || !strcmp(name, "esc-ramp")) {
-        int16_t from[DAN_GW_ESC_MAX], to[DAN_GW_ESC_MAX];
-        size_t n;
-        uint32_t ms = 0, hz = 0;
-        if (args == NULL) return fail(step, DAN_ERR_ARG);
-        if (name[3] == '-') {
-            unsigned nn;
-            long a, b;
-            if (sscanf(args, "%u:%ld:%ld:%u", &nn, &a, &b, &ms) != 4 || nn < 1 || nn > 20) {
-                return fail(step, DAN_ERR_ARG);
-            }
-            for (i = 0; i < nn; i++) {
-                from[i] = (int16_t)a;
-                to[i] = (int16_t)b;
-            }
-            return esc_run("esc-ramp", from, to, nn, ms, 50);
-        }
-        {
-            char *at = strchr(args, '@');
-            if (at) {
-                *at++ = '\0';
-                ms = (uint32_t)strtoul(at, &at, 0);
-                if (*at == '@') hz = (uint32_t)strtoul(at + 1, NULL, 0);
-            }
-        }
-        if (parse_values(args, from, &n)) return fail(step, DAN_ERR_ARG);
-        return esc_run("esc", from, NULL, n, ms, hz);
-    }
-    if (!strcmp(name, "telemetry")) {
-        uint8_t first = 0;
-        int pages = 0;
-        do {
-            rc = dan_gw_telemetry(&g_gw, first, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc != DAN_OK) return fail(step, rc);
-            first = g_gw.telem_next;
-        } while (first != DAN_GW_NONE && ++pages < 8);
-        printf("{\"step\": \"telemetry\", \"ok\": true, \"flags\": %u, ", g_gw.gw_flags);
-        print_all_telem();
-        printf("}\n");
-        return 0;
-    }
-    if (!strcmp(name, "nodes")) {
-        static dan_gw_node_entry_t list[128];
-        size_t nn = 0;
-        uint8_t first = 1;
-        do {
-            dan_reader_t r;
-            dan_gw_nodes_hdr_t h;
-            rc = dan_gw_nodes(&g_gw, first, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc == DAN_OK) rc = dan_gw_nodes_begin(&g_gw, &r, &h);
-            if (rc != DAN_OK) return fail(step, rc);
-            for (i = 0; i < h.count && nn < 128; i++) {
-                if (dan_gw_nodes_next(&r, &list[nn]) == DAN_OK) nn++;
-            }
-            first = h.next;
-        } while (first != 0);
-        printf("{\"step\": \"nodes\", \"ok\": true, \"nodes\": [");
-        for (i = 0; i < nn; i++) {
-            dan_gw_node_info_t ni;
-            memset(&ni, 0, sizeof ni);
-            rc = dan_gw_node_info(&g_gw, list[i].node_id, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc == DAN_OK) (void)dan_gw_node_info_get(&g_gw, &ni);
-            printf("%s{\"id\": %u, \"health\": %u, \"mode\": %u, \"sub_mode\": %u, \"uptime\": %lu, "
-                   "\"vendor\": %u, \"age_ms\": %lu, \"info\": %u, \"name\": \"%s\", "
-                   "\"sw\": [%u, %u], \"hw\": [%u, %u], \"uid\": \"",
-                   i ? ", " : "", list[i].node_id, list[i].health, list[i].mode, list[i].sub_mode,
-                   (unsigned long)list[i].uptime_sec, list[i].vendor_status,
-                   (unsigned long)list[i].age_ms, ni.info_state, ni.name, ni.sw_major, ni.sw_minor,
-                   ni.hw_major, ni.hw_minor);
-            {
-                size_t k;
-                for (k = 0; k < 16; k++) printf("%02x", ni.unique_id[k]);
-            }
-            printf("\"}");
-        }
-        printf("]}\n");
-        return 0;
-    }
-    if (!strcmp(name, "stats")) {
-        rc = dan_gw_stats(&g_gw, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"stats\", \"ok\": true");
-        for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
-            printf(", \"%s\": %u", dan_gw_stat_name((unsigned)i), g_gw.stats[i]);
-        }
-        printf(", \"master_timeouts\": %u, \"master_retries\": %u, \"master_bad_replies\": %u}\n",
-               g_m.stats.timeouts, g_m.stats.retries, g_m.stats.bad_replies);
-        return 0;
-    }
-    if (!strcmp(name, "tunnel")) {
-        dan_gw_tun_open_t o;
-        unsigned port, a = 0, b = 0;
-        int serial = 0;
-        unsigned long baud = 0;
-        char mode[16];
-        memset(&o, 0, sizeof o);
-        if (args == NULL || sscanf(args, "%u:%15[^:]:%u:%d:%lu", &port, mode, &a, &serial, &baud) < 4) {
-            return fail(step, DAN_ERR_ARG);
-        }
-        o.port = (uint8_t)port;
-        if (!strcmp(mode, "targetted")) {
-            o.mode = DAN_GW_TUN_TARGETTED;
-            o.protocol = 255; /* UNDEFINED, as ArduPilot sends */
-            o.target = (uint8_t)a;
-            o.serial_id = (int8_t)serial;
-            o.options = 1; /* LOCK_PORT */
-            o.baud = (uint32_t)baud;
-        } else {
-            b = (unsigned)serial;
-            o.mode = DAN_GW_TUN_BROADCAST;
-            o.protocol = (uint8_t)a;
-            o.target = (uint8_t)b;
-        }
-        rc = dan_gw_tunnel_open(&g_gw, &o, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"tunnel\", \"ok\": true, \"port\": %u}\n", port);
-        return 0;
-    }
-    if (!strcmp(name, "xfer")) {
-        return args ? step_xfer("xfer", args) : fail(step, DAN_ERR_ARG);
-    }
-    if (!strcmp(name, "filter")) {
-        dan_gw_filter_t f[DAN_GW_FILTERS_MAX];
-        char *tok, *save = NULL;
-        size_t n = 0;
-        for (tok = args ? strtok_r(args, ",", &save) : NULL; tok && n < DAN_GW_FILTERS_MAX;
-             tok = strtok_r(NULL, ",", &save)) {
-            char *slash = strchr(tok, '/');
-            if (slash == NULL) return fail(step, DAN_ERR_ARG);
-            f[n].id = (uint32_t)strtoul(tok, NULL, 16) | ((slash - tok) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
-            f[n].mask = (uint32_t)strtoul(slash + 1, NULL, 16);
-            n++;
-        }
-        rc = dan_gw_can_filter(&g_gw, DAN_GW_FILTER_REPLACE, f, n, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"filter\", \"ok\": true, \"count\": %zu}\n", n);
-        return 0;
-    }
-    if (!strcmp(name, "cansend")) {
-        dan_can_frame_t f[DAN_GW_CAN_FRAMES_MAX];
-        char *tok, *save = NULL;
-        size_t n = 0;
-        for (tok = args ? strtok_r(args, ",", &save) : NULL; tok && n < DAN_GW_CAN_FRAMES_MAX;
-             tok = strtok_r(NULL, ",", &save)) {
-            if (parse_frame(tok, &f[n])) return fail(step, DAN_ERR_ARG);
-            n++;
-        }
-        rc = dan_gw_can_send(&g_gw, f, n, dan_posix_now_us());
-        if (rc == DAN_OK) rc = run();
-        if (rc != DAN_OK) return fail(step, rc);
-        printf("{\"step\": \"cansend\", \"ok\": %s, \"accepted\": %u}\n",
-               g_gw.can_accepted == n ? "true" : "false", g_gw.can_accepted);
-        return g_gw.can_accepted == n ? 0 : 1;
-    }
-    if (!strcmp(name, "candump")) {
-        unsigned long want = 1, timeout_ms = 10000;
-        uint64_t end;
-        size_t got = 0;
-        if (args) sscanf(args, "%lu:%lu", &want, &timeout_ms);
-        end = dan_posix_now_us() + timeout_ms * 1000u;
-        printf("{\"step\": \"candump\", \"frames\": [");
-        while (got < want && dan_posix_now_us() < end) {
-            dan_reader_t r;
-            dan_gw_can_recv_t h;
-            dan_can_frame_t f;
-            rc = dan_gw_can_recv(&g_gw, DAN_GW_CAN_FRAMES_MAX, dan_posix_now_us());
-            if (rc == DAN_OK) rc = run();
-            if (rc != DAN_OK || dan_gw_can_begin(&g_gw, &r, &h) != DAN_OK) continue;
-            for (i = 0; i < h.count; i++) {
-                size_t k;
-                if (dan_gw_can_next(&r, &f) != DAN_OK) break;
-                printf("%s\"%0*X#", got ? ", " : "", (f.flags & DAN_CAN_EXT) ? 8 : 3, (unsigned)f.id);
-                for (k = 0; k < f.dlc; k++) printf("%02X", f.data[k]);
-                printf("\"");
-                got++;
-            }
-            if (h.count == 0) sleep_us(10000);
-        }
-        printf("], \"ok\": %s, \"dropped\": %u}\n", got >= want ? "true" : "false", g_gw.can_rx_dropped);
-        return got >= want ? 0 : 1;
-    }
-    fprintf(stderr, "dan-fcsim: unknown step '%s'\n", step);
+    tool_error("unknown step '%s'", step);
     return 2;
 }
 
@@ -565,6 +763,7 @@ int main(int argc, char **argv)
     dan_master_config_t mc;
     char err[256];
     int i, rc = 0;
+    tool_prog = "dan-fcsim";
     for (i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--port") && i + 1 < argc) {
             port = argv[++i];
@@ -577,32 +776,34 @@ int main(int argc, char **argv)
         } else if (!strcmp(argv[i], "--recover") && i + 1 < argc) {
             g_recover = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--help")) {
-            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N] STEP...\n"
+            printf("usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] "
+                   "[--recover N] STEP...\n"
                    "(steps: see the comment at the top of tests/tools/dan-fcsim.c)\n");
             return 0;
         } else if (argv[i][0] == '-') {
-            fprintf(stderr, "dan-fcsim: unknown option %s\n", argv[i]);
+            tool_error("unknown option %s", argv[i]);
             return 2;
         } else {
             break;
         }
     }
     if (port == NULL) {
-        fprintf(stderr, "dan-fcsim: --port is required\n");
+        tool_error("--port is required");
         return 2;
     }
     signal(SIGPIPE, SIG_IGN);
     if (dan_posix_open(&g_port, port, 9600, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
                        sizeof err) != DAN_OK) {
-        fprintf(stderr, "dan-fcsim: %s\n", err);
+        tool_error("%s", err);
         return 2;
     }
     dan_master_config_default(&mc);
     mc.resp_latency_us = latency_ms * 1000u;
     mc.gap_us = gap_ms * 1000u;
     mc.retries = 3;
-    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, 9600, dan_posix_now_us()) != DAN_OK) {
-        fprintf(stderr, "dan-fcsim: master init failed\n");
+    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, 9600, dan_posix_now_us()) !=
+        DAN_OK) {
+        tool_error("master init failed");
         return 2;
     }
     dan_gw_init(&g_gw, &g_m);

@@ -9,146 +9,178 @@
  * SIGINT prints its counters as one JSON line and exits 0.
  */
 #include <poll.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "dan/dan.h"
 #include "dan/posix.h"
+#include "dan_tool.h"
+#include "handlers_test_a.h"
 
-static volatile sig_atomic_t stop_flag;
+/* Types one peripheral serves here: as many as the tests combine. */
+#define MAX_TYPES 4u
+/* Longest a poll() waits, so a signal is seen this soon. */
+#define POLL_CAP_MS 100
 
-static void on_signal(int sig)
+typedef struct {
+    const char *path, *types;
+    unsigned long mask, window_ms, gap_ms, baud;
+    bool no_echo;
+} opts_t;
+
+/* The numbers an option sets, or NULL for any other option. */
+static unsigned long *number_option(opts_t *o, const char *a)
 {
-    (void)sig;
-    stop_flag = 1;
-}
-
-static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now)
-{
+    const struct {
+        const char *name;
+        unsigned long *dst;
+    } nums[] = {
+        {"--mask", &o->mask},
+        {"--window-ms", &o->window_ms},
+        {"--gap-ms", &o->gap_ms},
+        {"--baud", &o->baud},
+    };
     size_t i;
-    (void)user; (void)code; (void)now;
-    if (len == 0) {
-        *err = "empty payload";
-        return DAN_ERR_MALFORMED;
+    for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
+        if (strcmp(a, nums[i].name) == 0) {
+            return nums[i].dst;
+        }
     }
-    for (i = len; i-- > 0;) {
-        dan_put_u8(resp, req[i]);
-    }
-    return DAN_OK;
+    return NULL;
 }
 
-static int h_silent(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                    const char **err, uint64_t now)
+/* Returns -1 to go on, else the exit code. Numbers are read leniently
+ * (strtoul), as the tests have always passed them. */
+static int parse_options(int argc, char **argv, opts_t *o)
 {
-    (void)code; (void)req; (void)len; (void)resp; (void)err; (void)now;
-    (*(unsigned *)user)++;
-    return DAN_PERIPH_NO_REPLY;
+    int i;
+    for (i = 1; i < argc; i++) {
+        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
+        unsigned long *num = number_option(o, argv[i]);
+        if (strcmp(argv[i], "--no-echo") == 0) {
+            o->no_echo = true;
+            continue;
+        }
+        if (v == NULL) {
+            tool_error("bad or incomplete option %s", argv[i]);
+            return 2;
+        }
+        if (strcmp(argv[i], "--port") == 0) {
+            o->path = v;
+        } else if (strcmp(argv[i], "--types") == 0) {
+            o->types = v;
+        } else if (num != NULL) {
+            *num = strtoul(v, NULL, 0);
+        } else {
+            tool_error("unknown option %s", argv[i]);
+            return 2;
+        }
+        i++;
+    }
+    if (o->path == NULL || o->baud == 0) {
+        tool_error("--port is required");
+        return 2;
+    }
+    return -1;
+}
+
+/* The types of the --types list with their identities; 0 or -1. test-a
+ * gets its handlers, which count silent commands in *silent. */
+static int setup_types(const opts_t *o, dan_ptype_t *types, dan_identity_t *ids, size_t *n,
+                       unsigned *silent)
+{
+    const dan_type_info_t *t[MAX_TYPES];
+    char bad[128];
+    size_t k;
+    if (tool_parse_types(o->types, t, MAX_TYPES, n, bad, sizeof bad) != 0) {
+        tool_error("unknown type %s", bad);
+        return -1;
+    }
+    for (k = 0; k < *n; k++) {
+        ids[k].dan_version = DAN_VERSION;
+        snprintf(ids[k].manufacturer, DAN_MAX_STRING, "DAN Project");
+        snprintf(ids[k].model, DAN_MAX_STRING, "%s", t[k]->name);
+        snprintf(ids[k].hw_version, DAN_MAX_STRING, "sim");
+        snprintf(ids[k].sw_version, DAN_MAX_STRING, "1.0.%zu", k);
+        ids[k].baud_mask = (uint16_t)o->mask;
+        types[k].first = t[k]->first;
+        types[k].identity = &ids[k];
+        if (t[k]->first == DAN_TYPE_TEST_A_FIRST) {
+            types[k].handlers = test_a_handlers;
+            types[k].nhandlers = TEST_A_NHANDLERS;
+            types[k].user = silent;
+        }
+    }
+    return 0;
+}
+
+/* Serves requests until a signal or a lost port. */
+static void serve(dan_periph_t *p, dan_posix_port_t *port)
+{
+    uint8_t buf[512];
+    while (!tool_stop) {
+        if (tool_wait_fd(port->fd, POLLIN, dan_periph_next_us(p), POLL_CAP_MS) > 0) {
+            int n = dan_posix_read(port, buf, sizeof buf);
+            if (n < 0) {
+                tool_error("port read failed");
+                break;
+            }
+            dan_periph_rx(p, buf, (size_t)n, dan_posix_now_us());
+        }
+        dan_periph_poll(p, dan_posix_now_us());
+    }
+}
+
+static void print_counters(const dan_periph_t *p, unsigned silent)
+{
+    printf("{\"requests\":%u,\"replies\":%u,\"unknown\":%u,\"errors_sent\":%u,\"late\":%u,"
+           "\"overruns\":%u,\"configures\":%u,\"nacks\":%u,\"baud_changes\":%u,\"baud\":%u,"
+           "\"silent\":%u,\"collisions\":%u,\"crc_errors\":%u}\n",
+           p->stats.requests, p->stats.replies, p->stats.unknown, p->stats.errors_sent,
+           p->stats.late, p->stats.overruns, p->stats.configures, p->stats.nacks,
+           p->stats.baud_changes, dan_periph_baud(p), silent, p->link.stats.collisions,
+           p->link.dec.stats.crc_errors);
 }
 
 int main(int argc, char **argv)
 {
     static dan_posix_port_t port;
     static dan_periph_t p;
-    static dan_identity_t ids[4];
-    static dan_ptype_t types[4];
-    static const dan_handler_t handlers_a[] = {{0x62, h_reverse}, {0x63, h_silent}};
+    static dan_identity_t ids[MAX_TYPES];
+    static dan_ptype_t types[MAX_TYPES];
     static unsigned silent;
-    const char *path = NULL, *types_arg = "test-a";
-    unsigned long mask = 0x0F, window_ms = 50, gap_ms = 20, baud = 9600;
-    bool no_echo = false;
+    opts_t o = {NULL, "test-a", 0x0F, 50, 20, 9600, false};
     size_t ntypes = 0;
-    char err[256], tbuf[128], *tok, *save = NULL;
+    char err[256];
     dan_periph_config_t cfg;
-    int i;
+    int r;
 
-    for (i = 1; i < argc; i++) {
-        const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
-        if (strcmp(argv[i], "--no-echo") == 0) {
-            no_echo = true;
-            continue;
-        }
-        if (v == NULL) {
-            fprintf(stderr, "dan-testperiph: bad or incomplete option %s\n", argv[i]);
-            return 2;
-        }
-        if (strcmp(argv[i], "--port") == 0) path = v;
-        else if (strcmp(argv[i], "--types") == 0) types_arg = v;
-        else if (strcmp(argv[i], "--mask") == 0) mask = strtoul(v, NULL, 0);
-        else if (strcmp(argv[i], "--window-ms") == 0) window_ms = strtoul(v, NULL, 0);
-        else if (strcmp(argv[i], "--gap-ms") == 0) gap_ms = strtoul(v, NULL, 0);
-        else if (strcmp(argv[i], "--baud") == 0) baud = strtoul(v, NULL, 0);
-        else {
-            fprintf(stderr, "dan-testperiph: unknown option %s\n", argv[i]);
-            return 2;
-        }
-        i++;
+    tool_prog = "dan-testperiph";
+    r = parse_options(argc, argv, &o);
+    if (r >= 0) {
+        return r;
     }
-    if (path == NULL || baud == 0) {
-        fprintf(stderr, "dan-testperiph: --port is required\n");
+    if (setup_types(&o, types, ids, &ntypes, &silent) != 0) {
         return 2;
     }
-    snprintf(tbuf, sizeof tbuf, "%s", types_arg);
-    for (tok = strtok_r(tbuf, ",", &save); tok != NULL; tok = strtok_r(NULL, ",", &save)) {
-        const dan_type_info_t *t = dan_type_lookup(tok);
-        if (t == NULL || ntypes >= 4) {
-            fprintf(stderr, "dan-testperiph: unknown type %s\n", tok);
-            return 2;
-        }
-        ids[ntypes].dan_version = DAN_VERSION;
-        snprintf(ids[ntypes].manufacturer, DAN_MAX_STRING, "DAN Project");
-        snprintf(ids[ntypes].model, DAN_MAX_STRING, "%s", t->name);
-        snprintf(ids[ntypes].hw_version, DAN_MAX_STRING, "sim");
-        snprintf(ids[ntypes].sw_version, DAN_MAX_STRING, "1.0.%zu", ntypes);
-        ids[ntypes].baud_mask = (uint16_t)mask;
-        types[ntypes].first = t->first;
-        types[ntypes].identity = &ids[ntypes];
-        if (t->first == DAN_TYPE_TEST_A_FIRST) {
-            types[ntypes].handlers = handlers_a;
-            types[ntypes].nhandlers = 2;
-            types[ntypes].user = &silent;
-        }
-        ntypes++;
-    }
-    if (dan_posix_open(&port, path, (uint32_t)baud, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
+    if (dan_posix_open(&port, o.path, (uint32_t)o.baud,
+                       o.no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
                        sizeof err) != DAN_OK) {
-        fprintf(stderr, "dan-testperiph: %s\n", err);
+        tool_error("%s", err);
         return 2;
     }
     dan_periph_config_default(&cfg);
-    cfg.reply_window_us = (uint32_t)window_ms * 1000u;
-    cfg.gap_us = (uint32_t)gap_ms * 1000u;
-    dan_periph_init(&p, dan_posix_port(&port), types, ntypes, &cfg, (uint32_t)baud, dan_posix_now_us());
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
+    cfg.reply_window_us = (uint32_t)o.window_ms * 1000u;
+    cfg.gap_us = (uint32_t)o.gap_ms * 1000u;
+    dan_periph_init(&p, dan_posix_port(&port), types, ntypes, &cfg, (uint32_t)o.baud,
+                    dan_posix_now_us());
+    tool_catch_signal(SIGINT);
+    tool_catch_signal(SIGTERM);
     printf("READY\n");
     fflush(stdout);
-    while (!stop_flag) {
-        uint8_t buf[512];
-        struct pollfd pfd = {port.fd, POLLIN, 0};
-        uint64_t now = dan_posix_now_us(), next = dan_periph_next_us(&p);
-        int ms = (next == UINT64_MAX) ? 100 : (next <= now) ? 0 : (int)((next - now + 999u) / 1000u);
-        if (ms > 100) {
-            ms = 100;
-        }
-        if (poll(&pfd, 1, ms) > 0) {
-            int n = dan_posix_read(&port, buf, sizeof buf);
-            if (n < 0) {
-                fprintf(stderr, "dan-testperiph: port read failed\n");
-                break;
-            }
-            dan_periph_rx(&p, buf, (size_t)n, dan_posix_now_us());
-        }
-        dan_periph_poll(&p, dan_posix_now_us());
-    }
-    printf("{\"requests\":%u,\"replies\":%u,\"unknown\":%u,\"errors_sent\":%u,\"late\":%u,\"overruns\":%u,"
-           "\"configures\":%u,\"nacks\":%u,\"baud_changes\":%u,\"baud\":%u,\"silent\":%u,\"collisions\":%u,"
-           "\"crc_errors\":%u}\n",
-           p.stats.requests, p.stats.replies, p.stats.unknown, p.stats.errors_sent, p.stats.late,
-           p.stats.overruns, p.stats.configures, p.stats.nacks, p.stats.baud_changes, dan_periph_baud(&p),
-           silent, p.link.stats.collisions, p.link.dec.stats.crc_errors);
+    serve(&p, &port);
+    print_counters(&p, silent);
     dan_posix_close(&port);
     return 0;
 }

@@ -10,6 +10,7 @@
 
 #include "dan/codes.h"
 #include "simbus.h"
+#include "handlers_test_a.h"
 
 #define STEP_US 10u
 
@@ -23,33 +24,7 @@ static const dan_identity_t ident_b = {1, "DAN Project", "test B", "rev 2", "2.0
 static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1",
                                         DAN_BAUD_MASK_DEFINED, 0, false};
 
-/* 0x62: replies with the payload reversed; an empty payload is malformed. */
-static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len,
-                     dan_writer_t *resp, const char **err, uint64_t now)
-{
-    size_t i;
-    (void)user; (void)code; (void)now;
-    if (len == 0) {
-        *err = "empty payload";
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = len; i-- > 0;) {
-        dan_put_u8(resp, req[i]);
-    }
-    return DAN_OK;
-}
-
-/* 0x63: a command without a reply. */
-static int h_silent(void *user, uint32_t code, const uint8_t *req, size_t len,
-                    dan_writer_t *resp, const char **err, uint64_t now)
-{
-    (void)code; (void)req; (void)len; (void)resp; (void)err; (void)now;
-    (*(int *)user)++;
-    return DAN_PERIPH_NO_REPLY;
-}
-
-static int silent_calls;
-static const dan_handler_t handlers_a[] = {{0x62, h_reverse}, {0x63, h_silent}};
+static unsigned silent_calls;
 
 static dan_ptype_t types_dev1[2];
 static dan_ptype_t types_dev2[1];
@@ -70,9 +45,11 @@ static void rig_setup(bool echo)
 {
     dan_master_config_t cfg;
     memset(&rig, 0, sizeof rig);
-    types_dev1[0] = (dan_ptype_t){DAN_TYPE_TEST_A_FIRST, &ident_a, handlers_a, 2, &silent_calls, NULL};
-    types_dev1[1] = (dan_ptype_t){DAN_TYPE_TEST_B_FIRST, &ident_b, NULL, 0, NULL, NULL};
-    types_dev2[0] = (dan_ptype_t){DAN_TYPE_CAN_GW_FIRST, &ident_gw, NULL, 0, NULL, NULL};
+    types_dev1[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST, .identity = &ident_a,
+                                  .handlers = test_a_handlers, .nhandlers = TEST_A_NHANDLERS,
+                                  .user = &silent_calls};
+    types_dev1[1] = (dan_ptype_t){.first = DAN_TYPE_TEST_B_FIRST, .identity = &ident_b};
+    types_dev2[0] = (dan_ptype_t){.first = DAN_TYPE_CAN_GW_FIRST, .identity = &ident_gw};
     sim_init(&rig.bus, STEP_US);
     dan_master_config_default(&cfg);
     rig.nm = sim_add_master(&rig.bus, &rig.m, 9600, echo);

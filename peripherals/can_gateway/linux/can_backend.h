@@ -132,7 +132,19 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f);
  * error frame), DAN_ERR_OVERFLOW if cap is too small. */
 int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap);
 
+/* Parses can-utils' cansend syntax: ID#DATA with 3 hex digits for an 11-bit
+ * id or 8 for a 29-bit one, DATA 0..8 bytes in hex with optional dots
+ * between bytes; ID#R or ID#Rn is a remote frame (n = dlc). Returns 0, or
+ * DAN_ERR_MALFORMED. */
+int dan_can_parse_cansend(const char *s, dan_can_frame_t *f);
+
 /* ---- backend entry points, used by the dispatcher ---- */
+
+/* A backend's error message, "KIND:NAME: WHAT[: strerror(errnum)]" (none
+ * when err is NULL or errlen 0); returns code. */
+int dan_canif_errf(char *err, size_t errlen, int code, const char *kind, const char *name,
+                   const char *what, int errnum);
+
 int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
                          char *err, size_t errlen);
 int dan_canif_slcan_send(dan_canif_t *c, const dan_can_frame_t *f);

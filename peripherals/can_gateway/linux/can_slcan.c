@@ -12,6 +12,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <poll.h>
 #include <stdio.h>
 #include <string.h>
@@ -20,16 +21,27 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "dan/posix.h"
+#include "dan_tool.h"
+
+#define READS_PER_CALL 4 /* recv: reads at most, so garbage cannot hold the loop */
+#define US_PER_MS      1000u
+#define CLOSE_ACK_US 100000u /* closing: how long the adapter gets to ACK "C" */
+#define SETTLE_NS 20000000L  /* closing: time for the last frames to reach CAN */
+
 /* ---- pure line codec ---- */
 
 static int hexval(char ch)
 {
-    if (ch >= '0' && ch <= '9')
+    if (ch >= '0' && ch <= '9') {
         return ch - '0';
-    if (ch >= 'a' && ch <= 'f')
+    }
+    if (ch >= 'a' && ch <= 'f') {
         return ch - 'a' + 10;
-    if (ch >= 'A' && ch <= 'F')
+    }
+    if (ch >= 'A' && ch <= 'F') {
         return ch - 'A' + 10;
+    }
     return -1;
 }
 
@@ -39,8 +51,9 @@ static int parse_hex(const char *s, size_t n, uint32_t *v)
     uint32_t x = 0;
     for (size_t i = 0; i < n; i++) {
         int h = hexval(s[i]);
-        if (h < 0)
+        if (h < 0) {
             return DAN_ERR_MALFORMED;
+        }
         x = (x << 4) | (uint32_t)h;
     }
     *v = x;
@@ -54,10 +67,12 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     uint8_t flags = 0;
     int dlc;
 
-    if (!line || !f)
+    if (!line || !f) {
         return DAN_ERR_ARG;
-    if (len == 0)
+    }
+    if (len == 0) {
         return 0;
+    }
     switch (line[0]) {
     case 'z':
     case 'Z':
@@ -69,22 +84,28 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     default:
         return DAN_ERR_MALFORMED;
     }
-    if (len < 1 + idlen + 1)
+    if (len < 1 + idlen + 1) {
         return DAN_ERR_MALFORMED;
-    if (parse_hex(line + 1, idlen, &id) < 0)
+    }
+    if (parse_hex(line + 1, idlen, &id) < 0) {
         return DAN_ERR_MALFORMED;
-    if (id > ((flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+    }
+    if (id > ((flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
         return DAN_ERR_MALFORMED;
+    }
     dlc = hexval(line[1 + idlen]);
-    if (dlc < 0 || dlc > 8)
+    if (dlc < 0 || dlc > 8) {
         return DAN_ERR_MALFORMED;
+    }
     pos = 2 + idlen;
     need = pos + ((flags & DAN_CAN_RTR) ? 0u : 2u * (size_t)dlc);
     /* Exactly the frame, or the frame and a 4-digit timestamp. */
-    if (len != need && len != need + 4)
+    if (len != need && len != need + 4) {
         return DAN_ERR_MALFORMED;
-    if (len == need + 4 && parse_hex(line + need, 4, &v) < 0)
+    }
+    if (len == need + 4 && parse_hex(line + need, 4, &v) < 0) {
         return DAN_ERR_MALFORMED;
+    }
 
     memset(f, 0, sizeof *f);
     f->id = id;
@@ -92,8 +113,9 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     f->dlc = (uint8_t)dlc;
     if (!(flags & DAN_CAN_RTR)) {
         for (int i = 0; i < dlc; i++) {
-            if (parse_hex(line + pos + 2 * (size_t)i, 2, &v) < 0)
+            if (parse_hex(line + pos + 2 * (size_t)i, 2, &v) < 0) {
                 return DAN_ERR_MALFORMED;
+            }
             f->data[i] = (uint8_t)v;
         }
     }
@@ -107,17 +129,20 @@ int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap)
     size_t n = 0, idlen;
     int ext, rtr;
 
-    if (!f || !out)
+    if (!f || !out) {
         return DAN_ERR_ARG;
+    }
     ext = (f->flags & DAN_CAN_EXT) != 0;
     rtr = (f->flags & DAN_CAN_RTR) != 0;
     if ((f->flags & DAN_CAN_ERR) || f->dlc > 8 ||
-        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
         return DAN_ERR_ARG;
+    }
     idlen = ext ? 8u : 3u;
     buf[n++] = ext ? (rtr ? 'R' : 'T') : (rtr ? 'r' : 't');
-    for (size_t i = 0; i < idlen; i++)
+    for (size_t i = 0; i < idlen; i++) {
         buf[n++] = hex[(f->id >> (4u * (idlen - 1u - i))) & 0xFu];
+    }
     buf[n++] = hex[f->dlc];
     if (!rtr) {
         for (size_t i = 0; i < f->dlc; i++) {
@@ -126,26 +151,72 @@ int dan_slcan_format(const dan_can_frame_t *f, char *out, size_t cap)
         }
     }
     buf[n++] = '\r';
-    if (cap < n + 1)
+    if (cap < n + 1) {
         return DAN_ERR_OVERFLOW;
+    }
     memcpy(out, buf, n);
     out[n] = '\0';
     return (int)n;
 }
 
+/* The part after "ID#R": nothing, or one dlc digit 0..8. */
+static int parse_rtr_dlc(const char *s, dan_can_frame_t *f)
+{
+    f->flags |= DAN_CAN_RTR;
+    if (s[0] == '\0') {
+        return 0;
+    }
+    if (s[0] < '0' || s[0] > '8' || s[1] != '\0') {
+        return DAN_ERR_MALFORMED;
+    }
+    f->dlc = (uint8_t)(s[0] - '0');
+    return 0;
+}
+
+int dan_can_parse_cansend(const char *s, dan_can_frame_t *f)
+{
+    const char *hash = strchr(s, '#');
+    size_t idlen;
+    uint32_t id, v;
+
+    memset(f, 0, sizeof *f);
+    if (!hash) {
+        return DAN_ERR_MALFORMED;
+    }
+    idlen = (size_t)(hash - s);
+    if ((idlen != 3 && idlen != 8) || parse_hex(s, idlen, &id) < 0) {
+        return DAN_ERR_MALFORMED;
+    }
+    if (idlen == 8) {
+        f->flags |= DAN_CAN_EXT;
+    }
+    if (id > (idlen == 8 ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
+        return DAN_ERR_MALFORMED;
+    }
+    f->id = id;
+    s = hash + 1;
+    if (*s == 'R' || *s == 'r') {
+        return parse_rtr_dlc(s + 1, f);
+    }
+    while (*s) {
+        if (*s == '.') {
+            s++;
+            continue;
+        }
+        if (f->dlc >= 8 || parse_hex(s, 2, &v) < 0) {
+            return DAN_ERR_MALFORMED;
+        }
+        f->data[f->dlc++] = (uint8_t)v;
+        s += 2;
+    }
+    return 0;
+}
+
 /* ---- tty helpers ---- */
 
-static int fail(char *err, size_t errlen, int code, const char *path,
-                const char *what, int errnum)
+static int fail(char *err, size_t errlen, int code, const char *path, const char *what, int errnum)
 {
-    if (err && errlen) {
-        if (errnum)
-            snprintf(err, errlen, "slcan:%s: %s: %s", path, what,
-                     strerror(errnum));
-        else
-            snprintf(err, errlen, "slcan:%s: %s", path, what);
-    }
-    return code;
+    return dan_canif_errf(err, errlen, code, "slcan", path, what, errnum);
 }
 
 static speed_t baud_to_speed(unsigned baud)
@@ -169,34 +240,38 @@ static speed_t baud_to_speed(unsigned baud)
     }
 }
 
-static long ms_left(const struct timespec *deadline)
+/* Waits for fd until deadline (dan_posix_now_us() time): 0 when it may be
+ * ready, DAN_ERR_TIMEOUT with less than a millisecond left, DAN_ERR_IO. */
+static int wait_ready(int fd, short events, uint64_t deadline)
 {
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (long)(deadline->tv_sec - now.tv_sec) * 1000L +
-           (deadline->tv_nsec - now.tv_nsec) / 1000000L;
+    if (dan_posix_now_us() + US_PER_MS > deadline) {
+        return DAN_ERR_TIMEOUT;
+    }
+    if (tool_wait_fd(fd, events, deadline, INT_MAX) < 0 && errno != EINTR) {
+        return DAN_ERR_IO;
+    }
+    return 0;
 }
 
 /* Writes all of s (a short command) before the deadline. */
-static int write_all(int fd, const char *s, size_t n,
-                     const struct timespec *deadline)
+static int write_all(int fd, const char *s, size_t n, uint64_t deadline)
 {
     while (n > 0) {
         ssize_t w = write(fd, s, n);
+        int r;
         if (w > 0) {
             s += w;
             n -= (size_t)w;
             continue;
         }
-        if (w < 0 && errno == EINTR)
+        if (w < 0 && errno == EINTR) {
             continue;
+        }
         if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-            long left = ms_left(deadline);
-            struct pollfd p = { .fd = fd, .events = POLLOUT, .revents = 0 };
-            if (left <= 0)
-                return DAN_ERR_TIMEOUT;
-            if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
-                return DAN_ERR_IO;
+            r = wait_ready(fd, POLLOUT, deadline);
+            if (r < 0) {
+                return r;
+            }
             continue;
         }
         return DAN_ERR_IO;
@@ -209,7 +284,7 @@ static int write_all(int fd, const char *s, size_t n,
  * are skipped. Bytes read after the answer are kept in c->rxbuf for
  * dan_canif_recv(), so frames that follow the ACK of O are not lost.
  * Returns 0 for ACK, DAN_ERR_REMOTE for BEL, DAN_ERR_TIMEOUT, DAN_ERR_IO. */
-static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
+static int wait_ack(dan_canif_t *c, uint64_t deadline)
 {
     size_t linelen = 0;
     c->rx_pos = c->rx_len = 0;
@@ -219,14 +294,15 @@ static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
             for (size_t i = 0; i < (size_t)n; i++) {
                 char b = (char)c->rxbuf[i];
                 int r = 1;
-                if (b == '\a')
+                if (b == '\a') {
                     r = DAN_ERR_REMOTE;
-                else if (b == '\r' && linelen == 0)
+                } else if (b == '\r' && linelen == 0) {
                     r = 0;
-                else if (b == '\r')
+                } else if (b == '\r') {
                     linelen = 0;
-                else if (b != '\n')
+                } else if (b != '\n') {
                     linelen++;
+                }
                 if (r <= 0) {
                     c->rx_pos = i + 1;
                     c->rx_len = (size_t)n;
@@ -235,62 +311,60 @@ static int wait_ack(dan_canif_t *c, const struct timespec *deadline)
             }
             continue;
         }
-        if (n == 0)
+        if (n == 0) {
             return DAN_ERR_IO;
-        if (errno == EINTR)
+        }
+        if (errno == EINTR) {
             continue;
-        if (errno != EAGAIN && errno != EWOULDBLOCK)
+        }
+        if (errno != EAGAIN && errno != EWOULDBLOCK) {
             return DAN_ERR_IO;
-        long left = ms_left(deadline);
-        if (left <= 0)
-            return DAN_ERR_TIMEOUT;
-        struct pollfd p = { .fd = c->fd, .events = POLLIN, .revents = 0 };
-        if (poll(&p, 1, (int)left) < 0 && errno != EINTR)
-            return DAN_ERR_IO;
+        }
+        int r = wait_ready(c->fd, POLLIN, deadline);
+        if (r < 0) {
+            return r;
+        }
     }
 }
 
 static void restore_and_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
-        if (c->have_old_tio)
+        if (c->have_old_tio) {
             tcsetattr(c->fd, TCSADRAIN, &c->old_tio);
+        }
         close(c->fd);
     }
     c->fd = -1;
     c->have_old_tio = 0;
 }
 
-int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
-                         char *err, size_t errlen)
+/* Closes what open got so far and reports why. */
+static int close_fail(dan_canif_t *c, char *err, size_t errlen, int code, const char *path,
+                      const char *what, int errnum)
+{
+    restore_and_close(c);
+    c->kind = DAN_CANIF_NONE;
+    return fail(err, errlen, code, path, what, errnum);
+}
+
+/* Opens path raw at speed, non-blocking, keeping the old settings. */
+static int open_tty(dan_canif_t *c, const char *path, speed_t speed, char *err, size_t errlen)
 {
     struct termios tio;
-    struct timespec deadline;
-    speed_t speed = baud_to_speed(baud);
-    int fd, r;
-
-    if (speed == B0)
-        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
-                    "unsupported serial baud (use 9600..4000000, a standard "
-                    "rate)", 0);
-    fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+    int fd = open(path, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
     if (fd < 0) {
         int e = errno;
         return fail(err, errlen,
-                    e == ENOENT || e == ENODEV || e == ENXIO
-                        ? DAN_ERR_NOTFOUND : DAN_ERR_IO,
-                    path, e == ENOENT ? "no such device" : "cannot open", e);
+                    e == ENOENT || e == ENODEV || e == ENXIO ? DAN_ERR_NOTFOUND : DAN_ERR_IO, path,
+                    e == ENOENT ? "no such device" : "cannot open", e);
     }
     c->kind = DAN_CANIF_SLCAN;
     c->fd = fd;
     snprintf(c->name, sizeof c->name, "%s", path);
-
     if (tcgetattr(fd, &c->old_tio) < 0) {
-        int e = errno;
-        restore_and_close(c);
-        c->kind = DAN_CANIF_NONE;
-        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
-                    "not a serial port (tcgetattr)", e);
+        return close_fail(c, err, errlen, DAN_ERR_UNSUPPORTED, path,
+                          "not a serial port (tcgetattr)", errno);
     }
     c->have_old_tio = 1;
     tio = c->old_tio;
@@ -302,71 +376,68 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
     cfsetispeed(&tio, speed);
     cfsetospeed(&tio, speed);
     if (tcsetattr(fd, TCSANOW, &tio) < 0) {
-        int e = errno;
-        restore_and_close(c);
-        c->kind = DAN_CANIF_NONE;
-        return fail(err, errlen, DAN_ERR_IO, path, "tcsetattr", e);
+        return close_fail(c, err, errlen, DAN_ERR_IO, path, "tcsetattr", errno);
     }
     tcflush(fd, TCIOFLUSH);
+    return 0;
+}
 
-    clock_gettime(CLOCK_MONOTONIC, &deadline);
-    deadline.tv_sec += (time_t)(c->open_timeout_ms / 1000u);
-    deadline.tv_nsec += (long)(c->open_timeout_ms % 1000u) * 1000000L;
-    if (deadline.tv_nsec >= 1000000000L) {
-        deadline.tv_sec++;
-        deadline.tv_nsec -= 1000000000L;
+/* The handshake's commands, in order, and what to say when one fails. */
+static const struct {
+    const char *cmd;
+    const char *refused;   /* answered with BEL; NULL: a BEL is fine too */
+    const char *no_answer; /* DAN_ERR_TIMEOUT */
+    const char *io;        /* any other error */
+} handshake[] = {
+    /* Close the channel in case it was left open: ACK or BEL are both fine
+     * (some adapters refuse C when closed). */
+    {"C\r", NULL,
+     "no answer from adapter to C in time (not an SLCAN adapter, or wrong baud?)",
+     "I/O error during C (close channel)"},
+    {"S8\r", "adapter refused S8 (1 Mbit/s) with BEL",
+     "no answer from adapter to S8 in time (not an SLCAN adapter, or wrong baud?)",
+     "I/O error during S8 (set bitrate)"},
+    {"O\r", "adapter refused O (open channel) with BEL", "no answer from adapter to O",
+     "I/O error during O (open channel)"},
+};
+
+int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *err,
+                         size_t errlen)
+{
+    speed_t speed = baud_to_speed(baud);
+    uint64_t deadline;
+    size_t i;
+    int r;
+
+    if (speed == B0) {
+        return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
+                    "unsupported serial baud (use 9600..4000000, a standard rate)", 0);
     }
-
-    /* Close the channel in case it was left open: ACK or BEL are both
-     * fine (some adapters refuse C when closed). Then drop whatever frames
-     * were still arriving. */
-    r = write_all(fd, "C\r", 2, &deadline);
-    if (r == 0)
-        r = wait_ack(c, &deadline);
-    if (r == DAN_ERR_REMOTE)
-        r = 0;
-    if (r == 0) {
-        tcflush(fd, TCIFLUSH);
-        c->rx_pos = c->rx_len = 0;
-        r = write_all(fd, "S8\r", 3, &deadline);
-        if (r == 0)
-            r = wait_ack(c, &deadline);
+    r = open_tty(c, path, speed, err, errlen);
+    if (r < 0) {
+        return r;
+    }
+    deadline = dan_posix_now_us() + (uint64_t)c->open_timeout_ms * US_PER_MS;
+    for (i = 0; i < sizeof handshake / sizeof handshake[0]; i++) {
+        r = write_all(c->fd, handshake[i].cmd, strlen(handshake[i].cmd), deadline);
         if (r == 0) {
-            r = write_all(fd, "O\r", 2, &deadline);
-            if (r == 0)
-                r = wait_ack(c, &deadline);
-            if (r < 0) {
-                restore_and_close(c);
-                c->kind = DAN_CANIF_NONE;
-                return fail(err, errlen, r, path,
-                            r == DAN_ERR_REMOTE
-                                ? "adapter refused O (open channel) with BEL"
-                                : r == DAN_ERR_TIMEOUT
-                                      ? "no answer from adapter to O"
-                                      : "I/O error during O (open channel)",
-                            0);
-            }
-        } else {
-            restore_and_close(c);
-            c->kind = DAN_CANIF_NONE;
-            return fail(err, errlen, r, path,
-                        r == DAN_ERR_REMOTE
-                            ? "adapter refused S8 (1 Mbit/s) with BEL"
-                            : r == DAN_ERR_TIMEOUT
-                                  ? "no answer from adapter to S8 in time "
-                                    "(not an SLCAN adapter, or wrong baud?)"
-                                  : "I/O error during S8 (set bitrate)",
-                        0);
+            r = wait_ack(c, deadline);
         }
-    } else {
-        restore_and_close(c);
-        c->kind = DAN_CANIF_NONE;
-        return fail(err, errlen, r, path,
-                    r == DAN_ERR_TIMEOUT
-                        ? "no answer from adapter to C in time "
-                          "(not an SLCAN adapter, or wrong baud?)"
-                        : "I/O error during C (close channel)",
-                    0);
+        if (r == DAN_ERR_REMOTE && handshake[i].refused == NULL) {
+            r = 0;
+        }
+        if (r < 0) {
+            return close_fail(c, err, errlen, r, path,
+                              r == DAN_ERR_REMOTE    ? handshake[i].refused
+                              : r == DAN_ERR_TIMEOUT ? handshake[i].no_answer
+                                                     : handshake[i].io,
+                              0);
+        }
+        if (i == 0) {
+            /* Drop whatever frames were still arriving on the old channel. */
+            tcflush(c->fd, TCIFLUSH);
+            c->rx_pos = c->rx_len = 0;
+        }
     }
     return 0;
 }
@@ -382,10 +453,12 @@ int dan_canif_slcan_flush(dan_canif_t *c)
             c->tx_len -= (size_t)w;
             continue;
         }
-        if (w < 0 && errno == EINTR)
+        if (w < 0 && errno == EINTR) {
             continue;
-        if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK))
+        }
+        if (w < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
             return DAN_ERR_BUSY;
+        }
         c->stats.errors++;
         return DAN_ERR_IO;
     }
@@ -398,21 +471,24 @@ int dan_canif_slcan_send(dan_canif_t *c, const dan_can_frame_t *f)
     int n = dan_slcan_format(f, line, sizeof line);
     ssize_t w;
 
-    if (n < 0)
+    if (n < 0) {
         return DAN_ERR_ARG;
+    }
     if (c->tx_len > 0) {
         int r = dan_canif_slcan_flush(c);
         if (r == DAN_ERR_BUSY) {
             c->stats.tx_dropped++;
             return DAN_ERR_BUSY;
         }
-        if (r < 0)
+        if (r < 0) {
             return r;
+        }
     }
     for (;;) {
         w = write(c->fd, line, (size_t)n);
-        if (w < 0 && errno == EINTR)
+        if (w < 0 && errno == EINTR) {
             continue;
+        }
         break;
     }
     if (w < 0) {
@@ -446,10 +522,11 @@ static int feed(dan_canif_t *c, char b, dan_can_frame_t *f)
         return 0;
     }
     if (b != '\r' && b != '\n') {
-        if (c->line_len < DAN_SLCAN_LINE_MAX)
+        if (c->line_len < DAN_SLCAN_LINE_MAX) {
             c->line[c->line_len++] = b;
-        else
+        } else {
             c->line_overflow = 1;
+        }
         return 0;
     }
     /* End of a line. */
@@ -461,15 +538,17 @@ static int feed(dan_canif_t *c, char b, dan_can_frame_t *f)
         return 0;
     }
     r = dan_slcan_parse_line(c->line, c->line_len, f);
-    if (r == 0 && c->line_len == 1)
+    if (r == 0 && c->line_len == 1) {
         c->stats.tx_ack++;
+    }
     c->line_len = 0;
     if (r == 1) {
         c->stats.rx++;
         return 1;
     }
-    if (r < 0)
+    if (r < 0) {
         c->stats.errors++;
+    }
     return 0;
 }
 
@@ -477,11 +556,12 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 {
     /* A few reads at most per call, so a flood of garbage cannot keep the
      * caller's loop here; the fd stays readable and poll comes back. */
-    for (int reads = 0; reads < 4; reads++) {
+    for (int reads = 0; reads < READS_PER_CALL; reads++) {
         while (c->rx_pos < c->rx_len) {
             char b = (char)c->rxbuf[c->rx_pos++];
-            if (feed(c, b, f) == 1)
+            if (feed(c, b, f) == 1) {
                 return 1;
+            }
         }
         c->rx_pos = c->rx_len = 0;
         ssize_t n = read(c->fd, c->rxbuf, sizeof c->rxbuf);
@@ -497,8 +577,9 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
             reads--;
             continue;
         }
-        if (errno == EAGAIN || errno == EWOULDBLOCK)
+        if (errno == EAGAIN || errno == EWOULDBLOCK) {
             return 0;
+        }
         c->stats.errors++;
         return DAN_ERR_IO;
     }
@@ -506,8 +587,9 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
      * again for a while, and complete frames must not wait for it. */
     while (c->rx_pos < c->rx_len) {
         char b = (char)c->rxbuf[c->rx_pos++];
-        if (feed(c, b, f) == 1)
+        if (feed(c, b, f) == 1) {
             return 1;
+        }
     }
     return 0;
 }
@@ -515,30 +597,23 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 void dan_canif_slcan_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
-        struct timespec deadline;
-        /* Best effort: close the CAN channel, give the adapter 100 ms to
-         * take it, then restore the tty. */
-        clock_gettime(CLOCK_MONOTONIC, &deadline);
-        deadline.tv_nsec += 100000000L;
-        if (deadline.tv_nsec >= 1000000000L) {
-            deadline.tv_sec++;
-            deadline.tv_nsec -= 1000000000L;
-        }
+        /* Best effort: close the CAN channel, give the adapter
+         * CLOSE_ACK_US to take it, then restore the tty. */
+        uint64_t deadline = dan_posix_now_us() + CLOSE_ACK_US;
+        struct timespec settle = {0, SETTLE_NS};
         /* The last frames written are the failsafe's: let them leave the
          * tty and reach the bus before the channel closes (adapters may
          * drop frames still queued on C). A line cut short gets its end so
          * "C" is not glued to it. */
         if (c->tx_len > 0) {
-            (void)write_all(c->fd, "\r", 1, &deadline);
+            (void)write_all(c->fd, "\r", 1, deadline);
         }
         c->tx_len = 0;
         (void)tcdrain(c->fd);
-        {
-            struct timespec settle = {0, 20000000L}; /* the adapter sends them on CAN */
-            (void)nanosleep(&settle, NULL);
+        (void)nanosleep(&settle, NULL); /* the adapter sends them on CAN */
+        if (write_all(c->fd, "C\r", 2, deadline) == 0) {
+            (void)wait_ack(c, deadline);
         }
-        if (write_all(c->fd, "C\r", 2, &deadline) == 0)
-            (void)wait_ack(c, &deadline);
         (void)tcdrain(c->fd);
     }
     restore_and_close(c);

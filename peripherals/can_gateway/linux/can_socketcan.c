@@ -18,25 +18,24 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+/* Reads per recv call at most (bad frames are skipped), so a flood of
+ * them cannot keep the caller's loop here. */
+#define READS_PER_CALL 8
+
 #ifndef PF_CAN
 #define PF_CAN 29
 #endif
 
-static int fail(dan_canif_t *c, char *err, size_t errlen, int code,
-                const char *ifname, const char *what, int errnum)
+/* Closes what open got so far and reports why. */
+static int fail(dan_canif_t *c, char *err, size_t errlen, int code, const char *ifname,
+                const char *what, int errnum)
 {
-    if (c->fd >= 0)
+    if (c->fd >= 0) {
         close(c->fd);
+    }
     c->fd = -1;
     c->kind = DAN_CANIF_NONE;
-    if (err && errlen) {
-        if (errnum)
-            snprintf(err, errlen, "socketcan:%s: %s: %s", ifname, what,
-                     strerror(errnum));
-        else
-            snprintf(err, errlen, "socketcan:%s: %s", ifname, what);
-    }
-    return code;
+    return dan_canif_errf(err, errlen, code, "socketcan", ifname, what, errnum);
 }
 
 int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
@@ -48,9 +47,10 @@ int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
     int fd, fl;
 
     c->fd = -1;
-    if (strlen(ifname) >= IFNAMSIZ)
+    if (strlen(ifname) >= IFNAMSIZ) {
         return fail(c, err, errlen, DAN_ERR_ARG, ifname,
                     "interface name too long", 0);
+    }
     fd = socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
     if (fd < 0) {
         int e = errno;
@@ -105,17 +105,21 @@ int dan_canif_socketcan_send(dan_canif_t *c, const dan_can_frame_t *f)
     int ext = (f->flags & DAN_CAN_EXT) != 0;
 
     if ((f->flags & DAN_CAN_ERR) || f->dlc > 8 ||
-        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK))
+        f->id > (ext ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK)) {
         return DAN_ERR_ARG;
+    }
     memset(&cf, 0, sizeof cf);
     cf.can_id = f->id;
-    if (ext)
+    if (ext) {
         cf.can_id |= CAN_EFF_FLAG;
-    if (f->flags & DAN_CAN_RTR)
+    }
+    if (f->flags & DAN_CAN_RTR) {
         cf.can_id |= CAN_RTR_FLAG;
+    }
     cf.can_dlc = f->dlc;
-    if (!(f->flags & DAN_CAN_RTR))
+    if (!(f->flags & DAN_CAN_RTR)) {
         memcpy(cf.data, f->data, f->dlc);
+    }
     do {
         w = write(c->fd, &cf, sizeof cf);
     } while (w < 0 && errno == EINTR);
@@ -138,14 +142,16 @@ int dan_canif_socketcan_send(dan_canif_t *c, const dan_can_frame_t *f)
 
 int dan_canif_socketcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 {
-    for (int tries = 0; tries < 8; tries++) {
+    for (int tries = 0; tries < READS_PER_CALL; tries++) {
         struct can_frame cf;
         ssize_t n = read(c->fd, &cf, sizeof cf);
         if (n < 0) {
-            if (errno == EINTR)
+            if (errno == EINTR) {
                 continue;
-            if (errno == EAGAIN || errno == EWOULDBLOCK)
+            }
+            if (errno == EAGAIN || errno == EWOULDBLOCK) {
                 return 0;
+            }
             c->stats.errors++;
             return DAN_ERR_IO;      /* e.g. ENETDOWN: interface went down */
         }
@@ -180,7 +186,8 @@ int dan_canif_socketcan_recv(dan_canif_t *c, dan_can_frame_t *f)
 
 void dan_canif_socketcan_close(dan_canif_t *c)
 {
-    if (c->fd >= 0)
+    if (c->fd >= 0) {
         close(c->fd);
+    }
     c->fd = -1;
 }

@@ -16,7 +16,6 @@
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 #include <syslog.h>
 #include <time.h>
@@ -26,20 +25,37 @@
 #include "dan/posix.h"
 #include "dan/can_gw/node.h"
 #include "can_backend.h"
+#include "dan_tool.h"
 
-#define REOPEN_US 1000000u
-#define SHUTDOWN_FLUSH_US 500000u
+#define REOPEN_US           1000000u /* a lost CAN adapter is tried again once a second */
+#define REOPEN_HANDSHAKE_MS 100u     /* a reopen's SLCAN handshake: DAN waits at most this */
+#define SHUTDOWN_FLUSH_US   500000u  /* on exit, the failsafe frames get this long to leave */
+#define SHUTDOWN_POLL_MS    10       /* meanwhile, how often the CAN output is retried */
+#define STATS_PERIOD_US     1000000u /* --stats-file is rewritten once a second */
+#define POLL_CAP_MS         100      /* longest poll(): a signal is seen this soon */
+#define TX_RETRY_MS         2        /* queued CAN frames retry on this timer (no POLLOUT) */
+#define CAN_RX_BURST        64       /* CAN frames read per wakeup, so DAN is never starved */
+#define UART_READ_MAX       512u     /* bytes read from the UART at a time */
 
-static volatile sig_atomic_t g_stop;
+/* Command-line defaults and limits. */
+#define DEFAULT_BAUD      9600u /* the DAN power-up baud */
+#define DEFAULT_GAP_MS    20u   /* inter-byte gap: ptys and USB adapters add latency */
+#define DEFAULT_WINDOW_MS 50u   /* reply window */
+#define NODE_ID_MIN       1u    /* DroneCAN node ids: 0 is anonymous, 127 the highest */
+#define NODE_ID_MAX       127u
+#define UART_BAUD_MIN     1200u /* the range a UART adapter can do */
+#define UART_BAUD_MAX     4000000u
+#define GAP_MS_MAX        1000u /* beyond these the bus would be unusably slow */
+#define WINDOW_MS_MAX     5000u
+
+/* Knuth's multiplicative hash constant (2^32 / golden ratio): spreads the
+ * boot time over the raw-frame sequence start. */
+#define SEQ_HASH 2654435761u
+
 static int g_syslog;
 static int g_verbose;
 
-static void on_signal(int sig)
-{
-    (void)sig;
-    g_stop = 1;
-}
-
+static void logmsg(int prio, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static void logmsg(int prio, const char *fmt, ...)
 {
     va_list ap;
@@ -50,50 +66,36 @@ static void logmsg(int prio, const char *fmt, ...)
     if (g_syslog) {
         vsyslog(prio, fmt, ap);
     } else {
-        fputs("dan-gatewayd: ", stderr);
-        vfprintf(stderr, fmt, ap);
-        fputc('\n', stderr);
+        tool_verror(fmt, ap);
     }
     va_end(ap);
 }
 
 static void usage(FILE *o)
 {
-    fprintf(o,
-        "usage: dan-gatewayd --uart TTY --can BACKEND [options]\n"
-        "  --uart TTY            DAN UART (single-wire bus)\n"
-        "  --can SPEC            socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
-        "  --node-id N           DroneCAN node id, 1..127 (default 10)\n"
-        "  --uart-baud B         start baud (default 9600, the DAN power-up baud)\n"
-        "  --no-echo             the UART does not hear its own bytes\n"
-        "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod)\n"
-        "  --de-active-low       the pin is active low\n"
-        "  --esc-timeout-ms N    failsafe after N ms without ESC commands (50..60000, default 500)\n"
-        "  --arming-rate-hz N    ArmingStatus rate, 1..50 (default 2)\n"
-        "  --gap-ms N            DAN inter-byte gap (default 20; ptys and USB add latency)\n"
-        "  --reply-window-ms N   DAN reply window (default 50)\n"
-        "  --stats-file PATH     write counters as JSON every second\n"
-        "  --syslog              log to syslog instead of stderr\n"
-        "  --verbose             more log lines\n"
-        "  --help\n"
-        "exit: 0 after SIGTERM/SIGINT, 1 runtime failure, 2 bad arguments or device\n");
-}
-
-static int parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
-{
-    char *end;
-    unsigned long v;
-    errno = 0;
-    v = strtoul(s, &end, 0);
-    if (errno || *s == '\0' || *end != '\0' || v < lo || v > hi) {
-        return -1;
-    }
-    *out = (uint32_t)v;
-    return 0;
+    fprintf(o, "usage: dan-gatewayd --uart TTY --can BACKEND [options]\n"
+               "  --uart TTY            DAN UART (single-wire bus)\n"
+               "  --can SPEC            socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
+               "  --node-id N           DroneCAN node id, 1..127 (default 10)\n"
+               "  --uart-baud B         start baud (default 9600, the DAN power-up baud)\n"
+               "  --no-echo             the UART does not hear its own bytes\n"
+               "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod)\n"
+               "  --de-active-low       the pin is active low\n"
+               "  --esc-timeout-ms N    failsafe after N ms without ESC commands (50..60000, "
+               "default 500)\n"
+               "  --arming-rate-hz N    ArmingStatus rate, 1..50 (default 2)\n"
+               "  --gap-ms N            DAN inter-byte gap (default 20; ptys and USB add latency)\n"
+               "  --reply-window-ms N   DAN reply window (default 50)\n"
+               "  --stats-file PATH     write counters as JSON every second\n"
+               "  --syslog              log to syslog instead of stderr\n"
+               "  --verbose             more log lines\n"
+               "  --help\n"
+               "exit: 0 after SIGTERM/SIGINT, 1 runtime failure, 2 bad arguments or device\n");
 }
 
 typedef struct {
     dan_posix_port_t uart;
+    const char *uart_path;
     dan_periph_t periph;
     dan_gw_node_t node;
     dan_ptype_t ptype;
@@ -105,6 +107,13 @@ typedef struct {
     uint64_t stats_due_us;
     uint32_t failsafes_logged;
 } gwd_t;
+
+/* The UART side of the command line. */
+typedef struct {
+    const char *de_gpio;
+    uint32_t baud, gap_ms, window_ms, node_id;
+    bool no_echo, de_low;
+} opts_t;
 
 static void can_down(gwd_t *d, const char *why, uint64_t now)
 {
@@ -161,7 +170,7 @@ static void can_read(gwd_t *d, uint64_t now)
 {
     dan_can_frame_t f;
     int i, r;
-    for (i = 0; i < 64; i++) {
+    for (i = 0; i < CAN_RX_BURST; i++) {
         r = dan_canif_recv(&d->can, &f);
         if (r == 0) {
             return;
@@ -195,71 +204,83 @@ static void write_stats(gwd_t *d)
     (void)rename(tmp, d->stats_file); /* readers never see a half-written file */
 }
 
-static gwd_t g_d; /* large (tunnel buffers): static storage, used only by main */
+/* A number option: its getopt letter, range, where it goes, and whether
+ * the error names the range ("--node-id must be 1..127") or not ("bad
+ * --gap-ms"). */
+typedef struct {
+    int letter;
+    const char *name;
+    uint32_t lo, hi;
+    uint32_t *dst;
+    bool say_range;
+} num_opt_t;
 
-int main(int argc, char **argv)
+/* Sets a number option; -1 if c is none, 0, or 2 after a message. */
+static int number_option(int c, const char *arg, opts_t *o, dan_gw_node_config_t *nc)
 {
-    static const struct option opts[] = {
-        {"uart", required_argument, NULL, 'u'},
-        {"can", required_argument, NULL, 'c'},
-        {"node-id", required_argument, NULL, 'n'},
-        {"uart-baud", required_argument, NULL, 'b'},
-        {"no-echo", no_argument, NULL, 'E'},
-        {"de-gpio", required_argument, NULL, 'g'},
-        {"de-active-low", no_argument, NULL, 'L'},
-        {"esc-timeout-ms", required_argument, NULL, 't'},
-        {"arming-rate-hz", required_argument, NULL, 'a'},
-        {"gap-ms", required_argument, NULL, 'G'},
-        {"reply-window-ms", required_argument, NULL, 'W'},
-        {"stats-file", required_argument, NULL, 's'},
-        {"syslog", no_argument, NULL, 'S'},
-        {"verbose", no_argument, NULL, 'v'},
-        {"help", no_argument, NULL, 'h'},
-        {NULL, 0, NULL, 0}};
-    gwd_t *d = &g_d;
-    dan_gw_node_config_t nc;
-    dan_periph_config_t pc;
-    const char *uart = NULL, *de_gpio = NULL;
-    uint32_t baud = 9600, v, gap_ms = 20, window_ms = 50;
-    bool no_echo = false, de_low = false;
-    char err[256];
-    int c, r;
-    uint64_t now;
-    struct sigaction sa;
+    const num_opt_t nums[] = {
+        {'n', "--node-id", NODE_ID_MIN, NODE_ID_MAX, &o->node_id, true},
+        {'b', "--uart-baud", UART_BAUD_MIN, UART_BAUD_MAX, &o->baud, false},
+        {'t', "--esc-timeout-ms", DAN_GW_ESC_TIMEOUT_MIN, DAN_GW_ESC_TIMEOUT_MAX,
+         &nc->esc_timeout_ms, true},
+        {'a', "--arming-rate-hz", DAN_GW_ARMING_RATE_MIN, DAN_GW_ARMING_RATE_MAX,
+         &nc->arming_rate_hz, true},
+        {'G', "--gap-ms", 1, GAP_MS_MAX, &o->gap_ms, false},
+        {'W', "--reply-window-ms", 1, WINDOW_MS_MAX, &o->window_ms, false},
+    };
+    size_t i;
+    for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
+        const num_opt_t *n = &nums[i];
+        if (n->letter != c) {
+            continue;
+        }
+        if (tool_parse_u32(arg, n->lo, n->hi, n->dst) == 0) {
+            return 0;
+        }
+        if (n->say_range) {
+            tool_error("%s must be %u..%u", n->name, n->lo, n->hi);
+        } else {
+            tool_error("bad %s", n->name);
+        }
+        return 2;
+    }
+    return -1;
+}
 
-    dan_gw_node_config_default(&nc);
+/* Returns -1 to go on, else the exit code. */
+static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node_config_t *nc)
+{
+    static const struct option opts[] = {{"uart", required_argument, NULL, 'u'},
+                                         {"can", required_argument, NULL, 'c'},
+                                         {"node-id", required_argument, NULL, 'n'},
+                                         {"uart-baud", required_argument, NULL, 'b'},
+                                         {"no-echo", no_argument, NULL, 'E'},
+                                         {"de-gpio", required_argument, NULL, 'g'},
+                                         {"de-active-low", no_argument, NULL, 'L'},
+                                         {"esc-timeout-ms", required_argument, NULL, 't'},
+                                         {"arming-rate-hz", required_argument, NULL, 'a'},
+                                         {"gap-ms", required_argument, NULL, 'G'},
+                                         {"reply-window-ms", required_argument, NULL, 'W'},
+                                         {"stats-file", required_argument, NULL, 's'},
+                                         {"syslog", no_argument, NULL, 'S'},
+                                         {"verbose", no_argument, NULL, 'v'},
+                                         {"help", no_argument, NULL, 'h'},
+                                         {NULL, 0, NULL, 0}};
+    int c, r;
     while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
+        r = number_option(c, optarg, o, nc);
+        if (r >= 0) {
+            if (r != 0) {
+                return r;
+            }
+            continue;
+        }
         switch (c) {
-        case 'u': uart = optarg; break;
+        case 'u': d->uart_path = optarg; break;
         case 'c': d->can_spec = optarg; break;
-        case 'n':
-            if (parse_u32(optarg, 1, 127, &v)) { fprintf(stderr, "dan-gatewayd: --node-id must be 1..127\n"); return 2; }
-            nc.node_id = (uint8_t)v;
-            break;
-        case 'b':
-            if (parse_u32(optarg, 1200, 4000000, &baud)) { fprintf(stderr, "dan-gatewayd: bad --uart-baud\n"); return 2; }
-            break;
-        case 'E': no_echo = true; break;
-        case 'g': de_gpio = optarg; break;
-        case 'L': de_low = true; break;
-        case 't':
-            if (parse_u32(optarg, DAN_GW_ESC_TIMEOUT_MIN, DAN_GW_ESC_TIMEOUT_MAX, &nc.esc_timeout_ms)) {
-                fprintf(stderr, "dan-gatewayd: --esc-timeout-ms must be %u..%u\n", DAN_GW_ESC_TIMEOUT_MIN, DAN_GW_ESC_TIMEOUT_MAX);
-                return 2;
-            }
-            break;
-        case 'a':
-            if (parse_u32(optarg, DAN_GW_ARMING_RATE_MIN, DAN_GW_ARMING_RATE_MAX, &nc.arming_rate_hz)) {
-                fprintf(stderr, "dan-gatewayd: --arming-rate-hz must be %u..%u\n", DAN_GW_ARMING_RATE_MIN, DAN_GW_ARMING_RATE_MAX);
-                return 2;
-            }
-            break;
-        case 'G':
-            if (parse_u32(optarg, 1, 1000, &gap_ms)) { fprintf(stderr, "dan-gatewayd: bad --gap-ms\n"); return 2; }
-            break;
-        case 'W':
-            if (parse_u32(optarg, 1, 5000, &window_ms)) { fprintf(stderr, "dan-gatewayd: bad --reply-window-ms\n"); return 2; }
-            break;
+        case 'E': o->no_echo = true; break;
+        case 'g': o->de_gpio = optarg; break;
+        case 'L': o->de_low = true; break;
         case 's': d->stats_file = optarg; break;
         case 'S': g_syslog = 1; break;
         case 'v': g_verbose = 1; break;
@@ -268,33 +289,29 @@ int main(int argc, char **argv)
         }
     }
     if (optind < argc) {
-        fprintf(stderr, "dan-gatewayd: unexpected argument '%s'\n", argv[optind]);
+        tool_error("unexpected argument '%s'", argv[optind]);
         return 2;
     }
-    if (uart == NULL || d->can_spec == NULL) {
-        fprintf(stderr, "dan-gatewayd: --uart and --can are required (--help)\n");
+    if (d->uart_path == NULL || d->can_spec == NULL) {
+        tool_error("--uart and --can are required (--help)");
         return 2;
     }
-    if (g_syslog) {
-        openlog("dan-gatewayd", LOG_PID, LOG_DAEMON);
-    }
+    nc->node_id = (uint8_t)o->node_id;
+    return -1;
+}
 
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGTERM, &sa, NULL);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGHUP, &sa, NULL);  /* a dropped SSH session: stop with the failsafe too */
-    sigaction(SIGQUIT, &sa, NULL);
-    signal(SIGPIPE, SIG_IGN);
-
-    if (dan_posix_open(&d->uart, uart, baud, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO,
-                       err, sizeof err) != DAN_OK) {
+/* Opens the UART (and its direction pin) and the CAN interface; 0 or 2. */
+static int open_devices(gwd_t *d, const opts_t *o)
+{
+    char err[256];
+    if (dan_posix_open(&d->uart, d->uart_path, o->baud,
+                       o->no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
+                       sizeof err) != DAN_OK) {
         logmsg(LOG_ERR, "%s", err);
         return 2;
     }
-    if (de_gpio != NULL &&
-        dan_posix_de_gpio(&d->uart, de_gpio, de_low, err, sizeof err) != DAN_OK) {
+    if (o->de_gpio != NULL &&
+        dan_posix_de_gpio(&d->uart, o->de_gpio, o->de_low, err, sizeof err) != DAN_OK) {
         logmsg(LOG_ERR, "%s", err);
         dan_posix_close(&d->uart);
         return 2;
@@ -305,88 +322,156 @@ int main(int argc, char **argv)
         return 2;
     }
     d->can_up = true;
-    now = dan_posix_now_us();
-    {
-        /* a different raw-frame sequence each boot (see raw_seq_start) */
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts);
-        nc.raw_seq_start = (uint32_t)ts.tv_sec * 2654435761u ^ (uint32_t)ts.tv_nsec ^ (uint32_t)getpid();
-    }
-    if (dan_gw_node_init(&d->node, &nc, now) != DAN_OK) {
+    return 0;
+}
+
+/* The DroneCAN node and the DAN peripheral engine on the UART; 0 or 2. */
+static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
+{
+    dan_periph_config_t pc;
+    uint64_t now = dan_posix_now_us();
+    struct timespec ts;
+    /* a different raw-frame sequence each boot (see raw_seq_start) */
+    clock_gettime(CLOCK_REALTIME, &ts);
+    nc->raw_seq_start = (uint32_t)ts.tv_sec * SEQ_HASH ^ (uint32_t)ts.tv_nsec ^ (uint32_t)getpid();
+    if (dan_gw_node_init(&d->node, nc, now) != DAN_OK) {
         logmsg(LOG_ERR, "bad node configuration");
         return 2;
     }
     dan_gw_node_ptype(&d->node, &d->ptype);
     dan_periph_config_default(&pc);
-    pc.gap_us = gap_ms * 1000u;
-    pc.reply_window_us = window_ms * 1000u;
-    if (dan_periph_init(&d->periph, dan_posix_port(&d->uart), &d->ptype, 1, &pc, baud, now) != DAN_OK) {
+    pc.gap_us = o->gap_ms * 1000u;
+    pc.reply_window_us = o->window_ms * 1000u;
+    if (dan_periph_init(&d->periph, dan_posix_port(&d->uart), &d->ptype, 1, &pc, o->baud, now) !=
+        DAN_OK) {
         logmsg(LOG_ERR, "peripheral engine init failed");
         return 2;
     }
     dan_gw_node_attach(&d->node, &d->periph);
-    logmsg(LOG_INFO, "DAN on %s at %u baud, DroneCAN node %u on %s", uart, baud, nc.node_id,
-           d->can_spec);
+    logmsg(LOG_INFO, "DAN on %s at %u baud, DroneCAN node %u on %s", d->uart_path, o->baud,
+           nc->node_id, d->can_spec);
+    return 0;
+}
 
-    while (!g_stop) {
+/* poll()'s timeout: until the engines', the reopen's or the stats' next
+ * deadline; 0 while received CAN bytes wait to be parsed. */
+static int poll_timeout_ms(gwd_t *d, uint64_t now)
+{
+    uint64_t next = dan_periph_next_us(&d->periph);
+    uint64_t t2 = dan_gw_node_next_us(&d->node, now);
+    int ms;
+    if (t2 < next) {
+        next = t2;
+    }
+    if (!d->can_up && d->reopen_us < next) {
+        next = d->reopen_us;
+    }
+    if (d->stats_file && d->stats_due_us < next) {
+        next = d->stats_due_us;
+    }
+    if (d->can_up && dan_canif_rx_pending(&d->can)) {
+        return 0;
+    }
+    ms = tool_ms_until(next, now, POLL_CAP_MS);
+    if (dan_gw_node_tx_pending(&d->node) > 0u && d->can_up && ms > TX_RETRY_MS) {
+        ms = TX_RETRY_MS;
+    }
+    return ms;
+}
+
+/* pf[0] the UART, pf[1] the CAN interface while it is up; the count. */
+static nfds_t fill_pollfds(gwd_t *d, struct pollfd pf[2])
+{
+    pf[0].fd = d->uart.fd;
+    pf[0].events = POLLIN;
+    pf[0].revents = 0;
+    if (!d->can_up) {
+        return 1;
+    }
+    pf[1].fd = dan_canif_fd(&d->can);
+    pf[1].events = POLLIN;
+    /* POLLOUT only for a line the backend has half written: a raw CAN
+     * socket reports writable even with its queue full (ENOBUFS), which
+     * would spin. Queued frames retry on a timer. */
+    if (dan_canif_tx_pending(&d->can)) {
+        pf[1].events |= POLLOUT;
+    }
+    pf[1].revents = 0;
+    return 2;
+}
+
+/* Feeds the UART's bytes to the engine; -1 when the UART is lost (the
+ * failsafe is then on its way to CAN). */
+static int uart_rx(gwd_t *d, short revents, uint64_t now)
+{
+    uint8_t buf[UART_READ_MAX];
+    int n;
+    while ((n = dan_posix_read(&d->uart, buf, sizeof buf)) > 0) {
+        dan_periph_rx(&d->periph, buf, (size_t)n, now);
+    }
+    /* With VMIN=0 a hung-up tty (USB unplug, pty closed) reads 0 bytes
+     * forever: POLLHUP/POLLERR with nothing read is a loss. */
+    if (n == 0 && (revents & (POLLHUP | POLLERR | POLLNVAL)) != 0) {
+        n = -1;
+    }
+    if (n < 0) {
+        logmsg(LOG_ERR, "%s: UART lost", d->uart_path);
+        dan_gw_node_failsafe(&d->node, now);
+        can_drain(d, now);
+        return -1;
+    }
+    return 0;
+}
+
+static void can_reopen(gwd_t *d, uint64_t now)
+{
+    char err[256];
+    /* A short handshake: DAN requests wait meanwhile (at most
+     * REOPEN_HANDSHAKE_MS a second while an adapter is present but silent). */
+    if (dan_canif_open_ms(&d->can, d->can_spec, REOPEN_HANDSHAKE_MS, err, sizeof err) == DAN_OK) {
+        d->can_up = true;
+        dan_gw_node_can_state(&d->node, true);
+        logmsg(LOG_INFO, "CAN %s reopened", d->can_spec);
+    } else {
+        logmsg(LOG_DEBUG, "%s", err);
+        d->reopen_us = now + REOPEN_US;
+    }
+}
+
+/* After the engines ran: log a new failsafe, reopen CAN, write stats. */
+static void housekeeping(gwd_t *d, uint64_t now)
+{
+    if (d->node.stats.failsafes != d->failsafes_logged) {
+        d->failsafes_logged = d->node.stats.failsafes;
+        logmsg(LOG_WARNING, "failsafe: no ESC command for %u ms: zero throttle, disarmed",
+               d->node.cfg.esc_timeout_ms);
+    }
+    if (!d->can_up && now >= d->reopen_us) {
+        can_reopen(d, now);
+    }
+    if (d->stats_file && now >= d->stats_due_us) {
+        write_stats(d);
+        d->stats_due_us = now + STATS_PERIOD_US;
+    }
+}
+
+/* The poll loop, until a signal or a lost UART. */
+static void run(gwd_t *d)
+{
+    while (!tool_stop) {
         struct pollfd pf[2];
-        nfds_t nfd = 1;
-        uint64_t next, t2;
-        int timeout_ms;
-        uint8_t buf[512];
-
-        now = dan_posix_now_us();
-        next = dan_periph_next_us(&d->periph);
-        t2 = dan_gw_node_next_us(&d->node, now);
-        if (t2 < next) next = t2;
-        if (!d->can_up && d->reopen_us < next) next = d->reopen_us;
-        if (d->stats_file && d->stats_due_us < next) next = d->stats_due_us;
-        if (next <= now || (d->can_up && dan_canif_rx_pending(&d->can))) {
-            timeout_ms = 0; /* due now, or received CAN bytes wait parsed */
-        } else {
-            uint64_t ms = (next - now + 999u) / 1000u;
-            timeout_ms = ms > 100u ? 100 : (int)ms;
-        }
-        pf[0].fd = d->uart.fd;
-        pf[0].events = POLLIN;
-        pf[0].revents = 0;
-        if (d->can_up) {
-            pf[1].fd = dan_canif_fd(&d->can);
-            pf[1].events = POLLIN;
-            /* POLLOUT only for a line the backend has half written: a raw
-             * CAN socket reports writable even with its queue full
-             * (ENOBUFS), which would spin. Queued frames retry on a timer. */
-            if (dan_canif_tx_pending(&d->can)) {
-                pf[1].events |= POLLOUT;
-            }
-            pf[1].revents = 0;
-            nfd = 2;
-        }
-        if (dan_gw_node_tx_pending(&d->node) > 0u && d->can_up && timeout_ms > 2) {
-            timeout_ms = 2;
-        }
-        r = poll(pf, nfd, timeout_ms);
+        uint64_t now = dan_posix_now_us();
+        int timeout_ms = poll_timeout_ms(d, now);
+        nfds_t nfd = fill_pollfds(d, pf);
+        int r = poll(pf, nfd, timeout_ms);
         if (r < 0 && errno != EINTR) {
             logmsg(LOG_ERR, "poll: %s", strerror(errno));
             break;
         }
         now = dan_posix_now_us();
-        if (r > 0 && (pf[0].revents & (POLLIN | POLLHUP | POLLERR))) {
-            int n;
-            while ((n = dan_posix_read(&d->uart, buf, sizeof buf)) > 0) {
-                dan_periph_rx(&d->periph, buf, (size_t)n, now);
-            }
-            /* With VMIN=0 a hung-up tty (USB unplug, pty closed) reads 0
-             * bytes forever: POLLHUP/POLLERR with nothing read is a loss. */
-            if (n == 0 && (pf[0].revents & (POLLHUP | POLLERR | POLLNVAL)) != 0) {
-                n = -1;
-            }
-            if (n < 0) {
-                logmsg(LOG_ERR, "%s: UART lost", uart);
-                dan_gw_node_failsafe(&d->node, now);
-                can_drain(d, now);
-                break;
-            }
+        if (r > 0 && (pf[0].revents & (POLLIN | POLLHUP | POLLERR)) &&
+            uart_rx(d, pf[0].revents, now) < 0) {
+            break;
         }
         if (d->can_up && ((r > 0 && nfd > 1 && (pf[1].revents & (POLLIN | POLLHUP | POLLERR))) ||
                           dan_canif_rx_pending(&d->can))) {
@@ -395,49 +480,60 @@ int main(int argc, char **argv)
         dan_periph_poll(&d->periph, now);
         dan_gw_node_poll(&d->node, now);
         can_drain(d, now);
-        if (d->node.stats.failsafes != d->failsafes_logged) {
-            d->failsafes_logged = d->node.stats.failsafes;
-            logmsg(LOG_WARNING, "failsafe: no ESC command for %u ms: zero throttle, disarmed",
-                   d->node.cfg.esc_timeout_ms);
-        }
-        if (!d->can_up && now >= d->reopen_us) {
-            /* A short handshake: DAN requests wait meanwhile (at most
-             * 100 ms a second while an adapter is present but silent). */
-            if (dan_canif_open_ms(&d->can, d->can_spec, 100u, err, sizeof err) == DAN_OK) {
-                d->can_up = true;
-                dan_gw_node_can_state(&d->node, true);
-                logmsg(LOG_INFO, "CAN %s reopened", d->can_spec);
-            } else {
-                logmsg(LOG_DEBUG, "%s", err);
-                d->reopen_us = now + REOPEN_US;
-            }
-        }
-        if (d->stats_file && now >= d->stats_due_us) {
-            write_stats(d);
-            d->stats_due_us = now + 1000000u;
-        }
+        housekeeping(d, now);
     }
+}
 
-    /* shutdown: zero throttle and DISARMED on the bus before leaving */
-    now = dan_posix_now_us();
+/* Zero throttle and DISARMED on the bus before leaving. */
+static void shutdown_failsafe(gwd_t *d)
+{
+    uint64_t now = dan_posix_now_us();
+    uint64_t end = now + SHUTDOWN_FLUSH_US;
     dan_gw_node_failsafe(&d->node, now);
-    {
-        uint64_t end = now + SHUTDOWN_FLUSH_US;
-        while (d->can_up && (dan_gw_node_tx_pending(&d->node) > 0u || dan_canif_tx_pending(&d->can)) &&
-               dan_posix_now_us() < end) {
-            struct pollfd pf;
-            can_drain(d, dan_posix_now_us());
-            if (!d->can_up) break;
-            pf.fd = dan_canif_fd(&d->can);
-            pf.events = POLLOUT;
-            (void)poll(&pf, 1, 10);
+    while (d->can_up && (dan_gw_node_tx_pending(&d->node) > 0u || dan_canif_tx_pending(&d->can)) &&
+           dan_posix_now_us() < end) {
+        can_drain(d, dan_posix_now_us());
+        if (!d->can_up) {
+            break;
         }
+        tool_wait_fd(dan_canif_fd(&d->can), POLLOUT, UINT64_MAX, SHUTDOWN_POLL_MS);
     }
+}
+
+static gwd_t g_d; /* large (tunnel buffers): static storage, used only by main */
+
+int main(int argc, char **argv)
+{
+    gwd_t *d = &g_d;
+    dan_gw_node_config_t nc;
+    opts_t o = {NULL, DEFAULT_BAUD, DEFAULT_GAP_MS, DEFAULT_WINDOW_MS, 0, false, false};
+    int r;
+
+    tool_prog = "dan-gatewayd";
+    dan_gw_node_config_default(&nc);
+    o.node_id = nc.node_id;
+    r = parse_options(argc, argv, d, &o, &nc);
+    if (r >= 0) {
+        return r;
+    }
+    if (g_syslog) {
+        openlog("dan-gatewayd", LOG_PID, LOG_DAEMON);
+    }
+    tool_catch_signal(SIGTERM);
+    tool_catch_signal(SIGINT);
+    tool_catch_signal(SIGHUP); /* a dropped SSH session: stop with the failsafe too */
+    tool_catch_signal(SIGQUIT);
+    signal(SIGPIPE, SIG_IGN);
+    if (open_devices(d, &o) != 0 || start_engines(d, &o, &nc) != 0) {
+        return 2;
+    }
+    run(d);
+    shutdown_failsafe(d);
     if (d->stats_file) {
         write_stats(d);
     }
     logmsg(LOG_INFO, "stopped (failsafe sent)");
     dan_canif_close(&d->can);
     dan_posix_close(&d->uart);
-    return g_stop ? 0 : 1;
+    return tool_stop ? 0 : 1;
 }

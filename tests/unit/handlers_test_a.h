@@ -1,0 +1,14 @@
+/* The test-a type's request handlers, shared by the unit tests
+ * (test_engines.c) and the end-to-end peripheral (dan-testperiph). */
+#ifndef DAN_HANDLERS_TEST_A_H
+#define DAN_HANDLERS_TEST_A_H
+
+#include "dan/peripheral.h"
+
+/* 0x62 replies with the payload reversed (an empty one is malformed);
+ * 0x63 is a command without a reply that counts its calls in the type's
+ * user pointer, an unsigned. */
+#define TEST_A_NHANDLERS 2u
+extern const dan_handler_t test_a_handlers[TEST_A_NHANDLERS];
+
+#endif /* DAN_HANDLERS_TEST_A_H */
