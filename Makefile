@@ -12,6 +12,11 @@
 #   make cross      compile the portable sources for Cortex-M4, print sizes
 #   make install    PREFIX=/usr/local DESTDIR= ; headers, libraries, .pc files
 
+# No built-in implicit rules: with them, make tries to remake the included
+# dependency files (*.d) through chains like `%: %.o`.
+MAKEFLAGS += --no-builtin-rules
+.SUFFIXES:
+
 BUILD   ?= build
 PREFIX  ?= /usr/local
 DESTDIR ?=

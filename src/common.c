@@ -235,8 +235,7 @@ uint32_t dan_get_u32(dan_reader_t *r)
     if (p == NULL) {
         return 0;
     }
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) |
-           ((uint32_t)p[3] << 24);
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
 }
 
 uint32_t dan_get_uvarint(dan_reader_t *r)

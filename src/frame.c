@@ -8,8 +8,7 @@ size_t dan_frame_size(uint32_t code, size_t len)
     return 1u + dan_uvarint_size(code) + dan_uvarint_size((uint32_t)len) + len + 1u;
 }
 
-int dan_frame_encode(uint32_t code, const uint8_t *payload, size_t len,
-                     uint8_t *out, size_t cap)
+int dan_frame_encode(uint32_t code, const uint8_t *payload, size_t len, uint8_t *out, size_t cap)
 {
     size_t n, pos;
     if (len > DAN_MAX_PAYLOAD || (payload == NULL && len > 0u)) {
@@ -146,8 +145,8 @@ static int examine(dan_decoder_t *d, dan_frame_t *f)
     return 1;
 }
 
-int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len,
-                     size_t *consumed, dan_frame_t *frame)
+int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len, size_t *consumed,
+                     dan_frame_t *frame)
 {
     size_t used = 0;
     if (d->consume > 0u) {

@@ -11,8 +11,8 @@ uint32_t dan_char_us(uint32_t baud)
     return (10000000u + baud - 1u) / baud;
 }
 
-void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud,
-                   dan_frame_cb_t on_frame, void *owner, uint64_t now_us)
+void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud, dan_frame_cb_t on_frame,
+                   void *owner, uint64_t now_us)
 {
     memset(l, 0, sizeof *l);
     l->port = *port;
@@ -77,8 +77,9 @@ bool dan_link_is_late_echo(const dan_link_t *l, const dan_frame_t *f, uint64_t n
 {
     size_t n = dan_frame_size(f->code, f->len);
     uint32_t code;
-    if (!l->port.echo || l->echo_late_us == 0u || now_us - l->echo_late_us > DAN_ECHO_LATE_HOLD_US ||
-        l->tx_len != n || dan_uvarint_decode(l->tx + 1, n - 1u, &code) <= 0 || code != f->code) {
+    if (!l->port.echo || l->echo_late_us == 0u ||
+        now_us - l->echo_late_us > DAN_ECHO_LATE_HOLD_US || l->tx_len != n ||
+        dan_uvarint_decode(l->tx + 1, n - 1u, &code) <= 0 || code != f->code) {
         return false;
     }
     return f->len == 0u || memcmp(l->tx + n - 1u - f->len, f->payload, f->len) == 0;
@@ -181,8 +182,7 @@ int dan_link_transmit(dan_link_t *l, uint64_t now_us)
     return DAN_OK;
 }
 
-int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len,
-                  uint64_t now_us)
+int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len, uint64_t now_us)
 {
     int r = dan_link_prepare(l, code, payload, len);
     return (r != DAN_OK) ? r : dan_link_transmit(l, now_us);
@@ -203,8 +203,7 @@ dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us)
                 l->echo_late_us = now_us;
                 end_tx(l, DAN_LINK_TX_FAILED, now_us);
             }
-        } else if (now_us >= end &&
-                   (l->port.tx_busy == NULL || !l->port.tx_busy(l->port.ctx))) {
+        } else if (now_us >= end && (l->port.tx_busy == NULL || !l->port.tx_busy(l->port.ctx))) {
             end_tx(l, DAN_LINK_TX_DONE, now_us);
         }
     }

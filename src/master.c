@@ -9,15 +9,15 @@ enum { PH_IDLE = 0, PH_LBT, PH_TX, PH_WAIT, PH_DONE };
 
 enum {
     ST_NONE = 0,
-    ST_DISC_PROBE,      /* discovery: probing types[idx] at bauds[bidx] */
-    ST_CFG_SEND,        /* configure: CONFIGURE to peers[idx] */
-    ST_CFG_VERIFY,      /* configure: IDENTIFY peers[idx] at the target */
-    ST_REC_FIND,        /* recovery: looking for peers[idx] at candidate bidx */
-    ST_REC_BACK,        /* recovery: CONFIGURE(9600) to peers[idx] */
-    ST_REC_VERIFY       /* recovery: IDENTIFY peers[idx] at 9600 */
+    ST_DISC_PROBE, /* discovery: probing types[idx] at bauds[bidx] */
+    ST_CFG_SEND,   /* configure: CONFIGURE to peers[idx] */
+    ST_CFG_VERIFY, /* configure: IDENTIFY peers[idx] at the target */
+    ST_REC_FIND,   /* recovery: looking for peers[idx] at candidate bidx */
+    ST_REC_BACK,   /* recovery: CONFIGURE(9600) to peers[idx] */
+    ST_REC_VERIFY  /* recovery: IDENTIFY peers[idx] at 9600 */
 };
 
-static const uint32_t disc_bauds[DAN_DISCOVERY_NBAUDS] = DAN_DISCOVERY_BAUDS;
+static const uint32_t disc_bauds[DAN_DISCOVERY_NBAUDS] = {9600u, 115200u, 57600u, 38400u, 19200u};
 
 void dan_master_config_default(dan_master_config_t *c)
 {
@@ -215,8 +215,9 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
     dan_master_t *m = (dan_master_t *)owner;
     /* A reply may arrive in the same read as the last echo byte (or, with a
      * direction pin, before a poll has noticed the end of our frame). */
-    bool sent = m->txn_phase == PH_WAIT ||
-                (m->txn_phase == PH_TX && (!m->link.port.echo || m->link.state == DAN_LINK_TX_DONE));
+    bool sent =
+        m->txn_phase == PH_WAIT ||
+        (m->txn_phase == PH_TX && (!m->link.port.echo || m->link.state == DAN_LINK_TX_DONE));
     if (!sent) {
         m->stats.stray++;
         return;
@@ -238,7 +239,8 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
         txn_finish(m, DAN_OK);
         return;
     }
-    if (f->code == DAN_CODE_ERROR && dan_error_decode(&m->remote_error, f->payload, f->len) == DAN_OK &&
+    if (f->code == DAN_CODE_ERROR &&
+        dan_error_decode(&m->remote_error, f->payload, f->len) == DAN_OK &&
         m->remote_error.code == m->req_code) {
         m->stats.remote_errors++;
         m->resp_code = f->code;
@@ -303,8 +305,7 @@ static void txn_poll(dan_master_t *m, uint64_t now_us)
         m->stats.timeouts++;
         txn_attempt_failed(m, DAN_ERR_TIMEOUT, now_us);
         break;
-    default:
-        break;
+    default: break;
     }
 }
 
@@ -494,19 +495,11 @@ static void seq_next(dan_master_t *m, uint64_t now_us)
     bool waiting;
     do {
         switch (m->step) {
-        case ST_DISC_PROBE:
-            waiting = step_disc_probe(m, now_us);
-            break;
-        case ST_CFG_SEND:
-            waiting = step_cfg_send(m, now_us);
-            break;
+        case ST_DISC_PROBE: waiting = step_disc_probe(m, now_us); break;
+        case ST_CFG_SEND: waiting = step_cfg_send(m, now_us); break;
         case ST_CFG_VERIFY:
-        case ST_REC_VERIFY:
-            waiting = step_verify(m, now_us);
-            break;
-        case ST_REC_FIND:
-            waiting = step_rec_find(m, now_us);
-            break;
+        case ST_REC_VERIFY: waiting = step_verify(m, now_us); break;
+        case ST_REC_FIND: waiting = step_rec_find(m, now_us); break;
         default:
             op_finish(m, DAN_ERR_ARG);
             waiting = true;
@@ -582,8 +575,7 @@ static void seq_txn_done(dan_master_t *m, uint64_t now_us)
         }
         m->idx++;
         break;
-    default:
-        break;
+    default: break;
     }
     seq_next(m, now_us);
 }
@@ -591,7 +583,7 @@ static void seq_txn_done(dan_master_t *m, uint64_t now_us)
 static void start_recovery(dan_master_t *m, int why, uint64_t now_us)
 {
     m->stats.recoveries++;
-    m->result = why;   /* reported when recovery completes */
+    m->result = why; /* reported when recovery completes */
     m->step = ST_REC_FIND;
     m->idx = 0;
     m->bidx = 0;
@@ -725,11 +717,8 @@ uint64_t dan_master_next_us(const dan_master_t *m)
     case PH_WAIT:
         t = max_u64(m->deadline_us, m->link.last_rx_us + dan_link_gap_us(&m->link));
         break;
-    case PH_DONE:
-        t = 0;
-        break;
-    default:
-        break;
+    case PH_DONE: t = 0; break;
+    default: break;
     }
     return (t < next) ? t : next;
 }

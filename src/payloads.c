@@ -115,8 +115,7 @@ int dan_ack_decode(uint8_t *ack, const uint8_t *p, size_t len)
     return DAN_OK;
 }
 
-int dan_error_encode(uint32_t code, uint32_t error, const char *text,
-                     uint8_t *out, size_t cap)
+int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
     dan_writer_init(&w, out, cap);

@@ -14,30 +14,30 @@ void dan_rxring_init(dan_rxring_t *r)
 
 bool dan_rxring_put(dan_rxring_t *r, uint8_t byte)
 {
-    dan_rxring_index_t head = r->head;   /* ours: no one else writes it */
-    dan_rxring_index_t tail = r->tail;   /* the consumer's: a snapshot */
+    dan_rxring_index_t head = r->head; /* ours: no one else writes it */
+    dan_rxring_index_t tail = r->tail; /* the consumer's: a snapshot */
     if ((dan_rxring_index_t)(head - tail) >= (dan_rxring_index_t)DAN_RXRING_SIZE) {
         r->dropped = r->dropped + 1u;
         return false;
     }
     r->buf[head & RING_MASK] = byte;
-    DAN_RXRING_BARRIER();                /* the byte is stored before it is published */
+    DAN_RXRING_BARRIER(); /* the byte is stored before it is published */
     r->head = (dan_rxring_index_t)(head + 1u);
     return true;
 }
 
 size_t dan_rxring_get_many(dan_rxring_t *r, uint8_t *buf, size_t cap)
 {
-    dan_rxring_index_t tail = r->tail;   /* ours */
-    dan_rxring_index_t head = r->head;   /* the producer's: a snapshot */
+    dan_rxring_index_t tail = r->tail; /* ours */
+    dan_rxring_index_t head = r->head; /* the producer's: a snapshot */
     size_t avail = (size_t)(dan_rxring_index_t)(head - tail);
     size_t n, i;
-    DAN_RXRING_BARRIER();                /* read the bytes only after seeing head */
+    DAN_RXRING_BARRIER(); /* read the bytes only after seeing head */
     n = (avail < cap) ? avail : cap;
     for (i = 0; i < n; i++) {
         buf[i] = r->buf[(dan_rxring_index_t)(tail + (dan_rxring_index_t)i) & RING_MASK];
     }
-    DAN_RXRING_BARRIER();                /* the bytes are read before their slots are freed */
+    DAN_RXRING_BARRIER(); /* the bytes are read before their slots are freed */
     r->tail = (dan_rxring_index_t)(tail + (dan_rxring_index_t)n);
     return n;
 }

@@ -11,40 +11,40 @@
 #define REG32(addr) (*(volatile uint32_t *)(uintptr_t)(addr))
 
 /* SysTick (ARMv7-M ARM, B3.3) */
-#define SYST_CSR REG32(0xE000E010u)
-#define SYST_RVR REG32(0xE000E014u)
-#define SYST_CVR REG32(0xE000E018u)
-#define SYST_CSR_ENABLE 0x1u
-#define SYST_CSR_TICKINT 0x2u
-#define SYST_CSR_CLKSOURCE 0x4u   /* processor clock */
+#define SYST_CSR           REG32(0xE000E010u)
+#define SYST_RVR           REG32(0xE000E014u)
+#define SYST_CVR           REG32(0xE000E018u)
+#define SYST_CSR_ENABLE    0x1u
+#define SYST_CSR_TICKINT   0x2u
+#define SYST_CSR_CLKSOURCE 0x4u /* processor clock */
 
 /* NVIC (ARMv7-M ARM, B3.4) */
-#define NVIC_ISER0 REG32(0xE000E100u)
+#define NVIC_ISER0       REG32(0xE000E100u)
 #define NVIC_IPR_BYTE(n) (*(volatile uint8_t *)(uintptr_t)(0xE000E400u + (n)))
 
 /* CMSDK APB UART (DDI0479, 4.3); UART0 at 0x40004000, RX IRQ 0 (AN386) */
-#define UART0_BASE 0x40004000u
-#define UART_DATA(b) REG32((b) + 0x00u)
-#define UART_STATE(b) REG32((b) + 0x04u)
-#define UART_CTRL(b) REG32((b) + 0x08u)
-#define UART_INT(b) REG32((b) + 0x0Cu)    /* read: INTSTATUS, write 1: INTCLEAR */
-#define UART_BAUDDIV(b) REG32((b) + 0x10u)
+#define UART0_BASE        0x40004000u
+#define UART_DATA(b)      REG32((b) + 0x00u)
+#define UART_STATE(b)     REG32((b) + 0x04u)
+#define UART_CTRL(b)      REG32((b) + 0x08u)
+#define UART_INT(b)       REG32((b) + 0x0Cu) /* read: INTSTATUS, write 1: INTCLEAR */
+#define UART_BAUDDIV(b)   REG32((b) + 0x10u)
 #define UART_STATE_TXFULL 0x1u
 #define UART_STATE_RXFULL 0x2u
-#define UART_STATE_RXOVR 0x8u
-#define UART_CTRL_TXEN 0x1u
-#define UART_CTRL_RXEN 0x2u
+#define UART_STATE_RXOVR  0x8u
+#define UART_CTRL_TXEN    0x1u
+#define UART_CTRL_RXEN    0x2u
 #define UART_CTRL_RXINTEN 0x8u
-#define UART_INT_RX 0x2u
-#define UART0_RX_IRQ 0u
+#define UART_INT_RX       0x2u
+#define UART0_RX_IRQ      0u
 
-#define TICK_HZ 1000u
-#define TICK_RELOAD (BOARD_CPU_HZ / TICK_HZ - 1u)
+#define TICK_HZ       1000u
+#define TICK_RELOAD   (BOARD_CPU_HZ / TICK_HZ - 1u)
 #define CYCLES_PER_US (BOARD_CPU_HZ / 1000000u)
 
 /* ---- clock ---- */
 
-static volatile uint32_t tick_ms;      /* written by SysTick_Handler only */
+static volatile uint32_t tick_ms; /* written by SysTick_Handler only */
 
 void SysTick_Handler(void);
 void SysTick_Handler(void)
@@ -79,7 +79,8 @@ uint64_t clock_now_us(void)
         epoch++;
     }
     last_ms = ms;
-    us = ((((uint64_t)epoch << 32) | ms) * 1000u) + (TICK_RELOAD - (val & 0xFFFFFFu)) / CYCLES_PER_US;
+    us = ((((uint64_t)epoch << 32) | ms) * 1000u) +
+         (TICK_RELOAD - (val & 0xFFFFFFu)) / CYCLES_PER_US;
     if (us < last_us) {
         us = last_us;
     }
@@ -103,10 +104,10 @@ void UART0RX_Handler(void)
          * the next byte in, whose flag would otherwise be cleared too. */
         UART_INT(UART0_BASE) = UART_INT_RX;
         b = (uint8_t)UART_DATA(UART0_BASE);
-        (void)dan_rxring_put(&uart0_rx, b);   /* full: counted in the ring */
+        (void)dan_rxring_put(&uart0_rx, b); /* full: counted in the ring */
     }
     if ((UART_STATE(UART0_BASE) & UART_STATE_RXOVR) != 0u) {
-        UART_STATE(UART0_BASE) = UART_STATE_RXOVR;   /* write 1 to clear */
+        UART_STATE(UART0_BASE) = UART_STATE_RXOVR; /* write 1 to clear */
         uart0_stats.rx_overruns = uart0_stats.rx_overruns + 1u;
     }
 }
@@ -151,9 +152,14 @@ static int port_set_baud(void *ctx, uint32_t baud)
 }
 
 static const dan_port_t port0 = {
-    port_write, port_set_baud, NULL, NULL, NULL, NULL,
-    BOARD_CPU_HZ / BOARD_UART_MIN_DIV,   /* max baud: divisor 16 */
-    true                                 /* one wire: we hear our bytes */
+    port_write,
+    port_set_baud,
+    NULL,
+    NULL,
+    NULL,
+    NULL,
+    BOARD_CPU_HZ / BOARD_UART_MIN_DIV, /* max baud: divisor 16 */
+    true                               /* one wire: we hear our bytes */
 };
 
 void uart0_init(uint32_t baud)
@@ -192,9 +198,9 @@ void board_idle(void)
 
 /* ---- semihosting ---- */
 
-#define SH_SYS_WRITE0 0x04u
-#define SH_SYS_GET_CMDLINE 0x15u
-#define SH_SYS_EXIT_EXTENDED 0x20u
+#define SH_SYS_WRITE0                   0x04u
+#define SH_SYS_GET_CMDLINE              0x15u
+#define SH_SYS_EXIT_EXTENDED            0x20u
 #define SH_ADP_STOPPED_APPLICATION_EXIT 0x20026u
 
 static uint32_t sh_call(uint32_t op, const void *arg)
@@ -217,7 +223,7 @@ void sh_exit(int code)
     block[1] = (uint32_t)code;
     (void)sh_call(SH_SYS_EXIT_EXTENDED, block);
     for (;;) {
-        __asm__ volatile("bkpt 0");   /* no debugger: stops here */
+        __asm__ volatile("bkpt 0"); /* no debugger: stops here */
     }
 }
 

@@ -16,8 +16,8 @@
 #include "dan/link.h"
 #include "dan/rxring.h"
 
-#define BOARD_CPU_HZ 25000000u   /* mps2-an386 SYSCLK (and UART PCLK) */
-#define BOARD_UART_MIN_DIV 16u   /* CMSDK UART: BAUDDIV >= 16 */
+#define BOARD_CPU_HZ       25000000u /* mps2-an386 SYSCLK (and UART PCLK) */
+#define BOARD_UART_MIN_DIV 16u       /* CMSDK UART: BAUDDIV >= 16 */
 
 /* ---- clock ---- */
 void clock_init(void);
@@ -27,13 +27,13 @@ uint64_t clock_now_us(void);
 
 /* ---- UART0: the DAN bus ---- */
 typedef struct {
-    uint32_t rx_overruns;     /* the UART lost bytes (RX overrun flag) */
+    uint32_t rx_overruns; /* the UART lost bytes (RX overrun flag) */
     uint32_t rx_irqs;
     uint32_t tx_bytes;
     uint32_t baud_changes;
 } uart_stats_t;
 
-extern dan_rxring_t uart0_rx;        /* filled by the RX interrupt */
+extern dan_rxring_t uart0_rx; /* filled by the RX interrupt */
 extern volatile uart_stats_t uart0_stats;
 
 /* Sets the baud, enables TX and RX and the RX interrupt. */
@@ -49,8 +49,8 @@ uint32_t uart0_actual_baud(void);
 void board_idle(void);
 
 /* ---- semihosting (QEMU -semihosting-config enable=on,target=native) ---- */
-void sh_puts(const char *s);                  /* SYS_WRITE0 */
-void sh_exit(int code) __attribute__((noreturn));  /* SYS_EXIT_EXTENDED */
+void sh_puts(const char *s);                      /* SYS_WRITE0 */
+void sh_exit(int code) __attribute__((noreturn)); /* SYS_EXIT_EXTENDED */
 /* The command line (SYS_GET_CMDLINE): QEMU's -append text, or the
  * semihosting-config arg= words. Empty on failure. */
 void sh_cmdline(char *buf, size_t cap);

@@ -24,19 +24,19 @@
 #include "board.h"
 
 #ifndef FW_RUN_LIMIT_US
-#define FW_RUN_LIMIT_US 120000000u   /* the whole run, as a last resort */
+#define FW_RUN_LIMIT_US 120000000u /* the whole run, as a last resort */
 #endif
-#define TXN_COUNT 40u                /* test-a echo transactions */
-#define RAMP_STEPS 40u               /* ESC commands in the throttle ramp */
-#define RAMP_PERIOD_US 20000u        /* 50 Hz command rate */
-#define RAMP_MAX 2000                /* raw command at the top (of 8191) */
-#define NUM_ESC 4u
-#define DAN_START_BAUD 9600u         /* DAN starts at 9600 */
-#define REPLY_LATENCY_US 50000u      /* a reply may start this late (QEMU, the pty) */
-#define GAP_US 20000u                /* bytes may come in bursts this far apart */
-#define RETRIES 2u                   /* extra attempts per transaction */
-#define BACKOFF_SEED 0x5EEDu         /* any value: the backoff jitter's seed */
-#define IDLE_MIN_US 1000u            /* sleep only when nothing is due within a SysTick */
+#define TXN_COUNT        40u    /* test-a echo transactions */
+#define RAMP_STEPS       40u    /* ESC commands in the throttle ramp */
+#define RAMP_PERIOD_US   20000u /* 50 Hz command rate */
+#define RAMP_MAX         2000   /* raw command at the top (of 8191) */
+#define NUM_ESC          4u
+#define DAN_START_BAUD   9600u   /* DAN starts at 9600 */
+#define REPLY_LATENCY_US 50000u  /* a reply may start this late (QEMU, the pty) */
+#define GAP_US           20000u  /* bytes may come in bursts this far apart */
+#define RETRIES          2u      /* extra attempts per transaction */
+#define BACKOFF_SEED     0x5EEDu /* any value: the backoff jitter's seed */
+#define IDLE_MIN_US      1000u   /* sleep only when nothing is due within a SysTick */
 
 /* ---- output: one JSON object per line ---- */
 
@@ -147,9 +147,9 @@ typedef struct {
 struct app {
     dan_master_t m;
     size_t phase;
-    uint32_t k;                 /* step within the phase */
-    uint64_t op_t0;             /* when the running operation started */
-    uint64_t not_before;        /* FW_WAIT: start no sooner */
+    uint32_t k;          /* step within the phase */
+    uint64_t op_t0;      /* when the running operation started */
+    uint64_t not_before; /* FW_WAIT: start no sooner */
     bool op_running;
     /* transactions */
     uint8_t payload[32];
@@ -212,7 +212,7 @@ static step_t configure_done(app_t *a, int r, uint64_t now)
     o_key("baud");
     o_u32(dan_master_baud(&a->m));
     o_key("uart_baud");
-    o_u32(uart0_actual_baud());   /* 25 MHz / divisor */
+    o_u32(uart0_actual_baud()); /* 25 MHz / divisor */
     o_key("ms");
     o_u64((now - a->op_t0) / 1000u);
     o_key("recoveries");
@@ -408,8 +408,10 @@ static step_t gw_done(app_t *a, int r, uint64_t now)
 {
     const char *at;
     r = dan_gw_complete(&a->gw, now);
-    at = (a->k == 0u) ? "arm" : (a->k <= RAMP_STEPS) ? "esc_command"
-         : (a->k == RAMP_STEPS + 1u) ? "telemetry" : "disarm";
+    at = (a->k == 0u)                ? "arm"
+         : (a->k <= RAMP_STEPS)      ? "esc_command"
+         : (a->k == RAMP_STEPS + 1u) ? "telemetry"
+                                     : "disarm";
     if (r != DAN_OK) {
         return gw_finish(a, r, at);
     }
@@ -611,8 +613,8 @@ int main(void)
     cfg.seed = BACKOFF_SEED;
     now = clock_now_us();
     deadline = now + FW_RUN_LIMIT_US;
-    if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types,
-                        sizeof bus_types / sizeof bus_types[0], DAN_START_BAUD, now) != DAN_OK) {
+    if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types, sizeof bus_types / sizeof bus_types[0],
+                        DAN_START_BAUD, now) != DAN_OK) {
         sh_puts("{\"event\":\"init failed\"}\n");
         return 1;
     }

@@ -45,10 +45,10 @@ static int b(void *ctx, uint32_t baud)
 }
 static const dan_port_t port = {w, b, NULL, NULL, NULL, NULL, 0, true};
 static const uint32_t types[] = {DAN_TYPE_CAN_GW_FIRST, DAN_TYPE_VTX_FIRST};
-dan_master_t probe_master;      /* RAM per bus: the master engine */
+dan_master_t probe_master; /* RAM per bus: the master engine */
 #endif
 #if SIZE_PROBE >= 2
-dan_gw_t probe_gw;              /* RAM per bus: the gateway client */
+dan_gw_t probe_gw; /* RAM per bus: the gateway client */
 #endif
 
 void Reset_Handler(void)
@@ -70,12 +70,18 @@ void Reset_Handler(void)
         {
             int16_t v[4] = {1, 2, 3, 4};
             dan_gw_config_t cfg = {0, 0, 0, 0, 0};
-            if (probe_in == 1u) dan_gw_init(&probe_gw, &probe_master);
-            if (probe_in == 2u) dan_gw_esc_command(&probe_gw, v, 4, probe_time);
-            if (probe_in == 3u) dan_gw_telemetry(&probe_gw, 0, probe_time);
-            if (probe_in == 4u) dan_gw_arm(&probe_gw, probe_in == 5u, probe_time);
-            if (probe_in == 6u) dan_gw_config(&probe_gw, &cfg, probe_time);
-            if (probe_in == 7u) dan_gw_stats(&probe_gw, probe_time);
+            if (probe_in == 1u)
+                dan_gw_init(&probe_gw, &probe_master);
+            if (probe_in == 2u)
+                dan_gw_esc_command(&probe_gw, v, 4, probe_time);
+            if (probe_in == 3u)
+                dan_gw_telemetry(&probe_gw, 0, probe_time);
+            if (probe_in == 4u)
+                dan_gw_arm(&probe_gw, probe_in == 5u, probe_time);
+            if (probe_in == 6u)
+                dan_gw_config(&probe_gw, &cfg, probe_time);
+            if (probe_in == 7u)
+                dan_gw_stats(&probe_gw, probe_time);
             probe_in = (uint32_t)dan_gw_poll(&probe_gw, probe_time);
         }
 #endif
@@ -94,18 +100,30 @@ void Reset_Handler(void)
             uint8_t res, cnt;
             memset(&f, 0, sizeof f);
             memset(&flt, 0, sizeof flt);
-            if (probe_in == 8u) dan_gw_nodes(&probe_gw, 1, probe_time);
-            if (probe_in == 9u && dan_gw_nodes_begin(&probe_gw, &r, &nh) == 0) probe_in = (uint32_t)dan_gw_nodes_next(&r, &node);
-            if (probe_in == 10u) dan_gw_node_info(&probe_gw, 5, probe_time);
-            if (probe_in == 11u) probe_in = (uint32_t)dan_gw_node_info_get(&probe_gw, &info) + info.node_id;
-            if (probe_in == 12u) dan_gw_tunnel_open(&probe_gw, &to, probe_time);
-            if (probe_in == 13u) dan_gw_tunnel_xfer(&probe_gw, 0, rx, 2, 64, probe_time);
-            if (probe_in == 14u && dan_gw_tunnel_data(&probe_gw, &data, &len) == 0) probe_in = data[0];
-            if (probe_in == 15u) dan_gw_can_send(&probe_gw, &f, 1, probe_time);
-            if (probe_in == 16u) dan_gw_can_recv(&probe_gw, 4, probe_time);
-            if (probe_in == 17u && dan_gw_can_begin(&probe_gw, &r, &ch) == 0) probe_in = (uint32_t)dan_gw_can_next(&r, &f);
-            if (probe_in == 18u) dan_gw_can_filter(&probe_gw, 0, &flt, 1, probe_time);
-            if (probe_in == 19u && dan_gw_filter_begin(&probe_gw, &r, &res, &cnt) == 0) probe_in = (uint32_t)dan_gw_filter_next(&r, &flt);
+            if (probe_in == 8u)
+                dan_gw_nodes(&probe_gw, 1, probe_time);
+            if (probe_in == 9u && dan_gw_nodes_begin(&probe_gw, &r, &nh) == 0)
+                probe_in = (uint32_t)dan_gw_nodes_next(&r, &node);
+            if (probe_in == 10u)
+                dan_gw_node_info(&probe_gw, 5, probe_time);
+            if (probe_in == 11u)
+                probe_in = (uint32_t)dan_gw_node_info_get(&probe_gw, &info) + info.node_id;
+            if (probe_in == 12u)
+                dan_gw_tunnel_open(&probe_gw, &to, probe_time);
+            if (probe_in == 13u)
+                dan_gw_tunnel_xfer(&probe_gw, 0, rx, 2, 64, probe_time);
+            if (probe_in == 14u && dan_gw_tunnel_data(&probe_gw, &data, &len) == 0)
+                probe_in = data[0];
+            if (probe_in == 15u)
+                dan_gw_can_send(&probe_gw, &f, 1, probe_time);
+            if (probe_in == 16u)
+                dan_gw_can_recv(&probe_gw, 4, probe_time);
+            if (probe_in == 17u && dan_gw_can_begin(&probe_gw, &r, &ch) == 0)
+                probe_in = (uint32_t)dan_gw_can_next(&r, &f);
+            if (probe_in == 18u)
+                dan_gw_can_filter(&probe_gw, 0, &flt, 1, probe_time);
+            if (probe_in == 19u && dan_gw_filter_begin(&probe_gw, &r, &res, &cnt) == 0)
+                probe_in = (uint32_t)dan_gw_filter_next(&r, &flt);
         }
 #endif
     }

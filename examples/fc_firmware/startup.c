@@ -9,7 +9,7 @@
 
 #include "board.h"
 
-extern uint32_t _estack, _sidata, _sdata, _edata, _sbss, _ebss;   /* fc_firmware.ld */
+extern uint32_t _estack, _sidata, _sdata, _edata, _sbss, _ebss; /* fc_firmware.ld */
 
 int main(void);
 void Reset_Handler(void);
@@ -37,33 +37,58 @@ void Default_Handler(void)
     sh_exit(3);
 }
 
-#define NUM_IRQS 32u   /* AN386 uses IRQ 0..31 for its peripherals */
+#define NUM_IRQS 32u /* AN386 uses IRQ 0..31 for its peripherals */
 
 typedef void (*vector_t)(void);
 
 /* The initial stack pointer is an address stored as the first vector. */
-__attribute__((section(".isr_vector"), used))
-const vector_t vector_table[16u + NUM_IRQS] = {
+__attribute__((section(".isr_vector"), used)) const vector_t vector_table[16u + NUM_IRQS] = {
     (vector_t)(uintptr_t)&_estack,
     Reset_Handler,
-    Default_Handler,      /* NMI */
+    Default_Handler, /* NMI */
     HardFault_Handler,
-    HardFault_Handler,    /* MemManage (escalates to HardFault when disabled) */
-    HardFault_Handler,    /* BusFault */
-    HardFault_Handler,    /* UsageFault */
-    0, 0, 0, 0,
-    Default_Handler,      /* SVCall */
-    Default_Handler,      /* DebugMonitor */
+    HardFault_Handler, /* MemManage (escalates to HardFault when disabled) */
+    HardFault_Handler, /* BusFault */
+    HardFault_Handler, /* UsageFault */
     0,
-    Default_Handler,      /* PendSV */
+    0,
+    0,
+    0,
+    Default_Handler, /* SVCall */
+    Default_Handler, /* DebugMonitor */
+    0,
+    Default_Handler, /* PendSV */
     SysTick_Handler,
-    UART0RX_Handler,      /* IRQ 0: UART0 RX */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 1..4 */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 5..8 */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 9..12 */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 13..16 */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 17..20 */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 21..24 */
-    Default_Handler, Default_Handler, Default_Handler, Default_Handler,     /* 25..28 */
-    Default_Handler, Default_Handler, Default_Handler,                      /* 29..31 */
+    UART0RX_Handler, /* IRQ 0: UART0 RX */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 1..4 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 5..8 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 9..12 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 13..16 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 17..20 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 21..24 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 25..28 */
+    Default_Handler,
+    Default_Handler,
+    Default_Handler, /* 29..31 */
 };

@@ -25,32 +25,31 @@
 
 static void usage(FILE *f)
 {
-    fprintf(f,
-        "usage: dan-master --port TTY [options] STEP...\n"
-        "\n"
-        "Runs the libdan master on a serial port (a real DAN wire, or a dan-vbus\n"
-        "endpoint) and performs the steps in order.\n"
-        "\n"
-        "options:\n"
-        "  --port TTY          serial port (required)\n"
-        "  --baud N            the port's starting baud (default 9600)\n"
-        "  --types LIST        types to probe, comma-separated names or first codes\n"
-        "                      (default: vtx,can-gw; also test-a, test-b)\n"
-        "  --no-echo           the adapter does not echo our bytes\n"
-        "  --de-gpio CHIP:LINE drive a direction pin (libgpiod); implies --no-echo\n"
-        "  --latency-ms N      reply start window (default 50: ptys and USB adapters)\n"
-        "  --gap-ms N          inter-byte gap that ends a frame (default 20)\n"
-        "  --retries N         extra attempts per transaction (default 2)\n"
-        "  --json              one JSON object per step on stdout\n"
-        "  --timeout-ms N      give up a step after N ms (default 30000)\n"
-        "  -h, --help          this text\n"
-        "\n"
-        "steps:\n"
-        "  discover            probe every type at 9600, then other bauds\n"
-        "  configure[:BAUD]    move the bus to BAUD (default: best common) and verify\n"
-        "  request:CODE[:HEX]  send a request, print the reply payload\n"
-        "  repeat:N:CODE[:HEX] the same N times; prints the count and the rate\n"
-        "  stats               engine counters\n");
+    fprintf(f, "usage: dan-master --port TTY [options] STEP...\n"
+               "\n"
+               "Runs the libdan master on a serial port (a real DAN wire, or a dan-vbus\n"
+               "endpoint) and performs the steps in order.\n"
+               "\n"
+               "options:\n"
+               "  --port TTY          serial port (required)\n"
+               "  --baud N            the port's starting baud (default 9600)\n"
+               "  --types LIST        types to probe, comma-separated names or first codes\n"
+               "                      (default: vtx,can-gw; also test-a, test-b)\n"
+               "  --no-echo           the adapter does not echo our bytes\n"
+               "  --de-gpio CHIP:LINE drive a direction pin (libgpiod); implies --no-echo\n"
+               "  --latency-ms N      reply start window (default 50: ptys and USB adapters)\n"
+               "  --gap-ms N          inter-byte gap that ends a frame (default 20)\n"
+               "  --retries N         extra attempts per transaction (default 2)\n"
+               "  --json              one JSON object per step on stdout\n"
+               "  --timeout-ms N      give up a step after N ms (default 30000)\n"
+               "  -h, --help          this text\n"
+               "\n"
+               "steps:\n"
+               "  discover            probe every type at 9600, then other bauds\n"
+               "  configure[:BAUD]    move the bus to BAUD (default: best common) and verify\n"
+               "  request:CODE[:HEX]  send a request, print the reply payload\n"
+               "  repeat:N:CODE[:HEX] the same N times; prints the count and the rate\n"
+               "  stats               engine counters\n");
 }
 
 typedef struct {
@@ -424,8 +423,8 @@ static void print_repeat(const ctx_t *c, const txn_args_t *t, int r, uint32_t do
                t->code, r, done, secs, secs > 0 ? done / secs : 0.0);
     } else {
         printf("repeat 0x%02X: %u done in %.3f s (%.1f/s)%s%s\n", t->code, done, secs,
-               secs > 0 ? done / secs : 0.0, r == DAN_OK ? "" : ", stopped: ",
-               r == DAN_OK ? "" : dan_strerror(r));
+               secs > 0 ? done / secs : 0.0,
+               r == DAN_OK ? "" : ", stopped: ", r == DAN_OK ? "" : dan_strerror(r));
     }
 }
 

@@ -35,26 +35,26 @@
 #include "dan/posix.h"
 #include "dan_tool.h"
 
-#define PROG          "dan-vbus"
-#define EP_MIN        2
-#define EP_MAX        16
-#define TXQ_CAP       4096u /* bytes an endpoint may have queued for the wire */
-#define TXQ_LOW       512u  /* room needed before reading from a writer again */
-#define OUT_CAP       4096u /* per-receiver write batch */
-#define BURST_CAP     4096u /* longest burst written as one capture line */
-#define MAX_CLIENTS   8
-#define CLIENT_LINE   256u
-#define INIT_BAUD     9600u
-#define MIN_BAUD      50u
-#define DEFAULT_SEED  1u
-#define TOLERANCE_PCT 3u
-#define BITS_PER_CHAR 10 /* 8N1: start bit, 8 data bits, stop bit */
-#define NS_PER_S      1000000000LL
+#define PROG             "dan-vbus"
+#define EP_MIN           2
+#define EP_MAX           16
+#define TXQ_CAP          4096u /* bytes an endpoint may have queued for the wire */
+#define TXQ_LOW          512u  /* room needed before reading from a writer again */
+#define OUT_CAP          4096u /* per-receiver write batch */
+#define BURST_CAP        4096u /* longest burst written as one capture line */
+#define MAX_CLIENTS      8
+#define CLIENT_LINE      256u
+#define INIT_BAUD        9600u
+#define MIN_BAUD         50u
+#define DEFAULT_SEED     1u
+#define TOLERANCE_PCT    3u
+#define BITS_PER_CHAR    10 /* 8N1: start bit, 8 data bits, stop bit */
+#define NS_PER_S         1000000000LL
 /* An arbitrary odd constant (drand48's multiplier): the garbage stream
  * starts apart from the noise stream for the same --seed. */
 #define GARBAGE_SEED_XOR 0x5DEECE66DULL
 /* --link PREFIX: room for the endpoint index and NUL ... */
-#define LINK_INDEX_ROOM 4
+#define LINK_INDEX_ROOM  4
 /* ... and, with the temporary link's ".vbusPID" suffix, below PATH_MAX. */
 #define LINK_SUFFIX_ROOM 32
 
@@ -479,13 +479,13 @@ static void client_send(struct vbus *vb, struct client *c, const char *s)
 static void stats_json(struct vbus *vb, char *out, size_t cap)
 {
     size_t n = 0;
-#define APPEND(...)                                                                                \
-    do {                                                                                           \
-        int k_ = snprintf(out + n, cap - n, __VA_ARGS__);                                          \
-        if (k_ > 0)                                                                                \
-            n += (size_t)k_;                                                                       \
-        if (n >= cap)                                                                              \
-            n = cap - 1;                                                                           \
+#define APPEND(...)                                       \
+    do {                                                  \
+        int k_ = snprintf(out + n, cap - n, __VA_ARGS__); \
+        if (k_ > 0)                                       \
+            n += (size_t)k_;                              \
+        if (n >= cap)                                     \
+            n = cap - 1;                                  \
     } while (0)
     APPEND("{\"endpoints\":[");
     for (int i = 0; i < vb->n; i++) {

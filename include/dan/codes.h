@@ -18,17 +18,17 @@
 #ifndef DAN_CODES_H
 #define DAN_CODES_H
 
-#define DAN_CODE_ERROR            0x00u
+#define DAN_CODE_ERROR 0x00u
 
 #define DAN_TYPE_BLOCK_SIZE       16u
 #define DAN_TYPE_IDENTIFY(first)  (first)
 #define DAN_TYPE_CONFIGURE(first) ((first) + 1u)
 
 /* VTX: reserved for the draft's VTX messages (0x20-0x29 used there). */
-#define DAN_TYPE_VTX_FIRST        0x20u
-#define DAN_TYPE_VTX_LAST         0x2Fu
-#define DAN_CODE_VTX_IDENTIFY     0x20u
-#define DAN_CODE_VTX_CONFIGURE    0x21u
+#define DAN_TYPE_VTX_FIRST     0x20u
+#define DAN_TYPE_VTX_LAST      0x2Fu
+#define DAN_CODE_VTX_IDENTIFY  0x20u
+#define DAN_CODE_VTX_CONFIGURE 0x21u
 
 /* CAN-over-DAN gateway; its messages are in dan/can_gw/msgs.h
  * (peripherals/can_gateway/). */
@@ -38,9 +38,9 @@
 #define DAN_CODE_CAN_GW_CONFIGURE 0x41u
 
 /* Private / test types, for bench and test peripherals. */
-#define DAN_TYPE_TEST_A_FIRST     0x60u
-#define DAN_TYPE_TEST_A_LAST      0x6Fu
-#define DAN_TYPE_TEST_B_FIRST     0x70u
-#define DAN_TYPE_TEST_B_LAST      0x7Fu
+#define DAN_TYPE_TEST_A_FIRST 0x60u
+#define DAN_TYPE_TEST_A_LAST  0x6Fu
+#define DAN_TYPE_TEST_B_FIRST 0x70u
+#define DAN_TYPE_TEST_B_LAST  0x7Fu
 
 #endif /* DAN_CODES_H */

@@ -19,17 +19,17 @@ extern "C" {
 
 /* Error codes. Functions return a negative code on failure. */
 #define DAN_OK              0
-#define DAN_ERR_ARG        (-1)  /* invalid argument (NULL, out of range) */
-#define DAN_ERR_OVERFLOW   (-2)  /* output buffer too small */
-#define DAN_ERR_MALFORMED  (-3)  /* input does not follow the format */
-#define DAN_ERR_TIMEOUT    (-4)  /* no response in time */
-#define DAN_ERR_BUSY       (-5)  /* an operation is already in progress */
-#define DAN_ERR_REMOTE     (-6)  /* the peer answered with an error frame */
-#define DAN_ERR_COLLISION  (-7)  /* echo mismatch: another talker on the wire */
-#define DAN_ERR_UNSUPPORTED (-8) /* no common baud, unknown type, ... */
-#define DAN_ERR_NOTFOUND   (-9)  /* peripheral / entry not present */
-#define DAN_ERR_IO         (-10) /* the port's write or set_baud failed */
-#define DAN_ERR_NACK       (-11) /* the peer answered with ACK-FAIL */
+#define DAN_ERR_ARG         (-1)  /* invalid argument (NULL, out of range) */
+#define DAN_ERR_OVERFLOW    (-2)  /* output buffer too small */
+#define DAN_ERR_MALFORMED   (-3)  /* input does not follow the format */
+#define DAN_ERR_TIMEOUT     (-4)  /* no response in time */
+#define DAN_ERR_BUSY        (-5)  /* an operation is already in progress */
+#define DAN_ERR_REMOTE      (-6)  /* the peer answered with an error frame */
+#define DAN_ERR_COLLISION   (-7)  /* echo mismatch: another talker on the wire */
+#define DAN_ERR_UNSUPPORTED (-8)  /* no common baud, unknown type, ... */
+#define DAN_ERR_NOTFOUND    (-9)  /* peripheral / entry not present */
+#define DAN_ERR_IO          (-10) /* the port's write or set_baud failed */
+#define DAN_ERR_NACK        (-11) /* the peer answered with ACK-FAIL */
 
 /* Short English name of an error code ("timeout", ...); never NULL. */
 const char *dan_strerror(int err);
@@ -71,18 +71,18 @@ int dan_uvarint_decode(const uint8_t *in, size_t len, uint32_t *v);
 typedef struct {
     uint8_t *buf;
     size_t cap;
-    size_t len;   /* bytes written (or counted) so far */
+    size_t len; /* bytes written (or counted) so far */
     bool error;
 } dan_writer_t;
 
 void dan_writer_init(dan_writer_t *w, uint8_t *buf, size_t cap);
 void dan_put_u8(dan_writer_t *w, uint8_t v);
-void dan_put_u16(dan_writer_t *w, uint16_t v);            /* little endian */
-void dan_put_u32(dan_writer_t *w, uint32_t v);            /* little endian */
+void dan_put_u16(dan_writer_t *w, uint16_t v); /* little endian */
+void dan_put_u32(dan_writer_t *w, uint32_t v); /* little endian */
 void dan_put_uvarint(dan_writer_t *w, uint32_t v);
-void dan_put_raw(dan_writer_t *w, const void *data, size_t len); /* no length */
+void dan_put_raw(dan_writer_t *w, const void *data, size_t len);   /* no length */
 void dan_put_array(dan_writer_t *w, const void *data, size_t len); /* uvarint len + bytes */
-void dan_put_string(dan_writer_t *w, const char *s);      /* NULL == "" */
+void dan_put_string(dan_writer_t *w, const char *s);               /* NULL == "" */
 /* For an encoder that writes in place (the dan_*_encode(..., out, cap)
  * functions): the free space (NULL in a size-only pass or after an error:
  * such encoders then return the size only), and then how much it wrote;

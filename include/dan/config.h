@@ -171,7 +171,8 @@
 #if DAN_MAX_STRING < 2u || DAN_MAX_STRING > 255u
 #error "DAN_MAX_STRING must be within 2..255"
 #endif
-#if DAN_RXRING_SIZE < 2u || DAN_RXRING_SIZE > 32768u || (DAN_RXRING_SIZE & (DAN_RXRING_SIZE - 1u)) != 0u
+#if DAN_RXRING_SIZE < 2u || DAN_RXRING_SIZE > 32768u || \
+    (DAN_RXRING_SIZE & (DAN_RXRING_SIZE - 1u)) != 0u
 #error "DAN_RXRING_SIZE must be a power of two within 2..32768"
 #endif
 #if (DAN_GW_NODE_TUN_TX_BUF & (DAN_GW_NODE_TUN_TX_BUF - 1u)) != 0u || \
@@ -186,16 +187,14 @@
 #endif
 
 /* Bytes a uvarint needs for a constant (for static sizing). */
-#define DAN_UVARINT_SIZE(v)                                            \
-    ((v) < 0x80u ? 1u : (v) < 0x4000u ? 2u : (v) < 0x200000u ? 3u :    \
-     (v) < 0x10000000u ? 4u : 5u)
+#define DAN_UVARINT_SIZE(v) \
+    ((v) < 0x80u ? 1u : (v) < 0x4000u ? 2u : (v) < 0x200000u ? 3u : (v) < 0x10000000u ? 4u : 5u)
 
 /* Longest uvarint accepted on the wire: 32-bit values. */
 #define DAN_UVARINT_MAX_BYTES 5u
 
 /* Largest frame on the wire: sync, code (up to 5 bytes), length, payload, CRC. */
-#define DAN_MAX_FRAME                                                  \
-    (1u + DAN_UVARINT_MAX_BYTES + DAN_UVARINT_SIZE(DAN_MAX_PAYLOAD) +  \
-     DAN_MAX_PAYLOAD + 1u)
+#define DAN_MAX_FRAME \
+    (1u + DAN_UVARINT_MAX_BYTES + DAN_UVARINT_SIZE(DAN_MAX_PAYLOAD) + DAN_MAX_PAYLOAD + 1u)
 
 #endif /* DAN_CONFIG_H */

@@ -27,20 +27,19 @@ typedef struct {
  * DAN_ERR_OVERFLOW if cap is too small, or DAN_ERR_ARG if len exceeds
  * DAN_MAX_PAYLOAD (or payload is NULL with len > 0). With out == NULL,
  * returns the encoded size without writing. */
-int dan_frame_encode(uint32_t code, const uint8_t *payload, size_t len,
-                     uint8_t *out, size_t cap);
+int dan_frame_encode(uint32_t code, const uint8_t *payload, size_t len, uint8_t *out, size_t cap);
 
 /* Size of a frame with this code and payload length (no checks). */
 size_t dan_frame_size(uint32_t code, size_t len);
 
 /* Decoder counters. They wrap around at 2^32. */
 typedef struct {
-    uint32_t frames;        /* valid frames returned */
-    uint32_t crc_errors;    /* complete frames whose CRC did not match */
-    uint32_t oversize;      /* frames declaring a payload > DAN_MAX_PAYLOAD */
-    uint32_t bad_varint;    /* code or length uvarint overlong / overflowing */
-    uint32_t garbage;       /* bytes dropped while hunting for a sync byte */
-    uint32_t aborted;       /* partial frames dropped by dan_decoder_abort() */
+    uint32_t frames;     /* valid frames returned */
+    uint32_t crc_errors; /* complete frames whose CRC did not match */
+    uint32_t oversize;   /* frames declaring a payload > DAN_MAX_PAYLOAD */
+    uint32_t bad_varint; /* code or length uvarint overlong / overflowing */
+    uint32_t garbage;    /* bytes dropped while hunting for a sync byte */
+    uint32_t aborted;    /* partial frames dropped by dan_decoder_abort() */
 } dan_decoder_stats_t;
 
 /*
@@ -51,13 +50,13 @@ typedef struct {
  */
 typedef struct {
     uint8_t buf[DAN_MAX_FRAME];
-    size_t len;             /* bytes buffered; buf[0] == DAN_SYNC when len > 0 */
-    size_t scanned;         /* buffered bytes already examined as the candidate */
-    size_t consume;         /* length of the frame last returned, dropped on the next call */
-    size_t need;            /* total length of the candidate once its header is read */
-    size_t guard;           /* buffered bytes that belonged to rejected candidates */
-    uint32_t code;          /* the candidate's code, once its header is read */
-    uint8_t hdr;            /* the candidate's header length (sync, code, length) */
+    size_t len;     /* bytes buffered; buf[0] == DAN_SYNC when len > 0 */
+    size_t scanned; /* buffered bytes already examined as the candidate */
+    size_t consume; /* length of the frame last returned, dropped on the next call */
+    size_t need;    /* total length of the candidate once its header is read */
+    size_t guard;   /* buffered bytes that belonged to rejected candidates */
+    uint32_t code;  /* the candidate's code, once its header is read */
+    uint8_t hdr;    /* the candidate's header length (sync, code, length) */
     dan_decoder_stats_t stats;
 } dan_decoder_t;
 
@@ -79,8 +78,8 @@ void dan_decoder_reset(dan_decoder_t *d);
  *         handle(&frame);
  *     }
  */
-int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len,
-                     size_t *consumed, dan_frame_t *frame);
+int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len, size_t *consumed,
+                     dan_frame_t *frame);
 
 /* True while a partial frame is buffered (a frame has started). */
 bool dan_decoder_busy(const dan_decoder_t *d);

@@ -59,16 +59,16 @@ typedef struct {
     uint32_t tx_frames;
     uint32_t tx_bytes;
     uint32_t rx_bytes;
-    uint32_t collisions;      /* echo differed from what we sent */
-    uint32_t echo_timeouts;   /* echo never came back (wiring, or port.echo wrong) */
-    uint32_t port_errors;     /* write or set_baud failed */
+    uint32_t collisions;    /* echo differed from what we sent */
+    uint32_t echo_timeouts; /* echo never came back (wiring, or port.echo wrong) */
+    uint32_t port_errors;   /* write or set_baud failed */
 } dan_link_stats_t;
 
 typedef enum {
     DAN_LINK_IDLE = 0,
-    DAN_LINK_TX,              /* our frame is on the wire */
-    DAN_LINK_TX_DONE,         /* it has left the wire (echo complete) */
-    DAN_LINK_TX_FAILED        /* collision or missing echo */
+    DAN_LINK_TX,       /* our frame is on the wire */
+    DAN_LINK_TX_DONE,  /* it has left the wire (echo complete) */
+    DAN_LINK_TX_FAILED /* collision or missing echo */
 } dan_link_state_t;
 
 typedef void (*dan_frame_cb_t)(void *owner, const dan_frame_t *frame, uint64_t now_us);
@@ -83,10 +83,10 @@ typedef struct {
     dan_decoder_t dec;
     uint8_t tx[DAN_MAX_FRAME];
     size_t tx_len;
-    size_t echo_pos;          /* echoed bytes matched so far */
+    size_t echo_pos; /* echoed bytes matched so far */
     uint64_t tx_start_us;
-    uint64_t last_rx_us;      /* time of the last byte received (or echoed) */
-    bool rx_any;              /* a byte was received since the last frame/send */
+    uint64_t last_rx_us; /* time of the last byte received (or echoed) */
+    bool rx_any;         /* a byte was received since the last frame/send */
     dan_link_state_t state;
     dan_frame_cb_t on_frame;
     void *owner;
@@ -96,8 +96,8 @@ typedef struct {
 /* Character time at baud, in microseconds (rounded up). */
 uint32_t dan_char_us(uint32_t baud);
 
-void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud,
-                   dan_frame_cb_t on_frame, void *owner, uint64_t now_us);
+void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud, dan_frame_cb_t on_frame,
+                   void *owner, uint64_t now_us);
 /* Switches the port's baud; drops any partial frame (bytes at the old baud). */
 int dan_link_set_baud(dan_link_t *l, uint32_t baud, uint64_t now_us);
 /* Effective inter-byte gap. */

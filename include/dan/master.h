@@ -33,10 +33,10 @@ extern "C" {
 /* Peripheral types one master can probe (and so, peers per UART):
  * DAN_MASTER_MAX_TYPES, a setting in dan/config.h. */
 
-/* Bauds a master tries during discovery, in order: the spec's 9600 first,
- * then the mask bauds from the highest (where a configured bus most likely
- * is after a master reset) down. */
-#define DAN_DISCOVERY_BAUDS {9600u, 115200u, 57600u, 38400u, 19200u}
+/* Bauds a master tries during discovery (DAN_DISCOVERY_NBAUDS of them, in
+ * src/master.c): the spec's 9600 first, then the mask bauds from the
+ * highest (where a configured bus most likely is after a master reset)
+ * down. */
 #define DAN_DISCOVERY_NBAUDS 5u
 
 typedef struct {
@@ -57,23 +57,23 @@ void dan_master_config_default(dan_master_config_t *c);
 
 /* One discovered peripheral (one type on this UART). */
 typedef struct {
-    uint32_t first_code;        /* its type: IDENTIFY = first_code */
+    uint32_t first_code; /* its type: IDENTIFY = first_code */
     dan_identity_t identity;
-    uint32_t baud;              /* baud it answers at */
+    uint32_t baud; /* baud it answers at */
     bool present;
 } dan_peer_t;
 
 typedef struct {
-    uint32_t transactions;      /* started */
+    uint32_t transactions; /* started */
     uint32_t ok;
-    uint32_t timeouts;          /* attempts that got no reply */
+    uint32_t timeouts; /* attempts that got no reply */
     uint32_t retries;
-    uint32_t remote_errors;     /* error frames received for our request */
-    uint32_t stray;             /* frames that answered nothing we asked */
-    uint32_t lbt_waits;         /* transmissions delayed by a busy line */
-    uint32_t busy_failures;     /* line never went idle */
-    uint32_t recoveries;        /* configure verification failed and was recovered */
-    uint32_t bad_replies;       /* replies refused by the reply check (retried) */
+    uint32_t remote_errors; /* error frames received for our request */
+    uint32_t stray;         /* frames that answered nothing we asked */
+    uint32_t lbt_waits;     /* transmissions delayed by a busy line */
+    uint32_t busy_failures; /* line never went idle */
+    uint32_t recoveries;    /* configure verification failed and was recovered */
+    uint32_t bad_replies;   /* replies refused by the reply check (retried) */
 } dan_master_stats_t;
 
 /* An optional check of a reply's payload beyond the frame CRC (e.g. the
@@ -93,15 +93,15 @@ typedef struct {
     dan_master_config_t cfg;
     uint32_t types[DAN_MASTER_MAX_TYPES];
     size_t ntypes;
-    dan_peer_t peers[DAN_MASTER_MAX_TYPES];   /* one slot per type */
+    dan_peer_t peers[DAN_MASTER_MAX_TYPES]; /* one slot per type */
 
     /* the current transaction */
-    uint32_t req_code;          /* the request itself waits in link.tx */
+    uint32_t req_code; /* the request itself waits in link.tx */
     uint8_t attempts_left;
-    uint8_t attempt;            /* attempts made, for the backoff */
-    uint8_t txn_phase;          /* internal */
-    uint64_t wait_until_us;     /* not before: backoff or settle after a baud switch */
-    uint64_t deadline_us;       /* the reply must have started by then */
+    uint8_t attempt;        /* attempts made, for the backoff */
+    uint8_t txn_phase;      /* internal */
+    uint64_t wait_until_us; /* not before: backoff or settle after a baud switch */
+    uint64_t deadline_us;   /* the reply must have started by then */
     uint64_t busy_since_us;
     bool lbt_counted;
     int txn_result;
@@ -110,12 +110,12 @@ typedef struct {
     uint32_t resp_code;
     uint8_t resp[DAN_MAX_PAYLOAD];
     size_t resp_len;
-    dan_error_msg_t remote_error;   /* when the result is DAN_ERR_REMOTE */
+    dan_error_msg_t remote_error; /* when the result is DAN_ERR_REMOTE */
 
     /* the current operation */
     dan_master_op_t op;
-    uint8_t step;               /* sequencer state (internal) */
-    size_t idx;                 /* type index / baud index (internal) */
+    uint8_t step; /* sequencer state (internal) */
+    size_t idx;   /* type index / baud index (internal) */
     size_t bidx;
     uint32_t target_baud;
     bool done;
@@ -177,7 +177,10 @@ uint32_t dan_master_best_baud(const dan_master_t *m);
 const dan_peer_t *dan_master_peer(const dan_master_t *m, uint32_t first_code);
 
 /* Current bus baud. */
-static inline uint32_t dan_master_baud(const dan_master_t *m) { return m->link.baud; }
+static inline uint32_t dan_master_baud(const dan_master_t *m)
+{
+    return m->link.baud;
+}
 
 #ifdef __cplusplus
 }

@@ -19,12 +19,12 @@ extern "C" {
 #define DAN_VERSION 1u
 
 /* DAN-PERIPHERAL-SUPPORTED-BAUDRATES-MASK-V1. 9600 is always supported. */
-#define DAN_BAUD_BASE          9600u
-#define DAN_BAUD_MASK_19200    (1u << 0)
-#define DAN_BAUD_MASK_38400    (1u << 1)
-#define DAN_BAUD_MASK_57600    (1u << 2)
-#define DAN_BAUD_MASK_115200   (1u << 3)
-#define DAN_BAUD_MASK_DEFINED  0x000Fu  /* bits defined by v1 */
+#define DAN_BAUD_BASE         9600u
+#define DAN_BAUD_MASK_19200   (1u << 0)
+#define DAN_BAUD_MASK_38400   (1u << 1)
+#define DAN_BAUD_MASK_57600   (1u << 2)
+#define DAN_BAUD_MASK_115200  (1u << 3)
+#define DAN_BAUD_MASK_DEFINED 0x000Fu /* bits defined by v1 */
 
 /* Baud of one mask bit (DAN_BAUD_MASK_xxx), or 0 if the bit is not defined. */
 uint32_t dan_baud_of_mask_bit(uint16_t bit);
@@ -42,9 +42,9 @@ typedef struct {
     char model[DAN_MAX_STRING];
     char hw_version[DAN_MAX_STRING];
     char sw_version[DAN_MAX_STRING];
-    uint16_t baud_mask;        /* raw, as on the wire */
-    uint16_t capabilities;     /* raw, as on the wire */
-    bool truncated;            /* a string was longer than DAN_MAX_STRING-1 */
+    uint16_t baud_mask;    /* raw, as on the wire */
+    uint16_t capabilities; /* raw, as on the wire */
+    bool truncated;        /* a string was longer than DAN_MAX_STRING-1 */
 } dan_identity_t;
 
 int dan_identity_encode(const dan_identity_t *id, uint8_t *out, size_t cap);
@@ -55,8 +55,8 @@ int dan_identity_decode(dan_identity_t *id, const uint8_t *p, size_t len);
 
 /* DAN-PERIPHERAL-CONFIGURE-PAYLOAD-V1 */
 typedef struct {
-    uint8_t type;              /* DAN_CONFIGURE_BPS */
-    uint32_t baud;             /* requested baud, for DAN_CONFIGURE_BPS */
+    uint8_t type;  /* DAN_CONFIGURE_BPS */
+    uint32_t baud; /* requested baud, for DAN_CONFIGURE_BPS */
 } dan_configure_t;
 
 int dan_configure_encode(const dan_configure_t *c, uint8_t *out, size_t cap);
@@ -74,14 +74,13 @@ int dan_ack_decode(uint8_t *ack, const uint8_t *p, size_t len);
 
 /* DAN-ERROR-MESSAGE-V1 (the payload of a code-0 frame). */
 typedef struct {
-    uint32_t code;             /* the request code that caused the error */
-    uint32_t error;            /* reserved, 0 in v1 */
+    uint32_t code;  /* the request code that caused the error */
+    uint32_t error; /* reserved, 0 in v1 */
     char text[DAN_MAX_STRING];
     bool truncated;
 } dan_error_msg_t;
 
-int dan_error_encode(uint32_t code, uint32_t error, const char *text,
-                     uint8_t *out, size_t cap);
+int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *out, size_t cap);
 int dan_error_decode(dan_error_msg_t *e, const uint8_t *p, size_t len);
 
 #ifdef __cplusplus

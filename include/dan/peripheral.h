@@ -73,31 +73,32 @@ typedef struct {
     const dan_identity_t *identity;
     const dan_handler_t *handlers;
     size_t nhandlers;
-    void *user;                   /* passed to the handlers and the envelope */
+    void *user;                     /* passed to the handlers and the envelope */
     const dan_envelope_t *envelope; /* NULL: none */
 } dan_ptype_t;
 
 typedef struct {
-    uint8_t turnaround_chars;   /* idle characters before replying (default DAN_TURNAROUND_CHARS) */
-    uint32_t reply_window_us;   /* drop a reply not started by turnaround + this (default DAN_RESP_LATENCY_US) */
-    uint32_t gap_us;            /* inter-byte gap (0: link default) */
-    uint32_t max_baud;          /* refuse CONFIGURE above this (0: port.max_baud) */
+    uint8_t turnaround_chars; /* idle characters before replying (default DAN_TURNAROUND_CHARS) */
+    uint32_t
+        reply_window_us; /* drop a reply not started by turnaround + this (default DAN_RESP_LATENCY_US) */
+    uint32_t gap_us;   /* inter-byte gap (0: link default) */
+    uint32_t max_baud; /* refuse CONFIGURE above this (0: port.max_baud) */
 } dan_periph_config_t;
 
 void dan_periph_config_default(dan_periph_config_t *c);
 
 typedef struct {
-    uint32_t requests;          /* frames for one of our types */
+    uint32_t requests; /* frames for one of our types */
     uint32_t replies;
-    uint32_t unknown;           /* frames with codes we do not serve (ignored) */
-    uint32_t errors_sent;       /* error frames sent */
-    uint32_t late;              /* replies dropped: the window had passed */
-    uint32_t overruns;          /* a request arrived before the last reply went out */
+    uint32_t unknown;     /* frames with codes we do not serve (ignored) */
+    uint32_t errors_sent; /* error frames sent */
+    uint32_t late;        /* replies dropped: the window had passed */
+    uint32_t overruns;    /* a request arrived before the last reply went out */
     uint32_t configures;
-    uint32_t nacks;             /* CONFIGURE answered ACK-FAIL */
+    uint32_t nacks; /* CONFIGURE answered ACK-FAIL */
     uint32_t baud_changes;
-    uint32_t own_echoes;        /* copies of our own reply ignored (after a collision) */
-    uint32_t dropped;           /* requests the type's envelope refused (no reply) */
+    uint32_t own_echoes; /* copies of our own reply ignored (after a collision) */
+    uint32_t dropped;    /* requests the type's envelope refused (no reply) */
 } dan_periph_stats_t;
 
 typedef struct {
@@ -112,7 +113,7 @@ typedef struct {
     size_t reply_len;
     uint64_t reply_after_us;
     uint64_t reply_before_us;
-    uint32_t next_baud;         /* switch after the ACK has left (0: none) */
+    uint32_t next_baud; /* switch after the ACK has left (0: none) */
     bool sending_ack;
     dan_periph_stats_t stats;
 } dan_periph_t;
@@ -126,7 +127,10 @@ void dan_periph_poll(dan_periph_t *p, uint64_t now_us);
 /* Earliest time the engine needs a poll (UINT64_MAX: only on rx). */
 uint64_t dan_periph_next_us(const dan_periph_t *p);
 /* Current baud. */
-static inline uint32_t dan_periph_baud(const dan_periph_t *p) { return p->link.baud; }
+static inline uint32_t dan_periph_baud(const dan_periph_t *p)
+{
+    return p->link.baud;
+}
 
 #ifdef __cplusplus
 }

@@ -24,10 +24,7 @@
 extern "C" {
 #endif
 
-typedef enum {
-    DAN_POSIX_ECHO = 0,
-    DAN_POSIX_NO_ECHO = 1
-} dan_posix_mode_t;
+typedef enum { DAN_POSIX_ECHO = 0, DAN_POSIX_NO_ECHO = 1 } dan_posix_mode_t;
 
 typedef struct {
     int fd;
@@ -35,8 +32,8 @@ typedef struct {
     bool have_orig;
     uint32_t baud;
     dan_posix_mode_t mode;
-    void *gpio_chip;        /* struct gpiod_chip * (libgpiod v1) */
-    void *gpio_line;        /* struct gpiod_line * */
+    void *gpio_chip; /* struct gpiod_chip * (libgpiod v1) */
+    void *gpio_line; /* struct gpiod_line * */
     bool gpio_active_low;
     uint32_t write_errors;
     dan_port_t port;
@@ -44,14 +41,14 @@ typedef struct {
 
 /* Opens path raw at baud. On failure returns a negative DAN_ERR_* and a
  * one-line reason in err (e.g. "/dev/ttyUSB0: No such file or directory"). */
-int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud,
-                   dan_posix_mode_t mode, char *err, size_t errlen);
+int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud, dan_posix_mode_t mode,
+                   char *err, size_t errlen);
 
 /* Drives a direction (DE) pin: spec is "CHIP:LINE" where CHIP is a gpiochip
  * name, path or number (libgpiod's lookup). DAN_ERR_UNSUPPORTED when built
  * without libgpiod. */
-int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low,
-                      char *err, size_t errlen);
+int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low, char *err,
+                      size_t errlen);
 
 /* Restores the tty's settings, releases the pin, closes. Safe to call twice. */
 void dan_posix_close(dan_posix_port_t *p);

@@ -55,7 +55,8 @@ extern "C" {
  * __sync_synchronize() (a full fence); other compilers: nothing (volatile
  * alone keeps the compiler's order; enough on single-core in-order MCUs). */
 #ifndef DAN_RXRING_BARRIER
-#if defined(__GNUC__) && defined(__arm__) && defined(__ARM_ARCH_PROFILE) && (__ARM_ARCH_PROFILE == 'M')
+#if defined(__GNUC__) && defined(__arm__) && defined(__ARM_ARCH_PROFILE) && \
+    (__ARM_ARCH_PROFILE == 'M')
 #define DAN_RXRING_BARRIER() __asm__ volatile("dmb" ::: "memory")
 #elif defined(__GNUC__)
 #define DAN_RXRING_BARRIER() __sync_synchronize()
@@ -68,9 +69,9 @@ typedef DAN_RXRING_INDEX_T dan_rxring_index_t;
 
 typedef struct {
     volatile uint8_t buf[DAN_RXRING_SIZE];
-    volatile dan_rxring_index_t head;   /* bytes put; written by the producer only */
-    volatile dan_rxring_index_t tail;   /* bytes taken; written by the consumer only */
-    volatile uint32_t dropped;          /* bytes refused (ring full); producer only */
+    volatile dan_rxring_index_t head; /* bytes put; written by the producer only */
+    volatile dan_rxring_index_t tail; /* bytes taken; written by the consumer only */
+    volatile uint32_t dropped;        /* bytes refused (ring full); producer only */
 } dan_rxring_t;
 
 /* Empties the ring and clears the drop counter. Call before the producer

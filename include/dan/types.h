@@ -13,8 +13,8 @@ extern "C" {
 #endif
 
 typedef struct {
-    const char *name;     /* short name for command lines ("can-gw") */
-    uint32_t first;       /* first code of the block (IDENTIFY) */
+    const char *name; /* short name for command lines ("can-gw") */
+    uint32_t first;   /* first code of the block (IDENTIFY) */
     const char *title;
 } dan_type_info_t;
 

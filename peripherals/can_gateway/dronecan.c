@@ -40,8 +40,8 @@ int dan_dc_make_id(const dan_dc_transfer_t *t, uint32_t *id)
         break;
     case DAN_DC_TRANSFER_REQUEST:
     case DAN_DC_TRANSFER_RESPONSE:
-        if (t->data_type_id > 0xFFu || t->source_node == 0u ||
-            t->destination_node == 0u || t->destination_node > DAN_DC_NODE_ID_MAX) {
+        if (t->data_type_id > 0xFFu || t->source_node == 0u || t->destination_node == 0u ||
+            t->destination_node > DAN_DC_NODE_ID_MAX) {
             return DAN_ERR_ARG;
         }
         v |= (uint32_t)t->data_type_id << 16 | (uint32_t)t->destination_node << 8 |
@@ -50,8 +50,7 @@ int dan_dc_make_id(const dan_dc_transfer_t *t, uint32_t *id)
             v |= DAN_DC_ID_REQUEST;
         }
         break;
-    default:
-        return DAN_ERR_ARG;
+    default: return DAN_ERR_ARG;
     }
     *id = v;
     return DAN_OK;
@@ -69,8 +68,8 @@ int dan_dc_parse_id(uint32_t id, dan_dc_transfer_t *t)
     t->destination_node = 0;
     if ((id & DAN_DC_ID_SERVICE) != 0u) {
         t->data_type_id = (uint16_t)((id >> 16) & 0xFFu);
-        t->transfer_type = (uint8_t)((id & DAN_DC_ID_REQUEST) != 0u ?
-                                     DAN_DC_TRANSFER_REQUEST : DAN_DC_TRANSFER_RESPONSE);
+        t->transfer_type = (uint8_t)((id & DAN_DC_ID_REQUEST) != 0u ? DAN_DC_TRANSFER_REQUEST
+                                                                    : DAN_DC_TRANSFER_RESPONSE);
         t->destination_node = (uint8_t)((id >> 8) & 0x7Fu);
         if (t->source_node == 0u || t->destination_node == 0u) {
             return DAN_ERR_MALFORMED;
@@ -78,8 +77,8 @@ int dan_dc_parse_id(uint32_t id, dan_dc_transfer_t *t)
     } else {
         t->transfer_type = DAN_DC_TRANSFER_BROADCAST;
         if (t->source_node == 0u) {
-            t->discriminator = (uint16_t)((id >> DAN_DC_ID_ANON_DISC_SHIFT) &
-                                          DAN_DC_ID_ANON_DISC_MASK);
+            t->discriminator =
+                (uint16_t)((id >> DAN_DC_ID_ANON_DISC_SHIFT) & DAN_DC_ID_ANON_DISC_MASK);
             t->data_type_id = (uint16_t)((id >> 8) & DAN_DC_ID_ANON_DTID_MASK);
         } else {
             t->data_type_id = (uint16_t)((id >> 8) & 0xFFFFu);
@@ -139,8 +138,8 @@ static int tx_check(const dan_dc_transfer_t *t, uint32_t *id)
     return dan_dc_make_id(&c, id);
 }
 
-static int tx_frame(const dan_dc_transfer_t *t, uint32_t id, uint16_t crc,
-                    size_t index, size_t count, dan_can_frame_t *out)
+static int tx_frame(const dan_dc_transfer_t *t, uint32_t id, uint16_t crc, size_t index,
+                    size_t count, dan_can_frame_t *out)
 {
     size_t n = 0;
     memset(out, 0, sizeof *out);
@@ -160,18 +159,18 @@ static int tx_frame(const dan_dc_transfer_t *t, uint32_t id, uint16_t crc,
             end = stream_len;
         }
         for (; k < end; k++) {
-            out->data[n++] = k == 0u ? (uint8_t)crc : k == 1u ? (uint8_t)(crc >> 8) :
-                             t->payload[k - 2u];
+            out->data[n++] = k == 0u   ? (uint8_t)crc
+                             : k == 1u ? (uint8_t)(crc >> 8)
+                                       : t->payload[k - 2u];
         }
     }
-    out->data[n] = dan_dc_tail(index == 0u, index + 1u == count, (index & 1u) != 0u,
-                               t->transfer_id);
+    out->data[n] =
+        dan_dc_tail(index == 0u, index + 1u == count, (index & 1u) != 0u, t->transfer_id);
     out->dlc = (uint8_t)(n + 1u);
     return DAN_OK;
 }
 
-int dan_dc_tx_frame(const dan_dc_transfer_t *t, uint16_t crc, size_t index,
-                    dan_can_frame_t *out)
+int dan_dc_tx_frame(const dan_dc_transfer_t *t, uint16_t crc, size_t index, dan_can_frame_t *out)
 {
     uint32_t id;
     size_t count;
@@ -220,8 +219,8 @@ void dan_dc_tid_table_init(dan_dc_tid_table_t *tab)
     }
 }
 
-int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id,
-                    uint8_t transfer_type, uint8_t destination_node)
+int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id, uint8_t transfer_type,
+                    uint8_t destination_node)
 {
     uint32_t key;
     size_t i;
@@ -230,8 +229,8 @@ int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id,
         return DAN_ERR_ARG;
     }
     /* Bit 31 keeps every key non-zero (0 marks a free entry). */
-    key = 0x80000000u | (uint32_t)destination_node << 18 |
-          (uint32_t)transfer_type << 16 | data_type_id;
+    key = 0x80000000u | (uint32_t)destination_node << 18 | (uint32_t)transfer_type << 16 |
+          data_type_id;
     for (i = 0; i < DAN_DC_TX_TIDS; i++) {
         if (tab->key[i] == key || tab->key[i] == 0u) {
             uint8_t tid = tab->next[i];
@@ -245,8 +244,7 @@ int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id,
 
 /* ---- RX ---- */
 
-void dan_dc_rx_init(dan_dc_rx_t *rx, uint8_t local_node,
-                    dan_dc_accept_fn accept, void *user)
+void dan_dc_rx_init(dan_dc_rx_t *rx, uint8_t local_node, dan_dc_accept_fn accept, void *user)
 {
     if (rx == NULL) {
         return;
@@ -340,15 +338,14 @@ static bool session_restart_ok(dan_dc_rx_t *rx, dan_dc_rx_session_t *s, uint8_t 
 
 /* The fields of one received frame. */
 typedef struct {
-    dan_dc_transfer_t t;  /* from the CAN ID, with transfer_id and time */
-    size_t n;             /* data bytes before the tail byte */
+    dan_dc_transfer_t t; /* from the CAN ID, with transfer_id and time */
+    size_t n;            /* data bytes before the tail byte */
     uint8_t toggle;
     bool sot, eot;
 } rx_frame_t;
 
 /* Parses a frame; false (counted ignored) if it is not one for us. */
-static bool rx_parse(dan_dc_rx_t *rx, const dan_can_frame_t *frame, uint64_t now_us,
-                     rx_frame_t *fr)
+static bool rx_parse(dan_dc_rx_t *rx, const dan_can_frame_t *frame, uint64_t now_us, rx_frame_t *fr)
 {
     uint8_t tail;
     if ((frame->flags & DAN_CAN_EXT) == 0u || (frame->flags & (DAN_CAN_RTR | DAN_CAN_ERR)) != 0u ||

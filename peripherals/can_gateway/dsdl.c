@@ -73,8 +73,7 @@ int dan_dc_get_node_info_req_decode(const uint8_t *buf, size_t len)
     return DAN_OK;
 }
 
-int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m,
-                                    uint8_t *buf, size_t cap)
+int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m, uint8_t *buf, size_t cap)
 {
     dan_dc_bw_t w;
     const dan_dc_software_version_t *sw;
@@ -101,8 +100,7 @@ int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m,
     return enc_finish(&w);
 }
 
-int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m,
-                                    const uint8_t *buf, size_t len)
+int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t *buf, size_t len)
 {
     dan_dc_br_t r;
     dan_dc_software_version_t *sw;
@@ -212,8 +210,8 @@ int dan_dc_esc_status_decode(dan_dc_esc_status_t *m, const uint8_t *buf, size_t 
 
 /* ---- esc.StatusExtended ---- */
 
-int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m,
-                                      uint8_t *buf, size_t cap)
+int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m, uint8_t *buf,
+                                      size_t cap)
 {
     dan_dc_bw_t w;
     if (m == NULL) {
@@ -229,8 +227,8 @@ int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m,
     return enc_finish(&w);
 }
 
-int dan_dc_esc_status_extended_decode(dan_dc_esc_status_extended_t *m,
-                                      const uint8_t *buf, size_t len)
+int dan_dc_esc_status_extended_decode(dan_dc_esc_status_extended_t *m, const uint8_t *buf,
+                                      size_t len)
 {
     dan_dc_br_t r;
     if (m == NULL || (buf == NULL && len > 0u)) {
@@ -350,8 +348,7 @@ int dan_dc_tunnel_broadcast_decode(dan_dc_tunnel_broadcast_t *m, const uint8_t *
 
 /* ---- signatures ---- */
 
-bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id,
-                           uint64_t *signature)
+bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id, uint64_t *signature)
 {
     uint64_t sig = 0;
     if (transfer_type == DAN_DC_TRANSFER_BROADCAST) {

@@ -5,8 +5,8 @@
 #include "dan/can_gw/f16.h"
 
 /* Copies bit_len bits, MSB first, from src at src_off to dst at dst_off. */
-static void copy_bits(const uint8_t *src, size_t src_off, size_t bit_len,
-                      uint8_t *dst, size_t dst_off)
+static void copy_bits(const uint8_t *src, size_t src_off, size_t bit_len, uint8_t *dst,
+                      size_t dst_off)
 {
     size_t i;
     for (i = 0; i < bit_len; i++) {
@@ -21,8 +21,7 @@ static void copy_bits(const uint8_t *src, size_t src_off, size_t bit_len,
     }
 }
 
-void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len,
-                          uint64_t value)
+void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len, uint64_t value)
 {
     uint8_t le[8];
     unsigned i;
@@ -40,8 +39,8 @@ void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len,
     copy_bits(le, 0, bit_len, buf, bit_offset);
 }
 
-uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset,
-                              unsigned bit_len, bool is_signed)
+uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset, unsigned bit_len,
+                              bool is_signed)
 {
     uint8_t le[8] = {0};
     uint64_t v = 0;
@@ -77,8 +76,8 @@ static bool bw_room(dan_dc_bw_t *w, unsigned bits)
         w->error = true;
         return false;
     }
-    if (w->buf != NULL && (w->cap > SIZE_MAX / 8u || w->cap * 8u < bits ||
-                           w->bit > w->cap * 8u - bits)) {
+    if (w->buf != NULL &&
+        (w->cap > SIZE_MAX / 8u || w->cap * 8u < bits || w->bit > w->cap * 8u - bits)) {
         w->error = true;
         return false;
     }
@@ -98,8 +97,7 @@ static void bw_raw(dan_dc_bw_t *w, unsigned bits, uint64_t v)
         /* Zero the rest of the last byte touched, so padding is clean. */
         if ((w->bit + bits) % 8u != 0u) {
             size_t last = (w->bit + bits) / 8u;
-            w->buf[last] = (uint8_t)(w->buf[last] &
-                                     (uint8_t)(0xFF00u >> ((w->bit + bits) % 8u)));
+            w->buf[last] = (uint8_t)(w->buf[last] & (uint8_t)(0xFF00u >> ((w->bit + bits) % 8u)));
         }
     }
     w->bit += bits;

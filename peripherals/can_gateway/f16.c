@@ -15,17 +15,17 @@ uint16_t dan_f16_from_f32(float v)
     if (e == 0xFFu) {
         return (uint16_t)(sign | (m != 0u ? 0x7FFFu : 0x7C00u));
     }
-    if (e >= 143u) {                 /* 2^16 and up: beyond half range */
+    if (e >= 143u) { /* 2^16 and up: beyond half range */
         return (uint16_t)(sign | 0x7C00u);
     }
-    if (e >= 113u) {                 /* half normal: exponent -14..15 */
+    if (e >= 113u) { /* half normal: exponent -14..15 */
         h = (uint16_t)(((e - 112u) << 10) | (m >> 13));
         if ((m & 0x1000u) != 0u) {
-            h++;                     /* ties away; may carry into inf */
+            h++; /* ties away; may carry into inf */
         }
         return (uint16_t)(sign | h);
     }
-    if (e >= 101u) {                 /* half subnormal, units of 2^-24 */
+    if (e >= 101u) { /* half subnormal, units of 2^-24 */
         uint32_t mant = m | 0x800000u;
         unsigned shift = 126u - (unsigned)e; /* 14..25 */
         h = (uint16_t)(mant >> shift);
@@ -34,7 +34,7 @@ uint16_t dan_f16_from_f32(float v)
         }
         return (uint16_t)(sign | h);
     }
-    return sign;                     /* below half the smallest subnormal */
+    return sign; /* below half the smallest subnormal */
 }
 
 float dan_f16_to_f32(uint16_t h)

@@ -143,8 +143,8 @@ int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_
     return rc;
 }
 
-int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len,
-                       size_t rd_max, uint64_t now_us)
+int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len, size_t rd_max,
+                       uint64_t now_us)
 {
     uint8_t buf[DAN_MAX_PAYLOAD];
     dan_gw_tun_xfer_t x;
@@ -214,8 +214,7 @@ int dan_gw_can_recv(dan_gw_t *gw, uint8_t max, uint64_t now_us)
                  now_us);
 }
 
-int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t n,
-                      uint64_t now_us)
+int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t n, uint64_t now_us)
 {
     uint8_t buf[DAN_MAX_PAYLOAD];
     dan_writer_t w;
@@ -290,7 +289,7 @@ static int complete_xfer(dan_gw_t *gw, const uint8_t *p, size_t len)
     t->rd_dropped = x.rd_dropped;
     skip = dan_gw_off_diff(x.rd_offset, t->rd_offset);
     if (skip < 0) {
-        return DAN_ERR_MALFORMED;   /* older data than we acknowledged */
+        return DAN_ERR_MALFORMED; /* older data than we acknowledged */
     }
     t->rd_lost += (uint32_t)skip;
     t->rd_offset = x.rd_offset + (uint32_t)x.len;
@@ -312,9 +311,7 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
     len = inner_len(len);
     switch (code) {
     case DAN_GW_CODE_ESC_CMD:
-    case DAN_GW_CODE_ESC_TELEM:
-        rc = complete_telem(gw, code, p, len);
-        break;
+    case DAN_GW_CODE_ESC_TELEM: rc = complete_telem(gw, code, p, len); break;
     case DAN_GW_CODE_ARM:
         if (len < 1u) {
             rc = DAN_ERR_MALFORMED;
@@ -342,9 +339,7 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
             memset(&gw->tun[gw->port], 0, sizeof gw->tun[gw->port]);
         }
         break;
-    case DAN_GW_CODE_TUN_XFER:
-        rc = complete_xfer(gw, p, len);
-        break;
+    case DAN_GW_CODE_TUN_XFER: rc = complete_xfer(gw, p, len); break;
     case DAN_GW_CODE_CAN_SEND: {
         dan_gw_can_send_t s;
         rc = dan_gw_msg_can_send_rsp_decode(&s, p, len);
@@ -373,8 +368,7 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
         }
         break;
     }
-    default: /* NODES, NODE_INFO, CAN_FILTER: read on demand */
-        break;
+    default: /* NODES, NODE_INFO, CAN_FILTER: read on demand */ break;
     }
     if (rc == DAN_ERR_MALFORMED) {
         gw->decode_errors++;

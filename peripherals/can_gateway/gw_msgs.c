@@ -196,13 +196,15 @@ int dan_gw_msg_config_req_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     c->set_mask = dan_get_u8(&r);
     if (c->set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
         c->esc_timeout_ms = dan_get_uvarint(&r);
-        if (c->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN || c->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX) {
+        if (c->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN ||
+            c->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX) {
             return DAN_ERR_MALFORMED;
         }
     }
     if (c->set_mask & DAN_GW_CFG_ARMING_RATE) {
         c->arming_rate_hz = dan_get_uvarint(&r);
-        if (c->arming_rate_hz < DAN_GW_ARMING_RATE_MIN || c->arming_rate_hz > DAN_GW_ARMING_RATE_MAX) {
+        if (c->arming_rate_hz < DAN_GW_ARMING_RATE_MIN ||
+            c->arming_rate_hz > DAN_GW_ARMING_RATE_MAX) {
             return DAN_ERR_MALFORMED;
         }
     }

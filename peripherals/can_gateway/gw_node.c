@@ -33,10 +33,8 @@ static bool accept_cb(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uin
         case DAN_DC_ESC_STATUS_ID:
         case DAN_DC_ESC_STATUS_EXTENDED_ID:
         case DAN_DC_TUNNEL_TARGETTED_ID:
-        case DAN_DC_TUNNEL_BROADCAST_ID:
-            break;
-        default:
-            return false;
+        case DAN_DC_TUNNEL_BROADCAST_ID: break;
+        default: return false;
         }
     } else if (dtid != DAN_DC_GET_NODE_INFO_ID) {
         return false;
@@ -52,8 +50,10 @@ int dan_gw_node_init(dan_gw_node_t *g, const dan_gw_node_config_t *cfg, uint64_t
         cfg = &def;
     }
     if (cfg->node_id < 1u || cfg->node_id > DAN_DC_NODE_ID_MAX ||
-        cfg->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN || cfg->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX ||
-        cfg->arming_rate_hz < DAN_GW_ARMING_RATE_MIN || cfg->arming_rate_hz > DAN_GW_ARMING_RATE_MAX) {
+        cfg->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN ||
+        cfg->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX ||
+        cfg->arming_rate_hz < DAN_GW_ARMING_RATE_MIN ||
+        cfg->arming_rate_hz > DAN_GW_ARMING_RATE_MAX) {
         return DAN_ERR_ARG;
     }
     memset(g, 0, sizeof *g);
@@ -214,23 +214,12 @@ static void answer_node_info(dan_gw_node_t *g, const dan_dc_transfer_t *req, uin
 static void on_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
 {
     switch (t->data_type_id) {
-    case DAN_DC_NODE_STATUS_ID:
-        dan_gwn_on_node_status(g, t, now_us);
-        break;
-    case DAN_DC_ESC_STATUS_ID:
-        dan_gwn_on_esc_status(g, t, now_us);
-        break;
-    case DAN_DC_ESC_STATUS_EXTENDED_ID:
-        dan_gwn_on_esc_ext(g, t, now_us);
-        break;
-    case DAN_DC_TUNNEL_TARGETTED_ID:
-        dan_gwn_on_targetted(g, t);
-        break;
-    case DAN_DC_TUNNEL_BROADCAST_ID:
-        dan_gwn_on_tun_broadcast(g, t);
-        break;
-    default:
-        break;
+    case DAN_DC_NODE_STATUS_ID: dan_gwn_on_node_status(g, t, now_us); break;
+    case DAN_DC_ESC_STATUS_ID: dan_gwn_on_esc_status(g, t, now_us); break;
+    case DAN_DC_ESC_STATUS_EXTENDED_ID: dan_gwn_on_esc_ext(g, t, now_us); break;
+    case DAN_DC_TUNNEL_TARGETTED_ID: dan_gwn_on_targetted(g, t); break;
+    case DAN_DC_TUNNEL_BROADCAST_ID: dan_gwn_on_tun_broadcast(g, t); break;
+    default: break;
     }
 }
 

@@ -17,11 +17,11 @@ static dan_gw_node_t *touch(void *user, uint64_t now_us)
 
 /* Encodes in place into the response with one of the codec's
  * dan_gw_msg_*_encode(x, out, cap) functions. */
-#define PUT_ENCODED(resp, fn, x)                                                                   \
-    do {                                                                                           \
-        size_t room_;                                                                              \
-        uint8_t *out_ = dan_writer_room((resp), &room_);                                           \
-        dan_writer_advance((resp), fn((x), out_, room_));                                          \
+#define PUT_ENCODED(resp, fn, x)                          \
+    do {                                                  \
+        size_t room_;                                     \
+        uint8_t *out_ = dan_writer_room((resp), &room_);  \
+        dan_writer_advance((resp), fn((x), out_, room_)); \
     } while (0)
 
 static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
@@ -100,8 +100,8 @@ static int h_arm(void *user, uint32_t code, const uint8_t *req, size_t len, dan_
     return DAN_OK;
 }
 
-static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len,
-                    dan_writer_t *resp, const char **err, uint64_t now_us)
+static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                    const char **err, uint64_t now_us)
 {
     dan_gw_node_t *g = touch(user, now_us);
     dan_gw_config_t c;
@@ -208,8 +208,8 @@ static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len
     return DAN_OK;
 }
 
-static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len,
-                      dan_writer_t *resp, const char **err, uint64_t now_us)
+static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                      const char **err, uint64_t now_us)
 {
     dan_gw_node_t *g = touch(user, now_us);
     dan_gw_tun_open_t o;
@@ -225,8 +225,8 @@ static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len,
-                      dan_writer_t *resp, const char **err, uint64_t now_us)
+static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                      const char **err, uint64_t now_us)
 {
     dan_gw_node_t *g = touch(user, now_us);
     dan_gw_tun_xfer_t x, r;
@@ -250,8 +250,8 @@ static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
-                      dan_writer_t *resp, const char **err, uint64_t now_us)
+static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                      const char **err, uint64_t now_us)
 {
     dan_gw_node_t *g = touch(user, now_us);
     dan_reader_t r;
@@ -274,8 +274,8 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len,
-                      dan_writer_t *resp, const char **err, uint64_t now_us)
+static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                      const char **err, uint64_t now_us)
 {
     dan_gw_node_t *g = touch(user, now_us);
     dan_gw_can_recv_t q, a;
@@ -322,12 +322,18 @@ static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t le
 }
 
 const dan_handler_t dan_gwn_handlers[] = {
-    {DAN_GW_CODE_ESC_CMD, h_esc_cmd},     {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
-    {DAN_GW_CODE_ARM, h_arm},             {DAN_GW_CODE_CONFIG, h_config},
-    {DAN_GW_CODE_STATS, h_stats},         {DAN_GW_CODE_NODES, h_nodes},
-    {DAN_GW_CODE_NODE_INFO, h_node_info}, {DAN_GW_CODE_TUN_OPEN, h_tun_open},
-    {DAN_GW_CODE_TUN_XFER, h_tun_xfer},   {DAN_GW_CODE_CAN_SEND, h_can_send},
-    {DAN_GW_CODE_CAN_RECV, h_can_recv},   {DAN_GW_CODE_CAN_FILTER, h_can_filter},
+    {DAN_GW_CODE_ESC_CMD, h_esc_cmd},
+    {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
+    {DAN_GW_CODE_ARM, h_arm},
+    {DAN_GW_CODE_CONFIG, h_config},
+    {DAN_GW_CODE_STATS, h_stats},
+    {DAN_GW_CODE_NODES, h_nodes},
+    {DAN_GW_CODE_NODE_INFO, h_node_info},
+    {DAN_GW_CODE_TUN_OPEN, h_tun_open},
+    {DAN_GW_CODE_TUN_XFER, h_tun_xfer},
+    {DAN_GW_CODE_CAN_SEND, h_can_send},
+    {DAN_GW_CODE_CAN_RECV, h_can_recv},
+    {DAN_GW_CODE_CAN_FILTER, h_can_filter},
 };
 const size_t dan_gwn_nhandlers = sizeof dan_gwn_handlers / sizeof dan_gwn_handlers[0];
 

@@ -48,7 +48,8 @@ void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64
 {
     dan_dc_node_status_t s;
     dan_gw_node_slot_t *n;
-    if (t->source_node == 0u || dan_dc_node_status_decode(&s, t->payload, t->payload_len) != DAN_OK) {
+    if (t->source_node == 0u ||
+        dan_dc_node_status_decode(&s, t->payload, t->payload_len) != DAN_OK) {
         return;
     }
     n = dan_gwn_find_node(g, t->source_node);
@@ -92,8 +93,8 @@ void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t)
     n->info.hw_major = rp->hardware_version.major;
     n->info.hw_minor = rp->hardware_version.minor;
     memcpy(n->info.unique_id, rp->hardware_version.unique_id, DAN_DC_UNIQUE_ID_SIZE);
-    len = rp->name_len > DAN_DC_GET_NODE_INFO_NAME_MAX ? DAN_DC_GET_NODE_INFO_NAME_MAX
-                                                       : rp->name_len;
+    len =
+        rp->name_len > DAN_DC_GET_NODE_INFO_NAME_MAX ? DAN_DC_GET_NODE_INFO_NAME_MAX : rp->name_len;
     memcpy(n->info.name, rp->name, len);
     n->info.name[len] = '\0';
     n->e.info_state = DAN_GW_INFO_VALID;

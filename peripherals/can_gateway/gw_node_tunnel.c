@@ -190,8 +190,7 @@ static int broadcast_out(dan_gw_node_t *g, dan_gw_node_tun_t *p)
 /* Sends one chunk (or a Targetted keepalive). Returns true if data went. */
 static bool tun_out(dan_gw_node_t *g, dan_gw_node_tun_t *p, uint64_t now_us)
 {
-    int n = p->cfg.mode == DAN_GW_TUN_TARGETTED ? targetted_out(g, p, now_us)
-                                                : broadcast_out(g, p);
+    int n = p->cfg.mode == DAN_GW_TUN_TARGETTED ? targetted_out(g, p, now_us) : broadcast_out(g, p);
     if (n < 0) {
         return false;
     }

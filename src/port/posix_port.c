@@ -100,8 +100,8 @@ static void port_set_tx(void *ctx, bool on)
 }
 #endif
 
-int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud,
-                   dan_posix_mode_t mode, char *err, size_t errlen)
+int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud, dan_posix_mode_t mode,
+                   char *err, size_t errlen)
 {
     struct termios t;
     memset(p, 0, sizeof *p);
@@ -149,8 +149,8 @@ int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud,
     return DAN_OK;
 }
 
-int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low,
-                      char *err, size_t errlen)
+int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low, char *err,
+                      size_t errlen)
 {
 #ifdef DAN_HAVE_GPIOD
     char chip[64];

@@ -22,7 +22,7 @@
 typedef struct {
     uint8_t buf[4096];
     size_t len;
-    uint64_t busy_until;   /* end of the last byte on the wire */
+    uint64_t busy_until; /* end of the last byte on the wire */
 } wire_dir_t;
 
 static uint64_t g_now = 1000000u;
@@ -45,9 +45,22 @@ static int wr(wire_dir_t *w, const uint8_t *d, size_t n)
     w->busy_until = start + (uint64_t)n * dan_char_us(BAUD);
     return (int)n;
 }
-static int fc_write(void *ctx, const uint8_t *d, size_t n) { (void)ctx; return wr(&to_gw, d, n); }
-static int gw_write(void *ctx, const uint8_t *d, size_t n) { (void)ctx; return wr(&to_fc, d, n); }
-static int set_baud(void *ctx, uint32_t b) { (void)ctx; (void)b; return 0; }
+static int fc_write(void *ctx, const uint8_t *d, size_t n)
+{
+    (void)ctx;
+    return wr(&to_gw, d, n);
+}
+static int gw_write(void *ctx, const uint8_t *d, size_t n)
+{
+    (void)ctx;
+    return wr(&to_fc, d, n);
+}
+static int set_baud(void *ctx, uint32_t b)
+{
+    (void)ctx;
+    (void)b;
+    return 0;
+}
 
 __attribute__((noinline)) void gwside_rx(const uint8_t *d, size_t n, uint64_t now)
 {
@@ -149,7 +162,7 @@ int main(int argc, char **argv)
     dan_gw_node_attach(&g_node, &g_p);
     dan_gw_node_can_state(&g_node, true);
     for (i = 0; i < n; i++) {
-        int16_t v[4] = {(int16_t)(i % 8000u), 100, 200, (int16_t)-(int16_t)(i % 100u)};
+        int16_t v[4] = {(int16_t)(i % 8000u), 100, 200, (int16_t) - (int16_t)(i % 100u)};
         uint32_t guard = 0;
         esc_status_in((uint8_t)(i % 4u), (uint8_t)((i / 4u) % 32u));
         if (fcside_cmd(v, g_now) != DAN_OK) {
@@ -166,10 +179,13 @@ int main(int argc, char **argv)
             next = fcside_next();
             {
                 uint64_t b = gwside_next(g_now);
-                if (b < next) next = b;
+                if (b < next)
+                    next = b;
             }
-            if (to_gw.len > 0u && to_gw.busy_until < next) next = to_gw.busy_until;
-            if (to_fc.len > 0u && to_fc.busy_until < next) next = to_fc.busy_until;
+            if (to_gw.len > 0u && to_gw.busy_until < next)
+                next = to_gw.busy_until;
+            if (to_fc.len > 0u && to_fc.busy_until < next)
+                next = to_fc.busy_until;
             g_now = next > g_now ? next : g_now + 1u;
             if (++guard > 100000u) {
                 fprintf(stderr, "bench_gateway: stuck\n");
@@ -182,6 +198,7 @@ int main(int argc, char **argv)
         }
     }
     printf("{\"exchanges\": %u, \"ok\": %u, \"telemetry\": %u, \"can_frames_out\": %u, "
-           "\"virtual_seconds\": %.3f}\n", n, ok, telem, g_can_out, (double)(g_now - 1000000u) / 1e6);
+           "\"virtual_seconds\": %.3f}\n",
+           n, ok, telem, g_can_out, (double)(g_now - 1000000u) / 1e6);
     return ok == n ? 0 : 1;
 }

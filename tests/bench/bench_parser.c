@@ -41,7 +41,7 @@ static void build_mix(void)
         p[i] = (uint8_t)(i * 37u + 5u);
     }
     add(DAN_GW_CODE_ESC_CMD, p, 20); /* telemetry response: header + record */
-    add(0x40, NULL, 0);               /* IDENTIFY */
+    add(0x40, NULL, 0);              /* IDENTIFY */
     {
         dan_identity_t id;
         memset(&id, 0, sizeof id);

@@ -15,10 +15,10 @@
 #include "targets.h"
 
 #define FUZZ_CHECK(cond) \
-    do { \
-        if (!(cond)) { \
-            abort(); \
-        } \
+    do {                 \
+        if (!(cond)) {   \
+            abort();     \
+        }                \
     } while (0)
 
 /* ---- frame decoder ---------------------------------------------------- */
@@ -221,7 +221,8 @@ static void check_replies(fuzz_sink_t *s)
         if (!got) {
             break;
         }
-        FUZZ_CHECK(f.code == 0u || (f.code >= DAN_TYPE_CAN_GW_FIRST && f.code <= DAN_TYPE_CAN_GW_LAST));
+        FUZZ_CHECK(f.code == 0u ||
+                   (f.code >= DAN_TYPE_CAN_GW_FIRST && f.code <= DAN_TYPE_CAN_GW_LAST));
     }
     FUZZ_CHECK(d.stats.crc_errors == 0u && d.stats.garbage == 0u && d.stats.oversize == 0u &&
                d.stats.bad_varint == 0u);
@@ -240,7 +241,7 @@ static void drain_can(dan_gw_node_t *g)
     }
 }
 
-static dan_gw_node_t fz_node;   /* large: static storage */
+static dan_gw_node_t fz_node; /* large: static storage */
 static dan_periph_t fz_periph;
 
 /* A script of operations, each starting with an op byte:
@@ -314,7 +315,8 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
             memcpy(b, data + i, n);
             i += n;
             memset(&f, 0, sizeof f);
-            f.id = (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+            f.id =
+                (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
             f.flags = (uint8_t)(b[4] & (DAN_CAN_EXT | DAN_CAN_RTR | DAN_CAN_ERR));
             f.id &= (f.flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK;
             f.dlc = (uint8_t)(b[5] % 9u);
@@ -383,7 +385,8 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
             FUZZ_CHECK(r >= 0 && dan_dc_esc_raw_command_decode(&b, buf, (size_t)r) == DAN_OK);
             /* the count may differ only by zero padding read as values: never
              * when a 14-bit value fits in fewer than 8 bits */
-            FUZZ_CHECK(!memcmp(a.cmd, b.cmd, sizeof(int16_t) * (a.count < b.count ? a.count : b.count)));
+            FUZZ_CHECK(
+                !memcmp(a.cmd, b.cmd, sizeof(int16_t) * (a.count < b.count ? a.count : b.count)));
         }
         break;
     }
@@ -432,9 +435,14 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
 /* data[0] % 8 picks the type; the rest is the serialized payload. */
 int dan_fuzz_dsdl(const uint8_t *data, size_t len)
 {
-    static const uint16_t ids[8] = {
-        DAN_DC_NODE_STATUS_ID, DAN_DC_GET_NODE_INFO_ID, DAN_DC_ESC_RAW_COMMAND_ID,
-        DAN_DC_ESC_STATUS_ID, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ARMING_STATUS_ID, 0u, 0xFFFFu};
+    static const uint16_t ids[8] = {DAN_DC_NODE_STATUS_ID,
+                                    DAN_DC_GET_NODE_INFO_ID,
+                                    DAN_DC_ESC_RAW_COMMAND_ID,
+                                    DAN_DC_ESC_STATUS_ID,
+                                    DAN_DC_ESC_STATUS_EXTENDED_ID,
+                                    DAN_DC_ARMING_STATUS_ID,
+                                    0u,
+                                    0xFFFFu};
     if (len < 1u) {
         return 0;
     }
@@ -605,8 +613,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
         }
         break;
     }
-    default:
-        break;
+    default: break;
     }
     return 0;
 }

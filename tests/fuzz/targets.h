@@ -13,7 +13,7 @@
 typedef int (*dan_fuzz_fn)(const uint8_t *data, size_t len);
 
 typedef struct {
-    const char *name;       /* also the corpus / regression directory name */
+    const char *name; /* also the corpus / regression directory name */
     dan_fuzz_fn fn;
 } dan_fuzz_target_t;
 

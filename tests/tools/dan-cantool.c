@@ -24,33 +24,31 @@
 #include "dan_tool.h"
 
 /* Longest a poll() waits, so a signal is seen this soon. */
-#define POLL_CAP_MS 1000
+#define POLL_CAP_MS      1000
 /* How long send may wait for the output to take all frames. */
-#define SEND_TIMEOUT_US 5000000u
+#define SEND_TIMEOUT_US  5000000u
 /* How long an SLCAN adapter may take to acknowledge them all (z/Z). */
-#define ACK_TIMEOUT_US 2000000u
+#define ACK_TIMEOUT_US   2000000u
 /* candump prints error frames with this bit above the 29-bit id. */
 #define CAN_ERR_FLAG_BIT 0x20000000u
 
 static void usage(FILE *o)
 {
-    fprintf(o,
-        "usage: dan-cantool --can SPEC [--ifname NAME] send ID#DATA [...]\n"
-        "       dan-cantool --can SPEC [--ifname NAME] recv [--count N] "
-        "[--timeout-ms T]\n"
-        "  SPEC: socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
-        "  ID#DATA: 123#DEADBEEF (11-bit), 1401550A#0100 (29-bit), 123#R\n"
-        "  recv: --count 0 means until the timeout (default count 1, "
-        "timeout 5000 ms)\n"
-        "exit: 0 ok, 1 runtime failure, 2 bad arguments or open error\n");
+    fprintf(o, "usage: dan-cantool --can SPEC [--ifname NAME] send ID#DATA [...]\n"
+               "       dan-cantool --can SPEC [--ifname NAME] recv [--count N] "
+               "[--timeout-ms T]\n"
+               "  SPEC: socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
+               "  ID#DATA: 123#DEADBEEF (11-bit), 1401550A#0100 (29-bit), 123#R\n"
+               "  recv: --count 0 means until the timeout (default count 1, "
+               "timeout 5000 ms)\n"
+               "exit: 0 ok, 1 runtime failure, 2 bad arguments or open error\n");
 }
 
 static void print_frame(const char *ifname, const dan_can_frame_t *f)
 {
     struct timeval tv;
     gettimeofday(&tv, NULL);
-    printf("(%lld.%06ld) %s ", (long long)tv.tv_sec, (long)tv.tv_usec,
-           ifname);
+    printf("(%lld.%06ld) %s ", (long long)tv.tv_sec, (long)tv.tv_usec, ifname);
     if (f->flags & DAN_CAN_ERR) {
         printf("%08X#", (unsigned)(f->id | CAN_ERR_FLAG_BIT));
     } else if (f->flags & DAN_CAN_EXT) {

@@ -44,14 +44,14 @@
 #include "dan/posix.h"
 #include "dan_tool.h"
 
-#define POLL_CAP_MS 50             /* longest poll() while an operation runs */
-#define RAMP_HZ 50u                /* esc-ramp's command rate */
-#define TELEM_MAX_PAGES 8          /* telemetry pages read at most (8 ESCs a page is plenty) */
-#define NODES_MAX 128u             /* DroneCAN node ids 0..127 */
-#define TUN_PROTOCOL_UNDEFINED 255 /* tunnel protocol UNDEFINED, as ArduPilot sends */
-#define TUN_OPTION_LOCK_PORT 1     /* tunnel option: lock the serial port */
-#define CANDUMP_TIMEOUT_MS 10000u  /* candump's default timeout */
-#define CANDUMP_IDLE_US 10000u     /* candump's pause when nothing was queued */
+#define POLL_CAP_MS            50     /* longest poll() while an operation runs */
+#define RAMP_HZ                50u    /* esc-ramp's command rate */
+#define TELEM_MAX_PAGES        8      /* telemetry pages read at most (8 ESCs a page is plenty) */
+#define NODES_MAX              128u   /* DroneCAN node ids 0..127 */
+#define TUN_PROTOCOL_UNDEFINED 255    /* tunnel protocol UNDEFINED, as ArduPilot sends */
+#define TUN_OPTION_LOCK_PORT   1      /* tunnel option: lock the serial port */
+#define CANDUMP_TIMEOUT_MS     10000u /* candump's default timeout */
+#define CANDUMP_IDLE_US        10000u /* candump's pause when nothing was queued */
 
 static dan_posix_port_t g_port;
 static dan_master_t g_m;
@@ -111,9 +111,8 @@ static void print_telem(const dan_gw_telem_t *t)
         printf(", \"age_ms\": %lu, \"voltage\": %.17g, \"current\": %.17g, \"temperature\": %.17g, "
                "\"rpm\": %ld, \"power_pct\": %u, \"error_count\": %lu",
                (unsigned long)t->age_ms, (double)dan_f16_to_f32(t->voltage_f16),
-               (double)dan_f16_to_f32(t->current_f16),
-               (double)dan_f16_to_f32(t->temperature_f16), (long)t->rpm, t->power_pct,
-               (unsigned long)t->error_count);
+               (double)dan_f16_to_f32(t->current_f16), (double)dan_f16_to_f32(t->temperature_f16),
+               (long)t->rpm, t->power_pct, (unsigned long)t->error_count);
     }
     if (t->flags & DAN_GW_TELEM_EXT) {
         printf(", \"ext_age_ms\": %lu, \"input_pct\": %u, \"output_pct\": %u, "
@@ -177,8 +176,8 @@ static int recover_bus(void)
 }
 
 /* ESC commands for ms at hz; values may ramp (to != NULL). */
-static int esc_run(const char *step, const int16_t *from, const int16_t *to, size_t n,
-                   uint32_t ms, uint32_t hz)
+static int esc_run(const char *step, const int16_t *from, const int16_t *to, size_t n, uint32_t ms,
+                   uint32_t hz)
 {
     uint64_t start = dan_posix_now_us(), end = start + (uint64_t)ms * 1000u, next = start;
     uint32_t count = 0, errors = 0, telem = 0, in_row = 0, recoveries = 0;
@@ -520,8 +519,8 @@ static void print_node(const dan_gw_node_entry_t *e, bool first)
            "\"vendor\": %u, \"age_ms\": %lu, \"info\": %u, \"name\": \"%s\", "
            "\"sw\": [%u, %u], \"hw\": [%u, %u], \"uid\": \"",
            first ? "" : ", ", e->node_id, e->health, e->mode, e->sub_mode,
-           (unsigned long)e->uptime_sec, e->vendor_status, (unsigned long)e->age_ms,
-           ni.info_state, ni.name, ni.sw_major, ni.sw_minor, ni.hw_major, ni.hw_minor);
+           (unsigned long)e->uptime_sec, e->vendor_status, (unsigned long)e->age_ms, ni.info_state,
+           ni.name, ni.sw_major, ni.sw_minor, ni.hw_major, ni.hw_minor);
     for (k = 0; k < sizeof ni.unique_id; k++) {
         printf("%02x", ni.unique_id[k]);
     }
@@ -574,8 +573,7 @@ static int step_tunnel(const char *name, const char *step, char *args)
     char mode[16];
     (void)name;
     memset(&o, 0, sizeof o);
-    if (args == NULL ||
-        sscanf(args, "%u:%15[^:]:%u:%d:%lu", &port, mode, &a, &serial, &baud) < 4) {
+    if (args == NULL || sscanf(args, "%u:%15[^:]:%u:%d:%lu", &port, mode, &a, &serial, &baud) < 4) {
         return fail(step, DAN_ERR_ARG);
     }
     o.port = (uint8_t)port;
@@ -630,8 +628,8 @@ static int step_filter(const char *name, const char *step, char *args)
         if (slash == NULL) {
             return fail(step, DAN_ERR_ARG);
         }
-        f[i].id = (uint32_t)strtoul(tok[i], NULL, 16) |
-                  ((slash - tok[i]) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
+        f[i].id =
+            (uint32_t)strtoul(tok[i], NULL, 16) | ((slash - tok[i]) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
         f[i].mask = (uint32_t)strtoul(slash + 1, NULL, 16);
     }
     rc = finish(dan_gw_can_filter(&g_gw, DAN_GW_FILTER_REPLACE, f, n, dan_posix_now_us()));
@@ -717,23 +715,12 @@ static const struct {
     const char *name;
     step_fn fn;
 } steps[] = {
-    {"stop", step_stop},
-    {"sleep", step_sleep},
-    {"discover", step_discover},
-    {"configure", step_configure},
-    {"arm", step_arm},
-    {"disarm", step_arm},
-    {"config", step_config},
-    {"esc", step_esc},
-    {"esc-ramp", step_esc_ramp},
-    {"telemetry", step_telemetry},
-    {"nodes", step_nodes},
-    {"stats", step_stats},
-    {"tunnel", step_tunnel},
-    {"xfer", step_xfer_args},
-    {"filter", step_filter},
-    {"cansend", step_cansend},
-    {"candump", step_candump},
+    {"stop", step_stop},           {"sleep", step_sleep},     {"discover", step_discover},
+    {"configure", step_configure}, {"arm", step_arm},         {"disarm", step_arm},
+    {"config", step_config},       {"esc", step_esc},         {"esc-ramp", step_esc_ramp},
+    {"telemetry", step_telemetry}, {"nodes", step_nodes},     {"stats", step_stats},
+    {"tunnel", step_tunnel},       {"xfer", step_xfer_args},  {"filter", step_filter},
+    {"cansend", step_cansend},     {"candump", step_candump},
 };
 
 static int do_step(char *step)

@@ -19,7 +19,7 @@
 #include "handlers_test_a.h"
 
 /* Types one peripheral serves here: as many as the tests combine. */
-#define MAX_TYPES 4u
+#define MAX_TYPES   4u
 /* Longest a poll() waits, so a signal is seen this soon. */
 #define POLL_CAP_MS 100
 
@@ -165,8 +165,7 @@ int main(int argc, char **argv)
         return 2;
     }
     if (dan_posix_open(&port, o.path, (uint32_t)o.baud,
-                       o.no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
-                       sizeof err) != DAN_OK) {
+                       o.no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err, sizeof err) != DAN_OK) {
         tool_error("%s", err);
         return 2;
     }

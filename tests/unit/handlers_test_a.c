@@ -4,8 +4,8 @@
 #include "dan/codes.h"
 
 /* 0x62: replies with the payload reversed; an empty payload is malformed. */
-static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len,
-                     dan_writer_t *resp, const char **err, uint64_t now)
+static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                     const char **err, uint64_t now)
 {
     size_t i;
     (void)user;
@@ -22,8 +22,8 @@ static int h_reverse(void *user, uint32_t code, const uint8_t *req, size_t len,
 }
 
 /* 0x63: a command without a reply; counts its calls in *user. */
-static int h_silent(void *user, uint32_t code, const uint8_t *req, size_t len,
-                    dan_writer_t *resp, const char **err, uint64_t now)
+static int h_silent(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                    const char **err, uint64_t now)
 {
     (void)code;
     (void)req;

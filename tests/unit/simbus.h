@@ -10,8 +10,8 @@
 #include "dan/peripheral.h"
 
 #define SIM_MAX_NODES 4
-#define SIM_QUEUE 16384
-#define SIM_LOG 16384
+#define SIM_QUEUE     16384
+#define SIM_LOG       16384
 
 typedef struct simbus simbus_t;
 
@@ -19,16 +19,16 @@ typedef struct {
     simbus_t *bus;
     int idx;
     uint32_t baud;
-    bool echo;              /* receives its own bytes */
-    bool ignore_baud;       /* fault: set_baud does nothing (stays at baud) */
-    bool mute;              /* fault: writes are dropped */
+    bool echo;        /* receives its own bytes */
+    bool ignore_baud; /* fault: set_baud does nothing (stays at baud) */
+    bool mute;        /* fault: writes are dropped */
     uint64_t tx_free_us;
     dan_port_t port;
     dan_master_t *master;
     dan_periph_t *periph;
     int set_tx_on, set_tx_off;
     bool tx_pin;
-    bool tx_pin_error;      /* a byte was written while the pin was off */
+    bool tx_pin_error; /* a byte was written while the pin was off */
 } sim_node_t;
 
 typedef struct {
@@ -44,12 +44,12 @@ struct simbus {
     uint32_t step_us;
     sim_byte_t q[SIM_QUEUE];
     size_t qhead, qlen;
-    sim_byte_t log[SIM_LOG];   /* every byte delivered, for timing checks */
+    sim_byte_t log[SIM_LOG]; /* every byte delivered, for timing checks */
     size_t nlog;
     sim_node_t nodes[SIM_MAX_NODES];
     int nnodes;
     uint32_t collisions;
-    uint32_t noise_ppm;        /* per-byte corruption probability, parts per million */
+    uint32_t noise_ppm; /* per-byte corruption probability, parts per million */
     uint32_t rng;
 };
 

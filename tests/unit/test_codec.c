@@ -30,8 +30,8 @@ typedef struct {
 
 /* Feeds data in chunks of `chunk` bytes (0 = all at once), then lets the
  * line go idle (aborting partial frames). Collects re-encoded frames. */
-static size_t decode_all(dan_decoder_t *d, const uint8_t *data, size_t len,
-                         size_t chunk, raw_frame_t *out, size_t max)
+static size_t decode_all(dan_decoder_t *d, const uint8_t *data, size_t len, size_t chunk,
+                         raw_frame_t *out, size_t max)
 {
     size_t n = 0, off = 0;
     dan_frame_t f;
@@ -49,8 +49,8 @@ static size_t decode_all(dan_decoder_t *d, const uint8_t *data, size_t len,
                 break;
             }
             assert_true(n < max);
-            out[n].len = (size_t)dan_frame_encode(f.code, f.payload, f.len,
-                                                  out[n].wire, sizeof out[n].wire);
+            out[n].len =
+                (size_t)dan_frame_encode(f.code, f.payload, f.len, out[n].wire, sizeof out[n].wire);
             n++;
         }
         assert_int_equal(left, 0);
@@ -63,8 +63,8 @@ static size_t decode_all(dan_decoder_t *d, const uint8_t *data, size_t len,
         dan_decoder_abort(d);
         while (dan_decoder_feed(d, NULL, 0, &used, &f)) {
             assert_true(n < max);
-            out[n].len = (size_t)dan_frame_encode(f.code, f.payload, f.len,
-                                                  out[n].wire, sizeof out[n].wire);
+            out[n].len =
+                (size_t)dan_frame_encode(f.code, f.payload, f.len, out[n].wire, sizeof out[n].wire);
             n++;
         }
     }
@@ -127,8 +127,8 @@ static void test_crc8_vectors(void **state)
 
 static void test_uvarint_edges(void **state)
 {
-    static const uint32_t vals[] = {0, 1, 127, 128, 16383, 16384, 2097151,
-                                    2097152, 268435455, 268435456, 0xFFFFFFFFu};
+    static const uint32_t vals[] = {0,       1,       127,       128,       16383,      16384,
+                                    2097151, 2097152, 268435455, 268435456, 0xFFFFFFFFu};
     static const size_t sizes[] = {1, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5};
     size_t i;
     (void)state;
@@ -343,7 +343,8 @@ static void test_frame_encode_limits(void **state)
     static uint8_t payload[DAN_MAX_PAYLOAD + 1];
     uint8_t out[DAN_MAX_FRAME];
     (void)state;
-    assert_int_equal(dan_frame_encode(1, payload, DAN_MAX_PAYLOAD + 1u, out, sizeof out), DAN_ERR_ARG);
+    assert_int_equal(dan_frame_encode(1, payload, DAN_MAX_PAYLOAD + 1u, out, sizeof out),
+                     DAN_ERR_ARG);
     assert_int_equal(dan_frame_encode(1, NULL, 3, out, sizeof out), DAN_ERR_ARG);
     assert_int_equal(dan_frame_encode(1, payload, 3, out, 6), DAN_ERR_OVERFLOW);
     assert_int_equal(dan_frame_encode(1, payload, 3, NULL, 0), 7);
@@ -370,7 +371,8 @@ static void test_frame_vectors(void **state)
         code = strtoul(f[1], NULL, 10);
         plen = vec_hex(f[2], payload, sizeof payload);
         wlen = vec_hex(f[3], wire, sizeof wire);
-        assert_int_equal(dan_frame_encode((uint32_t)code, payload, plen, out, sizeof out), (int)wlen);
+        assert_int_equal(dan_frame_encode((uint32_t)code, payload, plen, out, sizeof out),
+                         (int)wlen);
         assert_memory_equal(out, wire, wlen);
         dan_decoder_init(&d);
         assert_int_equal(dan_decoder_feed(&d, wire, wlen, &used, &fr), 1);
@@ -570,7 +572,8 @@ static void test_noise_then_idle_resync(void **state)
             for (j = 0; j < sizeof p; j++) {
                 p[j] = (uint8_t)rng();
             }
-            flen[k] = (size_t)dan_frame_encode(0x40u + (uint32_t)k, p, sizeof p, frames[k], DAN_MAX_FRAME);
+            flen[k] = (size_t)dan_frame_encode(0x40u + (uint32_t)k, p, sizeof p, frames[k],
+                                               DAN_MAX_FRAME);
         }
         len = 0;
         for (k = 0; k < 3; k++) {
@@ -646,8 +649,9 @@ static void test_payload_vectors(void **state)
             dan_error_msg_t e;
             assert_int_equal(nf, 5);
             wl = vec_hex(f[4], want, sizeof want);
-            assert_int_equal(dan_error_encode((uint32_t)atol(f[1]), (uint32_t)atol(f[2]), f[3], out,
-                                              sizeof out), (int)wl);
+            assert_int_equal(
+                dan_error_encode((uint32_t)atol(f[1]), (uint32_t)atol(f[2]), f[3], out, sizeof out),
+                (int)wl);
             assert_memory_equal(out, want, wl);
             assert_int_equal(dan_error_decode(&e, want, wl), DAN_OK);
             assert_int_equal(e.code, (uint32_t)atol(f[1]));

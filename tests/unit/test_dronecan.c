@@ -19,15 +19,18 @@
 #include "dan/can_gw/f16.h"
 
 #define MAX_FRAMES 64
-#define MAX_KV 32
+#define MAX_KV     32
 
 /* ---- helpers ---- */
 
 static int hexval(char c)
 {
-    if (c >= '0' && c <= '9') return c - '0';
-    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    if (c >= '0' && c <= '9')
+        return c - '0';
+    if (c >= 'a' && c <= 'f')
+        return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F')
+        return c - 'A' + 10;
     return -1;
 }
 
@@ -73,8 +76,7 @@ static void assert_frames_equal(const dan_can_frame_t *a, const dan_can_frame_t 
     }
 }
 
-static bool accept_known(void *user, uint16_t dtid, uint8_t ttype, uint8_t src,
-                         uint64_t *sig)
+static bool accept_known(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uint64_t *sig)
 {
     (void)user;
     (void)src;
@@ -173,8 +175,8 @@ typedef union {
 
 /* Builds the expected message and the transfer header from v's keys;
  * returns the encoded payload length into buf. */
-static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t,
-                          uint8_t *buf, size_t cap)
+static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t, uint8_t *buf,
+                          size_t cap)
 {
     const char *kind = kv(v, "kind");
     int len = -100;
@@ -186,8 +188,8 @@ static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t,
     if (strcmp(kind, "msg") == 0) {
         t->transfer_type = DAN_DC_TRANSFER_BROADCAST;
     } else {
-        t->transfer_type = strcmp(kind, "req") == 0 ? DAN_DC_TRANSFER_REQUEST
-                                                    : DAN_DC_TRANSFER_RESPONSE;
+        t->transfer_type =
+            strcmp(kind, "req") == 0 ? DAN_DC_TRANSFER_REQUEST : DAN_DC_TRANSFER_RESPONSE;
         t->destination_node = (uint8_t)kv_int(v, "dst");
     }
     if (strcmp(v->name, "node_status") == 0) {
@@ -266,8 +268,7 @@ static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t,
         assert_int_equal(kv_hex(v, "unique_id", n->hardware_version.unique_id, 16), 16);
         n->hardware_version.coa_len = (uint8_t)kv_hex(
             v, "coa", n->hardware_version.certificate_of_authenticity, DAN_DC_COA_MAX);
-        n->name_len = (uint8_t)kv_hex(v, "name", (uint8_t *)n->name,
-                                      DAN_DC_GET_NODE_INFO_NAME_MAX);
+        n->name_len = (uint8_t)kv_hex(v, "name", (uint8_t *)n->name, DAN_DC_GET_NODE_INFO_NAME_MAX);
         t->data_type_id = DAN_DC_GET_NODE_INFO_ID;
         len = dan_dc_get_node_info_rsp_encode(n, buf, cap);
     } else {
@@ -281,17 +282,22 @@ static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t,
 static int decode_as(const char *name, any_msg_t *m, const uint8_t *p, size_t len)
 {
     memset(m, 0, sizeof *m);
-    if (strcmp(name, "node_status") == 0) return dan_dc_node_status_decode(&m->ns, p, len);
-    if (strcmp(name, "raw_command") == 0) return dan_dc_esc_raw_command_decode(&m->rc, p, len);
-    if (strcmp(name, "esc_status") == 0) return dan_dc_esc_status_decode(&m->es, p, len);
+    if (strcmp(name, "node_status") == 0)
+        return dan_dc_node_status_decode(&m->ns, p, len);
+    if (strcmp(name, "raw_command") == 0)
+        return dan_dc_esc_raw_command_decode(&m->rc, p, len);
+    if (strcmp(name, "esc_status") == 0)
+        return dan_dc_esc_status_decode(&m->es, p, len);
     if (strcmp(name, "esc_status_extended") == 0)
         return dan_dc_esc_status_extended_decode(&m->ex, p, len);
-    if (strcmp(name, "arming_status") == 0) return dan_dc_arming_status_decode(&m->as, p, len);
+    if (strcmp(name, "arming_status") == 0)
+        return dan_dc_arming_status_decode(&m->as, p, len);
     if (strcmp(name, "tunnel_targetted") == 0)
         return dan_dc_tunnel_targetted_decode(&m->tt, p, len);
     if (strcmp(name, "tunnel_broadcast") == 0)
         return dan_dc_tunnel_broadcast_decode(&m->tb, p, len);
-    if (strcmp(name, "get_node_info_req") == 0) return dan_dc_get_node_info_req_decode(p, len);
+    if (strcmp(name, "get_node_info_req") == 0)
+        return dan_dc_get_node_info_req_decode(p, len);
     if (strcmp(name, "get_node_info_rsp") == 0)
         return dan_dc_get_node_info_rsp_decode(&m->ni, p, len);
     fail_msg("unknown type %s", name);
@@ -379,15 +385,24 @@ static void check_rx(const vec_t *v)
     assert_memory_equal(&got, &want, sizeof got);
     /* Decode then encode is the identity on the payload. */
     relen = -1;
-    if (strcmp(v->name, "node_status") == 0) relen = dan_dc_node_status_encode(&got.ns, re, sizeof re);
-    else if (strcmp(v->name, "raw_command") == 0) relen = dan_dc_esc_raw_command_encode(&got.rc, re, sizeof re);
-    else if (strcmp(v->name, "esc_status") == 0) relen = dan_dc_esc_status_encode(&got.es, re, sizeof re);
-    else if (strcmp(v->name, "esc_status_extended") == 0) relen = dan_dc_esc_status_extended_encode(&got.ex, re, sizeof re);
-    else if (strcmp(v->name, "arming_status") == 0) relen = dan_dc_arming_status_encode(&got.as, re, sizeof re);
-    else if (strcmp(v->name, "tunnel_targetted") == 0) relen = dan_dc_tunnel_targetted_encode(&got.tt, re, sizeof re);
-    else if (strcmp(v->name, "tunnel_broadcast") == 0) relen = dan_dc_tunnel_broadcast_encode(&got.tb, re, sizeof re);
-    else if (strcmp(v->name, "get_node_info_req") == 0) relen = dan_dc_get_node_info_req_encode(re, sizeof re);
-    else if (strcmp(v->name, "get_node_info_rsp") == 0) relen = dan_dc_get_node_info_rsp_encode(&got.ni, re, sizeof re);
+    if (strcmp(v->name, "node_status") == 0)
+        relen = dan_dc_node_status_encode(&got.ns, re, sizeof re);
+    else if (strcmp(v->name, "raw_command") == 0)
+        relen = dan_dc_esc_raw_command_encode(&got.rc, re, sizeof re);
+    else if (strcmp(v->name, "esc_status") == 0)
+        relen = dan_dc_esc_status_encode(&got.es, re, sizeof re);
+    else if (strcmp(v->name, "esc_status_extended") == 0)
+        relen = dan_dc_esc_status_extended_encode(&got.ex, re, sizeof re);
+    else if (strcmp(v->name, "arming_status") == 0)
+        relen = dan_dc_arming_status_encode(&got.as, re, sizeof re);
+    else if (strcmp(v->name, "tunnel_targetted") == 0)
+        relen = dan_dc_tunnel_targetted_encode(&got.tt, re, sizeof re);
+    else if (strcmp(v->name, "tunnel_broadcast") == 0)
+        relen = dan_dc_tunnel_broadcast_encode(&got.tb, re, sizeof re);
+    else if (strcmp(v->name, "get_node_info_req") == 0)
+        relen = dan_dc_get_node_info_req_encode(re, sizeof re);
+    else if (strcmp(v->name, "get_node_info_rsp") == 0)
+        relen = dan_dc_get_node_info_rsp_encode(&got.ni, re, sizeof re);
     assert_int_equal(relen, len);
     assert_memory_equal(re, payload, (size_t)len);
     /* Every strict prefix of a fixed-size payload is rejected; nothing
@@ -398,8 +413,7 @@ static void check_rx(const vec_t *v)
         memcpy(cut, payload, i);
         rc = decode_as(v->name, &got, i > 0u ? cut : NULL, i);
         if (strcmp(v->name, "node_status") == 0 || strcmp(v->name, "esc_status") == 0 ||
-            strcmp(v->name, "esc_status_extended") == 0 ||
-            strcmp(v->name, "arming_status") == 0) {
+            strcmp(v->name, "esc_status_extended") == 0 || strcmp(v->name, "arming_status") == 0) {
             assert_int_equal(rc, DAN_ERR_MALFORMED);
         }
         free(cut);
@@ -504,8 +518,11 @@ static void test_crc(void **state)
         uint8_t b[8 + 3] = {0};
         uint64_t sig = DAN_DC_ESC_STATUS_SIGNATURE;
         unsigned i;
-        for (i = 0; i < 8; i++) b[i] = (uint8_t)(sig >> (8 * i));
-        b[8] = 1; b[9] = 2; b[10] = 3;
+        for (i = 0; i < 8; i++)
+            b[i] = (uint8_t)(sig >> (8 * i));
+        b[8] = 1;
+        b[9] = 2;
+        b[10] = 3;
         assert_int_equal(dan_dc_transfer_crc(sig, &b[8], 3),
                          dan_dc_crc16(DAN_DC_CRC_INIT, b, sizeof b));
     }
@@ -560,8 +577,8 @@ static void test_scalar_bits(void **state)
     }
     /* Saturation and reader bounds. */
     dan_dc_bw_init(&w, buf, 2);
-    dan_dc_put_uint(&w, 7, 200);   /* -> 127 */
-    dan_dc_put_int(&w, 9, -1000);  /* -> -256 */
+    dan_dc_put_uint(&w, 7, 200);  /* -> 127 */
+    dan_dc_put_int(&w, 9, -1000); /* -> -256 */
     assert_int_equal(dan_dc_bw_finish(&w), 2);
     dan_dc_br_init(&r, buf, 2);
     assert_int_equal(dan_dc_get_uint(&r, 7), 127);
@@ -578,7 +595,7 @@ static void test_scalar_bits(void **state)
     assert_int_equal(dan_dc_array_len_bits(60), 6);
     assert_int_equal(dan_dc_array_len_bits(256), 9);
     assert_true(dan_dc_tao(14, true));
-    assert_false(dan_dc_tao(1, true));   /* bool[<=N] keeps its prefix */
+    assert_false(dan_dc_tao(1, true)); /* bool[<=N] keeps its prefix */
     assert_false(dan_dc_tao(8, false));
 }
 
@@ -601,7 +618,7 @@ static void test_float16(void **state)
     assert_int_equal(dan_f16_from_f32(5.9604645e-8f), 0x0001); /* 2^-24 */
     assert_int_equal(dan_f16_from_f32(2.9802322e-8f), 0x0001); /* 2^-25: tie, away */
     assert_int_equal(dan_f16_from_f32(2.98e-8f), 0x0000);
-    assert_int_equal(dan_f16_from_f32(6.1035156e-5f), 0x0400); /* smallest normal */
+    assert_int_equal(dan_f16_from_f32(6.1035156e-5f), 0x0400);  /* smallest normal */
     assert_int_equal(dan_f16_from_f32(1.00048828125f), 0x3C01); /* 1 + 2^-11: tie, away */
     assert_int_equal(dan_f16_from_f32(1.00048816f), 0x3C00);
     assert_true(isinf(dan_f16_to_f32(0x7C00)));
@@ -705,7 +722,7 @@ static void test_tx_misc(void **state)
     assert_non_null(rx);
     memset(&t, 0, sizeof t);
     t.priority = 16;
-    t.data_type_id = 1;  /* anonymous, e.g. dynamic node ID allocation */
+    t.data_type_id = 1; /* anonymous, e.g. dynamic node ID allocation */
     t.payload = p;
     t.payload_len = 8;
     assert_int_equal(dan_dc_tx_build(&t, f, 8), DAN_ERR_ARG); /* anonymous > 7 */
@@ -743,8 +760,7 @@ static void test_tid_table(void **state)
     (void)state;
     dan_dc_tid_table_init(&tab);
     for (i = 0; i < 33; i++) {
-        assert_int_equal(dan_dc_tid_next(&tab, 1030, DAN_DC_TRANSFER_BROADCAST, 0),
-                         (int)(i % 32u));
+        assert_int_equal(dan_dc_tid_next(&tab, 1030, DAN_DC_TRANSFER_BROADCAST, 0), (int)(i % 32u));
     }
     assert_int_equal(dan_dc_tid_next(&tab, 1, DAN_DC_TRANSFER_REQUEST, 5), 0);
     assert_int_equal(dan_dc_tid_next(&tab, 1, DAN_DC_TRANSFER_REQUEST, 6), 0);
@@ -960,7 +976,8 @@ static void test_rx_timeout(void **state)
     assert_int_equal(dan_dc_rx_frame(rx, &a[0], 20000000, &out), 0);
     dan_dc_rx_cleanup(rx, 20000000 + DAN_DC_TRANSFER_TIMEOUT_US + 1);
     assert_int_equal(rx->stats.timeouts, 2);
-    assert_int_equal(dan_dc_rx_frame(rx, &a[1], 20000000 + DAN_DC_TRANSFER_TIMEOUT_US + 2, &out), 0);
+    assert_int_equal(dan_dc_rx_frame(rx, &a[1], 20000000 + DAN_DC_TRANSFER_TIMEOUT_US + 2, &out),
+                     0);
     assert_int_equal(rx->stats.tid_errors, 3);
     free(rx);
 }
@@ -1189,10 +1206,9 @@ static void test_fuzz(void **state)
 
 static void test_decode_fuzz(void **state)
 {
-    static const char *const names[] = {"node_status", "raw_command", "esc_status",
-                                        "esc_status_extended", "arming_status",
-                                        "tunnel_targetted", "tunnel_broadcast",
-                                        "get_node_info_rsp"};
+    static const char *const names[] = {
+        "node_status",   "raw_command",      "esc_status",       "esc_status_extended",
+        "arming_status", "tunnel_targetted", "tunnel_broadcast", "get_node_info_rsp"};
     uint32_t seed = 0xC0FFEEu;
     unsigned i, k;
     (void)state;

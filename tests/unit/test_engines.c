@@ -16,13 +16,14 @@
 
 /* ---- test peripherals ---- */
 
-static const dan_identity_t ident_a = {1, "DAN Project", "test A", "rev 1", "1.0.0",
-                                       DAN_BAUD_MASK_DEFINED, 0, false};
-static const dan_identity_t ident_b = {1, "DAN Project", "test B", "rev 2", "2.0.0",
-                                       DAN_BAUD_MASK_19200 | DAN_BAUD_MASK_57600 | DAN_BAUD_MASK_115200,
-                                       0, false};
-static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1",
-                                        DAN_BAUD_MASK_DEFINED, 0, false};
+static const dan_identity_t ident_a = {1,       "DAN Project",         "test A", "rev 1",
+                                       "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
+static const dan_identity_t ident_b = {
+    1,       "DAN Project", "test B",
+    "rev 2", "2.0.0",       DAN_BAUD_MASK_19200 | DAN_BAUD_MASK_57600 | DAN_BAUD_MASK_115200,
+    0,       false};
+static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1", DAN_BAUD_MASK_DEFINED,
+                                        0, false};
 
 static unsigned silent_calls;
 
@@ -45,8 +46,10 @@ static void rig_setup(bool echo)
 {
     dan_master_config_t cfg;
     memset(&rig, 0, sizeof rig);
-    types_dev1[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST, .identity = &ident_a,
-                                  .handlers = test_a_handlers, .nhandlers = TEST_A_NHANDLERS,
+    types_dev1[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST,
+                                  .identity = &ident_a,
+                                  .handlers = test_a_handlers,
+                                  .nhandlers = TEST_A_NHANDLERS,
                                   .user = &silent_calls};
     types_dev1[1] = (dan_ptype_t){.first = DAN_TYPE_TEST_B_FIRST, .identity = &ident_b};
     types_dev2[0] = (dan_ptype_t){.first = DAN_TYPE_CAN_GW_FIRST, .identity = &ident_gw};
@@ -55,9 +58,12 @@ static void rig_setup(bool echo)
     rig.nm = sim_add_master(&rig.bus, &rig.m, 9600, echo);
     rig.n1 = sim_add_periph(&rig.bus, &rig.dev1, 9600, echo);
     rig.n2 = sim_add_periph(&rig.bus, &rig.dev2, 9600, echo);
-    assert_int_equal(dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
-    assert_int_equal(dan_periph_init(&rig.dev1, &rig.n1->port, types_dev1, 2, NULL, 9600, rig.bus.now), DAN_OK);
-    assert_int_equal(dan_periph_init(&rig.dev2, &rig.n2->port, types_dev2, 1, NULL, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(
+        dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(
+        dan_periph_init(&rig.dev1, &rig.n1->port, types_dev1, 2, NULL, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(
+        dan_periph_init(&rig.dev2, &rig.n2->port, types_dev2, 1, NULL, 9600, rig.bus.now), DAN_OK);
     silent_calls = 0;
 }
 
@@ -227,7 +233,8 @@ static void test_master_restart_recovery(void **state)
     dan_master_config_default(&cfg);
     cfg.seed = 99;
     rig.nm->baud = 9600;
-    assert_int_equal(dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    assert_int_equal(
+        dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
     assert_int_equal(discover(), DAN_OK);
     g = dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST);
     assert_non_null(g);
@@ -278,7 +285,8 @@ static void test_collision_detected_and_retried(void **state)
     (void)state;
     rig_setup(true);
     assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"hello", 5, rig.bus.now), DAN_OK);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"hello", 5, rig.bus.now),
+                     DAN_OK);
     /* let the master start, then talk over it */
     while (rig.m.link.state != DAN_LINK_TX) {
         sim_step(&rig.bus);
@@ -390,7 +398,8 @@ static void test_discovery_configure_time(void **state)
     assert_int_equal(discover(), DAN_OK);
     assert_int_equal(configure(0), DAN_OK);
     t = rig.bus.now - t0;
-    print_message("discovery+configure (3 present, 1 absent type): %llu us\n", (unsigned long long)t);
+    print_message("discovery+configure (3 present, 1 absent type): %llu us\n",
+                  (unsigned long long)t);
     assert_true(t < 1500000u);
 }
 
@@ -409,7 +418,8 @@ static void test_late_echo_is_not_a_reply(void **state)
      * stays silent: echo timeout. */
     rig.nm->echo = false;
     rig.n1->mute = true;
-    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"xyz", 3, rig.bus.now), DAN_OK);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"xyz", 3, rig.bus.now),
+                     DAN_OK);
     while (rig.m.link.stats.echo_timeouts == 0 && rig.bus.now < 10000000u) {
         sim_step(&rig.bus);
     }
@@ -448,7 +458,8 @@ static int cap_write(void *ctx, const uint8_t *d, size_t n)
 }
 static int cap_set_baud(void *ctx, uint32_t b)
 {
-    (void)ctx; (void)b;
+    (void)ctx;
+    (void)b;
     return 0;
 }
 
@@ -493,7 +504,8 @@ static void test_peripheral_ignores_own_reply_after_collision(void **state)
     (void)state;
     rig_setup(true);
     assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"abc", 3, rig.bus.now), DAN_OK);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"abc", 3, rig.bus.now),
+                     DAN_OK);
     while (rig.dev1.link.state != DAN_LINK_TX && rig.bus.now < 10000000u) {
         sim_step(&rig.bus);
     }
@@ -530,13 +542,16 @@ static void test_api_errors(void **state)
     rig_setup(true);
     memset(&bad, 0, sizeof bad);
     assert_int_equal(dan_master_init(&m, &bad, NULL, probe_types, 1, 9600, 0), DAN_ERR_ARG);
-    assert_int_equal(dan_master_init(&m, &rig.nm->port, NULL, probe_types, DAN_MASTER_MAX_TYPES + 1, 9600, 0),
-                     DAN_ERR_ARG);
+    assert_int_equal(
+        dan_master_init(&m, &rig.nm->port, NULL, probe_types, DAN_MASTER_MAX_TYPES + 1, 9600, 0),
+        DAN_ERR_ARG);
     assert_int_equal(dan_periph_init(&p, &rig.n1->port, NULL, 0, NULL, 9600, 0), DAN_ERR_ARG);
     assert_int_equal(dan_master_configure(&rig.m, 0, rig.bus.now), DAN_ERR_NOTFOUND);
     assert_int_equal(dan_master_request(&rig.m, 0x62, NULL, 1, rig.bus.now), DAN_ERR_ARG);
-    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"a", 1, rig.bus.now), DAN_OK);
-    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"a", 1, rig.bus.now), DAN_ERR_BUSY);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"a", 1, rig.bus.now),
+                     DAN_OK);
+    assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"a", 1, rig.bus.now),
+                     DAN_ERR_BUSY);
     assert_int_equal(dan_master_discover(&rig.m, rig.bus.now), DAN_ERR_BUSY);
 }
 

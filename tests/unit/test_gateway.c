@@ -52,8 +52,8 @@ static void cat_frame(char *out, size_t cap, const dan_can_frame_t *f)
 
 /* Decodes payload p as msg/dir, writes the canonical field text into txt
  * and the re-encoded payload into enc; returns the encoded length. */
-static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t len,
-                   char *txt, size_t cap, uint8_t *enc, size_t ecap)
+static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t len, char *txt,
+                   size_t cap, uint8_t *enc, size_t ecap)
 {
     dan_reader_t r;
     dan_writer_t w;
@@ -133,8 +133,8 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
             assert_int_equal(dan_gw_msg_node_get(&r, &e), DAN_OK);
             dan_gw_msg_node_put(&w, &e);
             cat(txt, cap, " node=%u/%u/%u/%u/%lu/%u/%lu/%u", e.node_id, e.health, e.mode,
-                e.sub_mode, (unsigned long)e.uptime_sec, e.vendor_status,
-                (unsigned long)e.age_ms, e.info_state);
+                e.sub_mode, (unsigned long)e.uptime_sec, e.vendor_status, (unsigned long)e.age_ms,
+                e.info_state);
         }
         return dan_writer_finish(&w);
     }
@@ -162,16 +162,16 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
             return dan_writer_finish(&w);
         }
         assert_int_equal(dan_gw_msg_tun_open_decode(&o, p, len), DAN_OK);
-        cat(txt, cap, "port=%u mode=%u protocol=%u target=%u serial=%d options=%u baud=%lu",
-            o.port, o.mode, o.protocol, o.target, o.serial_id, o.options, (unsigned long)o.baud);
+        cat(txt, cap, "port=%u mode=%u protocol=%u target=%u serial=%d options=%u baud=%lu", o.port,
+            o.mode, o.protocol, o.target, o.serial_id, o.options, (unsigned long)o.baud);
         return dan_gw_msg_tun_open_encode(&o, enc, ecap);
     }
     if (!strcmp(msg, "tun_xfer")) {
         dan_gw_tun_xfer_t x;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_tun_xfer_req_decode(&x, p, len), DAN_OK);
-            cat(txt, cap, "port=%u wr=%lu rd=%lu max=%lu data=", x.port,
-                (unsigned long)x.wr_offset, (unsigned long)x.rd_offset, (unsigned long)x.rd_max);
+            cat(txt, cap, "port=%u wr=%lu rd=%lu max=%lu data=", x.port, (unsigned long)x.wr_offset,
+                (unsigned long)x.rd_offset, (unsigned long)x.rd_max);
             cat_hex(txt, cap, x.data, x.len);
             return dan_gw_msg_tun_xfer_req_encode(&x, enc, ecap);
         }
@@ -302,7 +302,7 @@ static void test_codec_limits(void **state)
 /* ---- rig: master + client, gateway node + peripheral engine ---- */
 
 #define LISTEN_NODE 42u
-#define MAX_CAP 512
+#define MAX_CAP     512
 
 typedef struct {
     uint16_t dtid;
@@ -320,8 +320,8 @@ typedef struct {
     dan_gw_t gw;
     dan_gw_node_t g;
     dan_ptype_t pt;
-    dan_dc_rx_t lis;           /* a DroneCAN listener on the far side */
-    dan_dc_tid_table_t tids;   /* for fake nodes' transfers */
+    dan_dc_rx_t lis;         /* a DroneCAN listener on the far side */
+    dan_dc_tid_table_t tids; /* for fake nodes' transfers */
     cap_t cap[MAX_CAP];
     size_t ncap;
     size_t nframes;
@@ -331,7 +331,8 @@ static rig_t *R;
 
 static bool lis_accept(void *user, uint16_t dtid, uint8_t tt, uint8_t src, uint64_t *sig)
 {
-    (void)user; (void)src;
+    (void)user;
+    (void)src;
     return dan_dc_dsdl_signature(tt, dtid, sig);
 }
 
@@ -447,12 +448,14 @@ static int setup(void **state)
     dan_master_config_default(&mc);
     R->nm = sim_add_master(&R->bus, &R->m, 115200, true);
     R->np = sim_add_periph(&R->bus, &R->p, 115200, true);
-    assert_int_equal(dan_master_init(&R->m, &R->nm->port, &mc, types, 1, 115200, R->bus.now), DAN_OK);
+    assert_int_equal(dan_master_init(&R->m, &R->nm->port, &mc, types, 1, 115200, R->bus.now),
+                     DAN_OK);
     dan_gw_node_config_default(&gc);
     gc.unique_id[0] = 0xAB;
     assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);
     dan_gw_node_ptype(&R->g, &R->pt);
-    assert_int_equal(dan_periph_init(&R->p, &R->np->port, &R->pt, 1, NULL, 115200, R->bus.now), DAN_OK);
+    assert_int_equal(dan_periph_init(&R->p, &R->np->port, &R->pt, 1, NULL, 115200, R->bus.now),
+                     DAN_OK);
     dan_gw_node_attach(&R->g, &R->p);
     dan_gw_init(&R->gw, &R->m);
     dan_dc_rx_init(&R->lis, LISTEN_NODE, lis_accept, NULL);
@@ -566,7 +569,8 @@ static void test_telemetry_round_robin(void **state)
     x.motor_angle = 359;
     x.status_flags = 370085;
     inject(22, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
-           DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+           DAN_DC_TRANSFER_BROADCAST, 0, buf,
+           dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
     for (i = 0; i < 6; i++) {
         assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
         assert_int_equal(finish(), DAN_OK);
@@ -826,9 +830,10 @@ static void test_tunnel_targetted_retries(void **state)
         x.wr_offset = R->gw.tun[1].wr_offset + 10u;
         x.data = out;
         x.len = 4;
-        assert_int_equal(request_sealed(DAN_GW_CODE_TUN_XFER, req,
-                                        (size_t)dan_gw_msg_tun_xfer_req_encode(&x, req, sizeof req)),
-                         DAN_OK);
+        assert_int_equal(
+            request_sealed(DAN_GW_CODE_TUN_XFER, req,
+                           (size_t)dan_gw_msg_tun_xfer_req_encode(&x, req, sizeof req)),
+            DAN_OK);
         assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     }
 }
@@ -851,8 +856,9 @@ static void test_tunnel_broadcast_and_drops(void **state)
     assert_int_equal(dan_gw_tunnel_open(&R->gw, &o, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
     from = R->ncap;
-    assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, (const uint8_t *)"hello broadcast", 15, 128,
-                                        R->bus.now), DAN_OK);
+    assert_int_equal(
+        dan_gw_tunnel_xfer(&R->gw, 0, (const uint8_t *)"hello broadcast", 15, 128, R->bus.now),
+        DAN_OK);
     assert_int_equal(finish(), DAN_OK);
     assert_int_equal(R->gw.tun[0].accepted, 15);
     advance(5000);
@@ -874,7 +880,8 @@ static void test_tunnel_broadcast_and_drops(void **state)
         m.buffer_len = 60;
         memcpy(m.buffer, data, 60);
         inject(33, DAN_DC_TUNNEL_BROADCAST_ID, DAN_DC_TUNNEL_BROADCAST_SIGNATURE,
-               DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_tunnel_broadcast_encode(&m, buf, sizeof buf));
+               DAN_DC_TRANSFER_BROADCAST, 0, buf,
+               dan_dc_tunnel_broadcast_encode(&m, buf, sizeof buf));
     }
     assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, NULL, 0, 128, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
@@ -961,7 +968,8 @@ static void test_raw_frames_and_filters(void **state)
         uint8_t req[DAN_MAX_PAYLOAD];
         size_t rl = last_req(req);
         assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK);
-        assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_CAN_SEND, req, rl, R->bus.now), DAN_OK);
+        assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_CAN_SEND, req, rl, R->bus.now),
+                         DAN_OK);
         R->gw.code = DAN_GW_CODE_CAN_SEND;
     }
     assert_int_equal(finish(), DAN_OK);
@@ -1164,9 +1172,9 @@ static void test_own_node_status_and_info(void **state)
 
 static void test_malformed(void **state)
 {
-    static const uint8_t bad_esc[] = {4, 1, 2};          /* truncated */
-    static const uint8_t bad_cfg[] = {1, 0x05};          /* timeout 5 ms */
-    static const uint8_t bad_filter[] = {9, 0};          /* unknown op */
+    static const uint8_t bad_esc[] = {4, 1, 2};              /* truncated */
+    static const uint8_t bad_cfg[] = {1, 0x05};              /* timeout 5 ms */
+    static const uint8_t bad_filter[] = {9, 0};              /* unknown op */
     static const uint8_t bad_send[] = {1, 1, 0, 0, 0, 0, 9}; /* dlc 9 */
     uint32_t errs;
     (void)state;
@@ -1211,7 +1219,8 @@ static void test_bad_seal_dropped(void **state)
     n = dan_gw_seal(DAN_GW_CODE_ESC_CMD, DAN_GW_REQUEST, buf, (size_t)n, sizeof buf);
     buf[1] ^= 0x40; /* one value corrupted, frame CRC recomputed by the master */
     nf = R->nframes;
-    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_ESC_CMD, buf, (size_t)n, R->bus.now), DAN_OK);
+    assert_int_equal(dan_master_request(&R->m, DAN_GW_CODE_ESC_CMD, buf, (size_t)n, R->bus.now),
+                     DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_TIMEOUT);
     assert_int_equal(R->g.stats.bad_checks, 3); /* every attempt dropped */
     assert_int_equal(R->g.stats.esc_cmds, 0);
@@ -1225,10 +1234,12 @@ static void test_bad_seal_dropped(void **state)
     assert_int_equal(finish(), DAN_OK);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_BAD_CHECKS], 3);
     /* the client refuses a reply with a bad seal: the master counts it */
-    assert_int_equal(dan_gw_unseal(DAN_GW_CODE_STATS, DAN_GW_RESPONSE, R->m.resp, R->m.resp_len) > 0, 1);
+    assert_int_equal(
+        dan_gw_unseal(DAN_GW_CODE_STATS, DAN_GW_RESPONSE, R->m.resp, R->m.resp_len) > 0, 1);
     R->m.resp[0] ^= 1;
-    assert_int_equal(R->m.reply_check(R->m.reply_check_user, DAN_GW_CODE_STATS, R->m.resp, R->m.resp_len),
-                     DAN_ERR_MALFORMED);
+    assert_int_equal(
+        R->m.reply_check(R->m.reply_check_user, DAN_GW_CODE_STATS, R->m.resp, R->m.resp_len),
+        DAN_ERR_MALFORMED);
 }
 
 /* The seal against its vectors; every single-bit flip of a sealed payload
@@ -1241,8 +1252,8 @@ static void test_sealed_vectors(void **state)
     vec_open(&v, "gateway_sealed.txt");
     while (vec_next(&v)) {
         char *f[6];
-        uint8_t inner[DAN_MAX_PAYLOAD], sealed[DAN_MAX_PAYLOAD], want[DAN_MAX_PAYLOAD], frame[DAN_MAX_FRAME],
-            out[DAN_MAX_FRAME];
+        uint8_t inner[DAN_MAX_PAYLOAD], sealed[DAN_MAX_PAYLOAD], want[DAN_MAX_PAYLOAD],
+            frame[DAN_MAX_FRAME], out[DAN_MAX_FRAME];
         size_t il, sl, fl, i, bit;
         uint32_t code;
         uint8_t dir;
@@ -1275,7 +1286,8 @@ static void test_sealed_vectors(void **state)
     vec_close(&v);
     assert_true(count >= 8);
     assert_int_equal(dan_gw_seal(0x42, DAN_GW_REQUEST, (uint8_t *)"", 0, 1), DAN_ERR_OVERFLOW);
-    assert_int_equal(dan_gw_unseal(0x42, DAN_GW_REQUEST, (const uint8_t *)"x", 1), DAN_ERR_MALFORMED);
+    assert_int_equal(dan_gw_unseal(0x42, DAN_GW_REQUEST, (const uint8_t *)"x", 1),
+                     DAN_ERR_MALFORMED);
     assert_false(dan_gw_sealed_code(DAN_CODE_CAN_GW_IDENTIFY));
     assert_false(dan_gw_sealed_code(DAN_CODE_CAN_GW_CONFIGURE));
 }
@@ -1372,8 +1384,9 @@ static void test_full_pages_leave_room_for_the_seal(void **state)
             memset(&x, 0, sizeof x);
             x.esc_index = (uint8_t)i;
             x.status_flags = 0x7FFFF;
-            inject((uint8_t)(30 + i), DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
-                   DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+            inject((uint8_t)(30 + i), DAN_DC_ESC_STATUS_EXTENDED_ID,
+                   DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
+                   dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
         }
         do {
             dan_reader_t r;
@@ -1534,10 +1547,12 @@ static void test_node_table_full(void **state)
         inject((uint8_t)(40 + i), DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE,
                DAN_DC_TRANSFER_BROADCAST, 0, buf, n);
     }
-    inject(100, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf, n);
+    inject(100, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
+           buf, n);
     assert_int_equal(R->g.stats.nodes_dropped, 1); /* all alive: no room */
-    advance(3500000);                               /* all silent past the offline timeout */
-    inject(100, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf, n);
+    advance(3500000);                              /* all silent past the offline timeout */
+    inject(100, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
+           buf, n);
     assert_int_equal(R->g.stats.nodes_dropped, 1);
     for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
         if (R->g.nodes[i].e.node_id == 100u) {

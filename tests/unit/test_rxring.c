@@ -106,7 +106,7 @@ static void test_index_counter_overflow(void **state)
     for (i = 0; i < 12; i++) {
         assert_true(dan_rxring_put(&ring, (uint8_t)i));
     }
-    assert_true(ring.head < ring.tail);   /* wrapped */
+    assert_true(ring.head < ring.tail); /* wrapped */
     assert_int_equal(dan_rxring_count(&ring), 12);
     assert_int_equal(dan_rxring_get_many(&ring, buf, sizeof buf), 12);
     for (i = 0; i < 12; i++) {

@@ -5,14 +5,13 @@
 #include <stdio.h>
 #include <string.h>
 
-#define SOCKETCAN_PREFIX "socketcan:"
-#define SLCAN_PREFIX     "slcan:"
+#define SOCKETCAN_PREFIX  "socketcan:"
+#define SLCAN_PREFIX      "slcan:"
 /* A baud with more digits than this bound is nonsense; stopping here keeps
  * v * 10 from overflowing. */
 #define BAUD_DIGITS_LIMIT 100000000ul
 
-static int set_err(char *err, size_t errlen, int code, const char *msg,
-                   const char *spec)
+static int set_err(char *err, size_t errlen, int code, const char *msg, const char *spec)
 {
     if (err && errlen) {
         snprintf(err, errlen, "%s: %s", spec, msg);
@@ -70,8 +69,8 @@ int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, cha
     if (strncmp(spec, SOCKETCAN_PREFIX, sizeof SOCKETCAN_PREFIX - 1) == 0) {
         const char *ifname = spec + sizeof SOCKETCAN_PREFIX - 1;
         if (*ifname == '\0') {
-            return set_err(err, errlen, DAN_ERR_ARG,
-                           "missing interface name (socketcan:can0)", spec);
+            return set_err(err, errlen, DAN_ERR_ARG, "missing interface name (socketcan:can0)",
+                           spec);
         }
         return dan_canif_socketcan_open(c, ifname, err, errlen);
     }
@@ -84,18 +83,16 @@ int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, cha
         if (at && at[1] >= '0' && at[1] <= '9') {
             baud = parse_baud(at + 1);
             if (baud == 0) {
-                return set_err(err, errlen, DAN_ERR_ARG,
-                               "bad serial baud after '@'", spec);
+                return set_err(err, errlen, DAN_ERR_ARG, "bad serial baud after '@'", spec);
             }
             n = (size_t)(at - p);
         }
         if (n == 0) {
-            return set_err(err, errlen, DAN_ERR_ARG,
-                           "missing device path (slcan:/dev/ttyACM0)", spec);
+            return set_err(err, errlen, DAN_ERR_ARG, "missing device path (slcan:/dev/ttyACM0)",
+                           spec);
         }
         if (n >= sizeof path) {
-            return set_err(err, errlen, DAN_ERR_ARG, "device path too long",
-                           spec);
+            return set_err(err, errlen, DAN_ERR_ARG, "device path too long", spec);
         }
         memcpy(path, p, n);
         path[n] = '\0';
@@ -103,7 +100,8 @@ int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, cha
     }
     return set_err(err, errlen, DAN_ERR_ARG,
                    "unknown CAN interface type (use socketcan:IF or "
-                   "slcan:/dev/TTY[@BAUD])", spec);
+                   "slcan:/dev/TTY[@BAUD])",
+                   spec);
 }
 
 int dan_canif_fd(const dan_canif_t *c)

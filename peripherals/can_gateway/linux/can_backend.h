@@ -30,29 +30,25 @@ extern "C" {
 
 /* Longest SLCAN line this code handles, without its terminator:
  * 'T' + 8 id + 1 dlc + 16 data + 4 timestamp = 30 characters. */
-#define DAN_SLCAN_LINE_MAX   30
+#define DAN_SLCAN_LINE_MAX        30
 /* Buffer size that always fits a formatted frame: line, '\r' and a NUL. */
-#define DAN_SLCAN_FORMAT_MAX 28
+#define DAN_SLCAN_FORMAT_MAX      28
 /* Default serial baud of an SLCAN adapter (the CAN bitrate is 1 Mbit/s). */
-#define DAN_SLCAN_DEFAULT_BAUD 115200u
+#define DAN_SLCAN_DEFAULT_BAUD    115200u
 /* Total time dan_canif_open() may spend on the SLCAN handshake. */
 #define DAN_SLCAN_OPEN_TIMEOUT_MS 1000
 
-typedef enum {
-    DAN_CANIF_NONE = 0,
-    DAN_CANIF_SOCKETCAN,
-    DAN_CANIF_SLCAN
-} dan_canif_kind_t;
+typedef enum { DAN_CANIF_NONE = 0, DAN_CANIF_SOCKETCAN, DAN_CANIF_SLCAN } dan_canif_kind_t;
 
 typedef struct {
-    uint32_t tx;          /* frames accepted for sending */
-    uint32_t rx;          /* frames received and returned by recv */
-    uint32_t tx_dropped;  /* send() calls refused with DAN_ERR_BUSY */
-    uint32_t errors;      /* malformed or overlong lines, bad frames,
+    uint32_t tx;         /* frames accepted for sending */
+    uint32_t rx;         /* frames received and returned by recv */
+    uint32_t tx_dropped; /* send() calls refused with DAN_ERR_BUSY */
+    uint32_t errors;     /* malformed or overlong lines, bad frames,
                              error frames, BELs, I/O errors */
-    uint32_t bel;         /* SLCAN: BEL (error) answers from the adapter */
-    uint32_t tx_ack;      /* SLCAN: z / Z transmit acknowledgements */
-    uint32_t overlong;    /* SLCAN: lines dropped for being too long */
+    uint32_t bel;        /* SLCAN: BEL (error) answers from the adapter */
+    uint32_t tx_ack;     /* SLCAN: z / Z transmit acknowledgements */
+    uint32_t overlong;   /* SLCAN: lines dropped for being too long */
 } dan_canif_stats_t;
 
 /* Opaque-ish: callers use the functions below, and may read .stats. */
@@ -65,13 +61,13 @@ typedef struct {
     int have_old_tio;
     char line[DAN_SLCAN_LINE_MAX + 1];
     size_t line_len;
-    int line_overflow;          /* dropping bytes until the next terminator */
+    int line_overflow; /* dropping bytes until the next terminator */
     uint8_t rxbuf[256];
-    size_t rx_pos, rx_len;      /* unparsed bytes: rxbuf[rx_pos..rx_len) */
-    unsigned open_timeout_ms;   /* SLCAN handshake bound (dan_canif_open_ms) */
+    size_t rx_pos, rx_len;    /* unparsed bytes: rxbuf[rx_pos..rx_len) */
+    unsigned open_timeout_ms; /* SLCAN handshake bound (dan_canif_open_ms) */
     char txbuf[2 * DAN_SLCAN_FORMAT_MAX];
-    size_t tx_len;              /* bytes of a partly written line */
-    char name[64];              /* device or interface, for messages */
+    size_t tx_len; /* bytes of a partly written line */
+    char name[64]; /* device or interface, for messages */
 } dan_canif_t;
 
 /* Opens a CAN interface. spec is "socketcan:IFNAME" or
@@ -145,15 +141,13 @@ int dan_can_parse_cansend(const char *s, dan_can_frame_t *f);
 int dan_canif_errf(char *err, size_t errlen, int code, const char *kind, const char *name,
                    const char *what, int errnum);
 
-int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud,
-                         char *err, size_t errlen);
+int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *err, size_t errlen);
 int dan_canif_slcan_send(dan_canif_t *c, const dan_can_frame_t *f);
 int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f);
 int dan_canif_slcan_flush(dan_canif_t *c);
 void dan_canif_slcan_close(dan_canif_t *c);
 
-int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
-                             char *err, size_t errlen);
+int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname, char *err, size_t errlen);
 int dan_canif_socketcan_send(dan_canif_t *c, const dan_can_frame_t *f);
 int dan_canif_socketcan_recv(dan_canif_t *c, dan_can_frame_t *f);
 void dan_canif_socketcan_close(dan_canif_t *c);

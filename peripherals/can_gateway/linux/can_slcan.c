@@ -26,8 +26,8 @@
 
 #define READS_PER_CALL 4 /* recv: reads at most, so garbage cannot hold the loop */
 #define US_PER_MS      1000u
-#define CLOSE_ACK_US 100000u /* closing: how long the adapter gets to ACK "C" */
-#define SETTLE_NS 20000000L  /* closing: time for the last frames to reach CAN */
+#define CLOSE_ACK_US   100000u   /* closing: how long the adapter gets to ACK "C" */
+#define SETTLE_NS      20000000L /* closing: time for the last frames to reach CAN */
 
 /* ---- pure line codec ---- */
 
@@ -75,14 +75,21 @@ int dan_slcan_parse_line(const char *line, size_t len, dan_can_frame_t *f)
     }
     switch (line[0]) {
     case 'z':
-    case 'Z':
-        return len == 1 ? 0 : DAN_ERR_MALFORMED;
+    case 'Z': return len == 1 ? 0 : DAN_ERR_MALFORMED;
     case 't': idlen = 3; break;
-    case 'r': idlen = 3; flags = DAN_CAN_RTR; break;
-    case 'T': idlen = 8; flags = DAN_CAN_EXT; break;
-    case 'R': idlen = 8; flags = DAN_CAN_EXT | DAN_CAN_RTR; break;
-    default:
-        return DAN_ERR_MALFORMED;
+    case 'r':
+        idlen = 3;
+        flags = DAN_CAN_RTR;
+        break;
+    case 'T':
+        idlen = 8;
+        flags = DAN_CAN_EXT;
+        break;
+    case 'R':
+        idlen = 8;
+        flags = DAN_CAN_EXT | DAN_CAN_RTR;
+        break;
+    default: return DAN_ERR_MALFORMED;
     }
     if (len < 1 + idlen + 1) {
         return DAN_ERR_MALFORMED;
@@ -391,8 +398,7 @@ static const struct {
 } handshake[] = {
     /* Close the channel in case it was left open: ACK or BEL are both fine
      * (some adapters refuse C when closed). */
-    {"C\r", NULL,
-     "no answer from adapter to C in time (not an SLCAN adapter, or wrong baud?)",
+    {"C\r", NULL, "no answer from adapter to C in time (not an SLCAN adapter, or wrong baud?)",
      "I/O error during C (close channel)"},
     {"S8\r", "adapter refused S8 (1 Mbit/s) with BEL",
      "no answer from adapter to S8 in time (not an SLCAN adapter, or wrong baud?)",
@@ -401,8 +407,7 @@ static const struct {
      "I/O error during O (open channel)"},
 };
 
-int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *err,
-                         size_t errlen)
+int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *err, size_t errlen)
 {
     speed_t speed = baud_to_speed(baud);
     uint64_t deadline;
@@ -569,7 +574,7 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
             c->rx_len = (size_t)n;
             continue;
         }
-        if (n == 0) {           /* hangup: the adapter went away */
+        if (n == 0) { /* hangup: the adapter went away */
             c->stats.errors++;
             return DAN_ERR_IO;
         }

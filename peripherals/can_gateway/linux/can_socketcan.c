@@ -38,8 +38,7 @@ static int fail(dan_canif_t *c, char *err, size_t errlen, int code, const char *
     return dan_canif_errf(err, errlen, code, "socketcan", ifname, what, errnum);
 }
 
-int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
-                             char *err, size_t errlen)
+int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname, char *err, size_t errlen)
 {
     struct ifreq ifr;
     struct sockaddr_can addr;
@@ -48,15 +47,13 @@ int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
 
     c->fd = -1;
     if (strlen(ifname) >= IFNAMSIZ) {
-        return fail(c, err, errlen, DAN_ERR_ARG, ifname,
-                    "interface name too long", 0);
+        return fail(c, err, errlen, DAN_ERR_ARG, ifname, "interface name too long", 0);
     }
     fd = socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
     if (fd < 0) {
         int e = errno;
         return fail(c, err, errlen,
-                    (e == EAFNOSUPPORT || e == EPROTONOSUPPORT)
-                        ? DAN_ERR_UNSUPPORTED : DAN_ERR_IO,
+                    (e == EAFNOSUPPORT || e == EPROTONOSUPPORT) ? DAN_ERR_UNSUPPORTED : DAN_ERR_IO,
                     ifname,
                     (e == EAFNOSUPPORT || e == EPROTONOSUPPORT)
                         ? "SocketCAN (AF_CAN) not available on this system "
@@ -72,8 +69,7 @@ int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
     memcpy(ifr.ifr_name, ifname, strlen(ifname) + 1);
     if (ioctl(fd, SIOCGIFINDEX, &ifr) < 0) {
         int e = errno;
-        return fail(c, err, errlen,
-                    e == ENODEV ? DAN_ERR_NOTFOUND : DAN_ERR_IO, ifname,
+        return fail(c, err, errlen, e == ENODEV ? DAN_ERR_NOTFOUND : DAN_ERR_IO, ifname,
                     "no such CAN interface (SIOCGIFINDEX)", e);
     }
     memset(&addr, 0, sizeof addr);
@@ -84,11 +80,9 @@ int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname,
         return fail(c, err, errlen, DAN_ERR_IO, ifname, "bind", e);
     }
     /* Deliver controller error frames (bus-off, error passive, ...). */
-    if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &errmask,
-                   sizeof errmask) < 0) {
+    if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &errmask, sizeof errmask) < 0) {
         int e = errno;
-        return fail(c, err, errlen, DAN_ERR_IO, ifname,
-                    "setsockopt(CAN_RAW_ERR_FILTER)", e);
+        return fail(c, err, errlen, DAN_ERR_IO, ifname, "setsockopt(CAN_RAW_ERR_FILTER)", e);
     }
     fl = fcntl(fd, F_GETFL);
     if (fl < 0 || fcntl(fd, F_SETFL, fl | O_NONBLOCK) < 0) {
@@ -153,10 +147,10 @@ int dan_canif_socketcan_recv(dan_canif_t *c, dan_can_frame_t *f)
                 return 0;
             }
             c->stats.errors++;
-            return DAN_ERR_IO;      /* e.g. ENETDOWN: interface went down */
+            return DAN_ERR_IO; /* e.g. ENETDOWN: interface went down */
         }
         if ((size_t)n != sizeof cf || cf.can_dlc > 8) {
-            c->stats.errors++;      /* not a classic CAN frame */
+            c->stats.errors++; /* not a classic CAN frame */
             continue;
         }
         memset(f, 0, sizeof *f);
@@ -164,7 +158,7 @@ int dan_canif_socketcan_recv(dan_canif_t *c, dan_can_frame_t *f)
         memcpy(f->data, cf.data, cf.can_dlc);
         if (cf.can_id & CAN_ERR_FLAG) {
             f->flags = DAN_CAN_ERR;
-            f->id = cf.can_id & CAN_ERR_MASK;   /* error class bits */
+            f->id = cf.can_id & CAN_ERR_MASK; /* error class bits */
             c->stats.errors++;
             return 1;
         }

@@ -42,36 +42,36 @@ extern "C" {
  * resync distance (DAN_GW_CAN_RESYNC) are settings in dan/config.h. */
 
 typedef struct {
-    uint32_t wr_offset;        /* bytes of ours the gateway has accepted */
-    uint32_t rd_offset;        /* bytes we have received */
-    uint32_t wr_space;         /* gateway buffer space, last seen */
-    uint32_t rd_dropped;       /* bytes the gateway dropped (CAN -> DAN) */
-    uint32_t rd_lost;          /* bytes skipped here (gateway dropped them) */
-    uint16_t accepted;         /* of the last xfer's data */
+    uint32_t wr_offset;  /* bytes of ours the gateway has accepted */
+    uint32_t rd_offset;  /* bytes we have received */
+    uint32_t wr_space;   /* gateway buffer space, last seen */
+    uint32_t rd_dropped; /* bytes the gateway dropped (CAN -> DAN) */
+    uint32_t rd_lost;    /* bytes skipped here (gateway dropped them) */
+    uint16_t accepted;   /* of the last xfer's data */
 } dan_gw_tunnel_t;
 
 typedef struct {
     dan_master_t *m;
-    uint32_t code;             /* code of the call in flight (0: none) */
-    uint8_t port;              /* tunnel port of the call in flight */
-    uint8_t can_seq;           /* CAN_SEND sequence number */
-    int result;                /* of the last completed call */
-    uint8_t gw_flags;          /* DAN_GW_FLAG_*, from the last response */
-    uint8_t esc_seen;          /* ESCs the gateway knows (ESC_CMD rsp) */
-    uint8_t telem_next;        /* ESC_TELEM: next page (DAN_GW_NONE: end) */
-    uint8_t last_telem;        /* index of the last record received, or DAN_GW_NONE */
+    uint32_t code;      /* code of the call in flight (0: none) */
+    uint8_t port;       /* tunnel port of the call in flight */
+    uint8_t can_seq;    /* CAN_SEND sequence number */
+    int result;         /* of the last completed call */
+    uint8_t gw_flags;   /* DAN_GW_FLAG_*, from the last response */
+    uint8_t esc_seen;   /* ESCs the gateway knows (ESC_CMD rsp) */
+    uint8_t telem_next; /* ESC_TELEM: next page (DAN_GW_NONE: end) */
+    uint8_t last_telem; /* index of the last record received, or DAN_GW_NONE */
     dan_gw_telem_t esc[DAN_GW_MAX_ESC];
     uint32_t telem_ignored;
-    dan_gw_config_t config;    /* last CONFIG response */
+    dan_gw_config_t config; /* last CONFIG response */
     uint32_t stats[DAN_GW_STAT_COUNT];
     dan_gw_tunnel_t tun[DAN_GW_TUNNELS];
-    uint32_t can_rx_next;      /* next raw frame sequence number wanted */
+    uint32_t can_rx_next; /* next raw frame sequence number wanted */
     uint32_t can_rx_dropped;
-    uint32_t can_rx_lost;      /* frames skipped (dropped at the gateway) */
-    uint32_t can_rx_resyncs;   /* the gateway's sequence jumped (it restarted) */
-    uint8_t can_accepted;      /* of the last CAN_SEND */
+    uint32_t can_rx_lost;    /* frames skipped (dropped at the gateway) */
+    uint32_t can_rx_resyncs; /* the gateway's sequence jumped (it restarted) */
+    uint8_t can_accepted;    /* of the last CAN_SEND */
     uint32_t can_queue_free;
-    uint32_t decode_errors;    /* responses that did not decode */
+    uint32_t decode_errors; /* responses that did not decode */
 } dan_gw_t;
 
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
@@ -116,8 +116,8 @@ int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_
  * reads up to rd_max bytes. After completion gw->tun[port].accepted says how
  * many of data were taken (send the rest again later) and
  * dan_gw_tunnel_data() gives the bytes read (new ones only). */
-int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len,
-                       size_t rd_max, uint64_t now_us);
+int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len, size_t rd_max,
+                       uint64_t now_us);
 int dan_gw_tunnel_data(const dan_gw_t *gw, const uint8_t **data, size_t *len);
 
 /* Sends up to DAN_GW_CAN_FRAMES_MAX raw frames; gw->can_accepted after. */

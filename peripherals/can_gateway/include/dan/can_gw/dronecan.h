@@ -39,12 +39,12 @@ extern "C" {
 
 /* ---- protocol constants ---- */
 
-#define DAN_DC_NODE_ID_MAX        127u
-#define DAN_DC_PRIORITY_MAX       31u   /* 0 is the most urgent */
-#define DAN_DC_PRIORITY_HIGH      8u
-#define DAN_DC_PRIORITY_MEDIUM    16u
-#define DAN_DC_PRIORITY_LOW       24u
-#define DAN_DC_TRANSFER_ID_MASK   0x1Fu /* transfer IDs count modulo 32 */
+#define DAN_DC_NODE_ID_MAX      127u
+#define DAN_DC_PRIORITY_MAX     31u /* 0 is the most urgent */
+#define DAN_DC_PRIORITY_HIGH    8u
+#define DAN_DC_PRIORITY_MEDIUM  16u
+#define DAN_DC_PRIORITY_LOW     24u
+#define DAN_DC_TRANSFER_ID_MASK 0x1Fu /* transfer IDs count modulo 32 */
 
 /* A receiver drops a partial transfer, and forgets the last transfer ID of a
  * session, after this long without the transfer completing (DroneCAN's
@@ -52,7 +52,7 @@ extern "C" {
 #define DAN_DC_TRANSFER_TIMEOUT_US 2000000u
 
 /* Transfer CRC (multi-frame only) and frame payload sizes. */
-#define DAN_DC_FRAME_DATA_MAX     7u    /* CAN bytes minus the tail byte */
+#define DAN_DC_FRAME_DATA_MAX 7u /* CAN bytes minus the tail byte */
 
 /* 29-bit ID layout. Message: prio<<24 | dtid16<<8 | 0<<7 | src.
  * Anonymous message (src 0): prio<<24 | discriminator14<<10 | dtid2<<8.
@@ -65,9 +65,9 @@ extern "C" {
 #define DAN_DC_ID_ANON_DTID_MASK  0x3u
 
 /* Tail byte, the last data byte of every frame. */
-#define DAN_DC_TAIL_SOT           0x80u /* start of transfer */
-#define DAN_DC_TAIL_EOT           0x40u /* end of transfer */
-#define DAN_DC_TAIL_TOGGLE        0x20u /* alternates, 0 on the first frame */
+#define DAN_DC_TAIL_SOT    0x80u /* start of transfer */
+#define DAN_DC_TAIL_EOT    0x40u /* end of transfer */
+#define DAN_DC_TAIL_TOGGLE 0x20u /* alternates, 0 on the first frame */
 
 typedef enum {
     DAN_DC_TRANSFER_BROADCAST = 0, /* message */
@@ -78,9 +78,9 @@ typedef enum {
 /* One transfer, for TX (filled by the caller) and RX (filled by
  * dan_dc_rx_frame). */
 typedef struct {
-    uint64_t timestamp_us;    /* RX: now_us of the first frame; TX: unused */
-    uint64_t signature;       /* data type signature: multi-frame CRC seed */
-    const uint8_t *payload;   /* serialized DSDL, no transfer CRC */
+    uint64_t timestamp_us;  /* RX: now_us of the first frame; TX: unused */
+    uint64_t signature;     /* data type signature: multi-frame CRC seed */
+    const uint8_t *payload; /* serialized DSDL, no transfer CRC */
     size_t payload_len;
     uint16_t data_type_id;    /* messages 0..65535, services 0..255,
                                  anonymous messages 0..3 (2 low bits) */
@@ -113,8 +113,7 @@ int dan_dc_parse_id(uint32_t id, dan_dc_transfer_t *t);
 static inline uint8_t dan_dc_tail(bool sot, bool eot, bool toggle, uint8_t tid)
 {
     return (uint8_t)((sot ? DAN_DC_TAIL_SOT : 0u) | (eot ? DAN_DC_TAIL_EOT : 0u) |
-                     (toggle ? DAN_DC_TAIL_TOGGLE : 0u) |
-                     (tid & DAN_DC_TRANSFER_ID_MASK));
+                     (toggle ? DAN_DC_TAIL_TOGGLE : 0u) | (tid & DAN_DC_TRANSFER_ID_MASK));
 }
 
 /* ---- transfer CRC: CRC-16-CCITT-FALSE (poly 0x1021, init 0xFFFF) ---- */
@@ -140,8 +139,7 @@ size_t dan_dc_tx_frame_count(size_t payload_len);
  * computing it once lets a caller stream frames into a hardware queue one at
  * a time without a frame array. Returns DAN_OK, DAN_ERR_ARG (bad fields,
  * index beyond the last frame, anonymous transfer longer than 7 bytes). */
-int dan_dc_tx_frame(const dan_dc_transfer_t *t, uint16_t crc, size_t index,
-                    dan_can_frame_t *out);
+int dan_dc_tx_frame(const dan_dc_transfer_t *t, uint16_t crc, size_t index, dan_can_frame_t *out);
 
 /* Splits transfer t into frames[0..cap). Returns the frame count, or
  * DAN_ERR_ARG (bad fields) or DAN_ERR_OVERFLOW (cap too small; nothing
@@ -164,8 +162,8 @@ void dan_dc_tid_table_init(dan_dc_tid_table_t *tab);
 /* Returns the transfer ID (0..31) to use for the next transfer of this flow
  * and advances the counter; DAN_ERR_OVERFLOW when the table is full,
  * DAN_ERR_ARG for a bad argument. */
-int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id,
-                    uint8_t transfer_type, uint8_t destination_node);
+int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id, uint8_t transfer_type,
+                    uint8_t destination_node);
 
 /* ---- RX ---- */
 
@@ -173,9 +171,8 @@ int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id,
  * and source, and set *signature to the type's signature (needed to check
  * the CRC of multi-frame transfers). Called on every start frame (and on
  * single-frame transfers); must be cheap. */
-typedef bool (*dan_dc_accept_fn)(void *user, uint16_t data_type_id,
-                                 uint8_t transfer_type, uint8_t source_node,
-                                 uint64_t *signature);
+typedef bool (*dan_dc_accept_fn)(void *user, uint16_t data_type_id, uint8_t transfer_type,
+                                 uint8_t source_node, uint64_t *signature);
 
 typedef struct {
     uint32_t frames;        /* frames handed to dan_dc_rx_frame */
@@ -196,24 +193,24 @@ typedef struct {
 
 /* Reassembly state of one (data type, transfer type, source) flow. */
 typedef struct {
-    uint64_t ts_start_us;   /* first frame of the current/last transfer */
+    uint64_t ts_start_us; /* first frame of the current/last transfer */
     uint64_t signature;
     uint16_t data_type_id;
-    uint16_t len;           /* payload bytes so far (CRC excluded) */
-    uint16_t crc;           /* CRC received in the first frame */
+    uint16_t len; /* payload bytes so far (CRC excluded) */
+    uint16_t crc; /* CRC received in the first frame */
     uint8_t transfer_type;
-    uint8_t source_node;    /* 0 = slot unused */
+    uint8_t source_node; /* 0 = slot unused */
     uint8_t priority;
-    uint8_t transfer_id;    /* of the current/last transfer */
-    uint8_t next_toggle;    /* 0 or DAN_DC_TAIL_TOGGLE */
-    bool in_progress;       /* a multi-frame transfer is being assembled */
-    bool done;              /* transfer_id completed (duplicate filter) */
+    uint8_t transfer_id; /* of the current/last transfer */
+    uint8_t next_toggle; /* 0 or DAN_DC_TAIL_TOGGLE */
+    bool in_progress;    /* a multi-frame transfer is being assembled */
+    bool done;           /* transfer_id completed (duplicate filter) */
     uint8_t buf[DAN_DC_MAX_TRANSFER];
 } dan_dc_rx_session_t;
 
 /* The receiver. Caller-owned; initialize with dan_dc_rx_init. */
 typedef struct {
-    uint8_t local_node;     /* 1..127; 0 = anonymous: services ignored */
+    uint8_t local_node; /* 1..127; 0 = anonymous: services ignored */
     dan_dc_accept_fn accept;
     void *user;
     dan_dc_rx_stats_t stats;
@@ -224,8 +221,7 @@ typedef struct {
 
 /* local_node may be 0 (not yet allocated) and changed later with
  * dan_dc_rx_set_node. accept must not be NULL. */
-void dan_dc_rx_init(dan_dc_rx_t *rx, uint8_t local_node,
-                    dan_dc_accept_fn accept, void *user);
+void dan_dc_rx_init(dan_dc_rx_t *rx, uint8_t local_node, dan_dc_accept_fn accept, void *user);
 void dan_dc_rx_set_node(dan_dc_rx_t *rx, uint8_t local_node);
 
 /* Feeds one received CAN frame. Returns 1 and fills *out when it completes a
@@ -244,8 +240,8 @@ void dan_dc_rx_set_node(dan_dc_rx_t *rx, uint8_t local_node);
  *    deliver a frame twice, and the CRC catches real losses;
  *  - frames of a multi-frame transfer other than the last carry 7 data
  *    bytes; the payload beyond DAN_DC_MAX_TRANSFER drops the transfer. */
-int dan_dc_rx_frame(dan_dc_rx_t *rx, const dan_can_frame_t *frame,
-                    uint64_t now_us, dan_dc_transfer_t *out);
+int dan_dc_rx_frame(dan_dc_rx_t *rx, const dan_can_frame_t *frame, uint64_t now_us,
+                    dan_dc_transfer_t *out);
 
 /* Drops partial transfers and forgets sessions idle longer than the timeout
  * (counted in stats.timeouts when a transfer was in progress). Optional:

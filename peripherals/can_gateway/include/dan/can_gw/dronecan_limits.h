@@ -9,11 +9,11 @@
 #ifndef DAN_CAN_GW_DRONECAN_LIMITS_H
 #define DAN_CAN_GW_DRONECAN_LIMITS_H
 
-#define DAN_DC_ESC_RAW_COMMAND_MAX_CMDS 20u    /* RawCommand.cmd entries */
+#define DAN_DC_ESC_RAW_COMMAND_MAX_CMDS 20u     /* RawCommand.cmd entries */
 #define DAN_DC_ESC_RAW_CMD_MIN          (-8192) /* int14 */
 #define DAN_DC_ESC_RAW_CMD_MAX          8191
-#define DAN_DC_ESC_INDEX_MAX            31u    /* esc.Status.esc_index: uint5 */
-#define DAN_DC_GET_NODE_INFO_NAME_MAX   80u    /* GetNodeInfo.name bytes */
-#define DAN_DC_UNIQUE_ID_SIZE           16u    /* HardwareVersion.unique_id bytes */
+#define DAN_DC_ESC_INDEX_MAX            31u /* esc.Status.esc_index: uint5 */
+#define DAN_DC_GET_NODE_INFO_NAME_MAX   80u /* GetNodeInfo.name bytes */
+#define DAN_DC_UNIQUE_ID_SIZE           16u /* HardwareVersion.unique_id bytes */
 
 #endif /* DAN_CAN_GW_DRONECAN_LIMITS_H */

@@ -58,9 +58,9 @@ extern "C" {
 
 typedef struct {
     uint32_t uptime_sec;
-    uint8_t health;    /* uint2 */
-    uint8_t mode;      /* uint3 */
-    uint8_t sub_mode;  /* uint3 */
+    uint8_t health;   /* uint2 */
+    uint8_t mode;     /* uint3 */
+    uint8_t sub_mode; /* uint3 */
     uint16_t vendor_specific_status_code;
 } dan_dc_node_status_t;
 
@@ -71,9 +71,9 @@ int dan_dc_node_status_decode(dan_dc_node_status_t *m, const uint8_t *buf, size_
  * Request: empty. Response: NodeStatus, SoftwareVersion, HardwareVersion,
  * uint8[<=80] name (TAO). */
 
-#define DAN_DC_GET_NODE_INFO_ID        1u
-#define DAN_DC_GET_NODE_INFO_SIGNATURE 0xEE468A8121C46A9Eull
-#define DAN_DC_COA_MAX                 255u
+#define DAN_DC_GET_NODE_INFO_ID           1u
+#define DAN_DC_GET_NODE_INFO_SIGNATURE    0xEE468A8121C46A9Eull
+#define DAN_DC_COA_MAX                    255u
 /* 7 status + 15 software + 2 + 16 + 1 + 255 hardware + 80 name */
 #define DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE 376u
 
@@ -92,7 +92,7 @@ typedef struct {
     uint8_t major;
     uint8_t minor;
     uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
-    uint8_t coa_len;              /* 0..255 */
+    uint8_t coa_len; /* 0..255 */
     uint8_t certificate_of_authenticity[DAN_DC_COA_MAX];
 } dan_dc_hardware_version_t;
 
@@ -100,7 +100,7 @@ typedef struct {
     dan_dc_node_status_t status;
     dan_dc_software_version_t software_version;
     dan_dc_hardware_version_t hardware_version;
-    uint8_t name_len;             /* 0..80 */
+    uint8_t name_len;                              /* 0..80 */
     char name[DAN_DC_GET_NODE_INFO_NAME_MAX + 1u]; /* decode NUL-terminates;
                                      encode sends name_len bytes */
 } dan_dc_get_node_info_rsp_t;
@@ -108,20 +108,18 @@ typedef struct {
 /* The request has no fields: encode returns 0, decode accepts any bytes. */
 int dan_dc_get_node_info_req_encode(uint8_t *buf, size_t cap);
 int dan_dc_get_node_info_req_decode(const uint8_t *buf, size_t len);
-int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m,
-                                    uint8_t *buf, size_t cap);
-int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m,
-                                    const uint8_t *buf, size_t len);
+int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m, uint8_t *buf, size_t cap);
+int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t *buf, size_t len);
 
 /* ---- uavcan.equipment.esc.RawCommand (message 1030): int14[<=20] cmd ---- */
 
 #define DAN_DC_ESC_RAW_COMMAND_ID        1030u
 #define DAN_DC_ESC_RAW_COMMAND_SIGNATURE 0x217F5C87D7EC951Dull
-#define DAN_DC_ESC_RAW_COMMAND_MAX_SIZE  35u  /* 20 * 14 bits */
+#define DAN_DC_ESC_RAW_COMMAND_MAX_SIZE  35u /* 20 * 14 bits */
 
 typedef struct {
-    uint8_t count;                                   /* 0..20 */
-    int16_t cmd[DAN_DC_ESC_RAW_COMMAND_MAX_CMDS];    /* saturated to int14 */
+    uint8_t count;                                /* 0..20 */
+    int16_t cmd[DAN_DC_ESC_RAW_COMMAND_MAX_CMDS]; /* saturated to int14 */
 } dan_dc_esc_raw_command_t;
 
 int dan_dc_esc_raw_command_encode(const dan_dc_esc_raw_command_t *m, uint8_t *buf, size_t cap);
@@ -131,7 +129,7 @@ int dan_dc_esc_raw_command_decode(dan_dc_esc_raw_command_t *m, const uint8_t *bu
 
 #define DAN_DC_ESC_STATUS_ID        1034u
 #define DAN_DC_ESC_STATUS_SIGNATURE 0xA9AF28AEA2FBB254ull
-#define DAN_DC_ESC_STATUS_MAX_SIZE  14u   /* 110 bits */
+#define DAN_DC_ESC_STATUS_MAX_SIZE  14u /* 110 bits */
 
 /* The float16 fields stay bit patterns: the gateway passes them to the FC
  * unchanged (dan_f16_to_f32() / dan_f16_from_f32() in f16.h convert). */
@@ -140,9 +138,9 @@ typedef struct {
     uint16_t voltage_f16;     /* V */
     uint16_t current_f16;     /* A, negative when braking */
     uint16_t temperature_f16; /* K */
-    int32_t rpm;            /* int18 */
+    int32_t rpm;              /* int18 */
     uint8_t power_rating_pct; /* uint7 */
-    uint8_t esc_index;      /* uint5 */
+    uint8_t esc_index;        /* uint5 */
 } dan_dc_esc_status_t;
 
 int dan_dc_esc_status_encode(const dan_dc_esc_status_t *m, uint8_t *buf, size_t cap);
@@ -152,27 +150,27 @@ int dan_dc_esc_status_decode(dan_dc_esc_status_t *m, const uint8_t *buf, size_t 
 
 #define DAN_DC_ESC_STATUS_EXTENDED_ID        1036u
 #define DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE 0x02DC203C50960EDCull
-#define DAN_DC_ESC_STATUS_EXTENDED_MAX_SIZE  7u   /* 56 bits */
+#define DAN_DC_ESC_STATUS_EXTENDED_MAX_SIZE  7u /* 56 bits */
 
 typedef struct {
-    uint8_t input_pct;           /* uint7 */
-    uint8_t output_pct;          /* uint7 */
+    uint8_t input_pct;              /* uint7 */
+    uint8_t output_pct;             /* uint7 */
     int16_t motor_temperature_degC; /* int9 */
-    uint16_t motor_angle;        /* uint9, degrees */
-    uint32_t status_flags;       /* uint19 */
-    uint8_t esc_index;           /* uint5 */
+    uint16_t motor_angle;           /* uint9, degrees */
+    uint32_t status_flags;          /* uint19 */
+    uint8_t esc_index;              /* uint5 */
 } dan_dc_esc_status_extended_t;
 
-int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m,
-                                      uint8_t *buf, size_t cap);
-int dan_dc_esc_status_extended_decode(dan_dc_esc_status_extended_t *m,
-                                      const uint8_t *buf, size_t len);
+int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m, uint8_t *buf,
+                                      size_t cap);
+int dan_dc_esc_status_extended_decode(dan_dc_esc_status_extended_t *m, const uint8_t *buf,
+                                      size_t len);
 
 /* ---- uavcan.equipment.safety.ArmingStatus (message 1100) ---- */
 
-#define DAN_DC_ARMING_STATUS_ID        1100u
-#define DAN_DC_ARMING_STATUS_SIGNATURE 0x8700F375556A8003ull
-#define DAN_DC_ARMING_STATUS_MAX_SIZE  1u
+#define DAN_DC_ARMING_STATUS_ID          1100u
+#define DAN_DC_ARMING_STATUS_SIGNATURE   0x8700F375556A8003ull
+#define DAN_DC_ARMING_STATUS_MAX_SIZE    1u
 #define DAN_DC_ARMING_STATUS_DISARMED    0u
 #define DAN_DC_ARMING_STATUS_FULLY_ARMED 255u
 
@@ -198,18 +196,18 @@ int dan_dc_arming_status_decode(dan_dc_arming_status_t *m, const uint8_t *buf, s
 #define DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX 120u
 #define DAN_DC_TUNNEL_TARGETTED_MAX_SIZE   126u
 #define DAN_DC_TUNNEL_OPTION_LOCK_PORT     1u
-#define DAN_DC_TUNNEL_SERIAL_ID_MIN        (-16)       /* int5 */
+#define DAN_DC_TUNNEL_SERIAL_ID_MIN        (-16) /* int5 */
 #define DAN_DC_TUNNEL_SERIAL_ID_MAX        15
-#define DAN_DC_TUNNEL_OPTIONS_MAX          15u         /* uint4 */
-#define DAN_DC_TUNNEL_BAUD_MAX             0xFFFFFFu   /* uint24 */
+#define DAN_DC_TUNNEL_OPTIONS_MAX          15u       /* uint4 */
+#define DAN_DC_TUNNEL_BAUD_MAX             0xFFFFFFu /* uint24 */
 
 typedef struct {
-    uint8_t protocol;     /* DAN_DC_TUNNEL_* */
-    uint8_t target_node;  /* uint7 */
-    int8_t serial_id;     /* int5; -1 conventionally means "any/default" */
-    uint8_t options;      /* uint4: DAN_DC_TUNNEL_OPTION_* */
-    uint32_t baudrate;    /* uint24; 0 = leave unchanged */
-    uint8_t buffer_len;   /* 0..120 */
+    uint8_t protocol;    /* DAN_DC_TUNNEL_* */
+    uint8_t target_node; /* uint7 */
+    int8_t serial_id;    /* int5; -1 conventionally means "any/default" */
+    uint8_t options;     /* uint4: DAN_DC_TUNNEL_OPTION_* */
+    uint32_t baudrate;   /* uint24; 0 = leave unchanged */
+    uint8_t buffer_len;  /* 0..120 */
     uint8_t buffer[DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX];
 } dan_dc_tunnel_targetted_t;
 
@@ -226,7 +224,7 @@ int dan_dc_tunnel_targetted_decode(dan_dc_tunnel_targetted_t *m, const uint8_t *
 typedef struct {
     uint8_t protocol;
     uint8_t channel_id;
-    uint8_t buffer_len;   /* 0..60 */
+    uint8_t buffer_len; /* 0..60 */
     uint8_t buffer[DAN_DC_TUNNEL_BROADCAST_BUFFER_MAX];
 } dan_dc_tunnel_broadcast_t;
 
@@ -236,8 +234,7 @@ int dan_dc_tunnel_broadcast_decode(dan_dc_tunnel_broadcast_t *m, const uint8_t *
 /* Signature of a data type this file knows, by transfer kind (messages:
  * DAN_DC_TRANSFER_BROADCAST; services: either request or response) and ID;
  * false if unknown. Handy as the core of a dan_dc_accept_fn. */
-bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id,
-                           uint64_t *signature);
+bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id, uint64_t *signature);
 
 #ifdef __cplusplus
 }

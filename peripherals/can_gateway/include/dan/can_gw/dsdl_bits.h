@@ -27,12 +27,11 @@ extern "C" {
 
 /* Writes bit_len (1..64) low bits of value at bit_offset of buf, which must
  * hold bit_offset + bit_len bits (caller checks). */
-void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len,
-                          uint64_t value);
+void dan_dc_encode_scalar(uint8_t *buf, size_t bit_offset, unsigned bit_len, uint64_t value);
 /* Reads bit_len (1..64) bits at bit_offset; sign-extends when is_signed.
  * buf must hold bit_offset + bit_len bits (caller checks). */
-uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset,
-                              unsigned bit_len, bool is_signed);
+uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset, unsigned bit_len,
+                              bool is_signed);
 
 /* Bounds-checked bit writer. The first failure sets a sticky error and
  * later puts do nothing; check once with dan_dc_bw_finish. With buf NULL it
@@ -40,16 +39,16 @@ uint64_t dan_dc_decode_scalar(const uint8_t *buf, size_t bit_offset,
  * (DSDL's default "saturated" cast mode). */
 typedef struct {
     uint8_t *buf;
-    size_t cap;   /* bytes */
-    size_t bit;   /* bits written (or counted) so far */
+    size_t cap; /* bytes */
+    size_t bit; /* bits written (or counted) so far */
     bool error;
 } dan_dc_bw_t;
 
 void dan_dc_bw_init(dan_dc_bw_t *w, uint8_t *buf, size_t cap);
-void dan_dc_put_uint(dan_dc_bw_t *w, unsigned bits, uint64_t v);  /* 1..64 */
-void dan_dc_put_int(dan_dc_bw_t *w, unsigned bits, int64_t v);    /* 2..64 */
+void dan_dc_put_uint(dan_dc_bw_t *w, unsigned bits, uint64_t v); /* 1..64 */
+void dan_dc_put_int(dan_dc_bw_t *w, unsigned bits, int64_t v);   /* 2..64 */
 void dan_dc_put_bool(dan_dc_bw_t *w, bool v);
-void dan_dc_put_f16(dan_dc_bw_t *w, float v);  /* saturates finite values */
+void dan_dc_put_f16(dan_dc_bw_t *w, float v); /* saturates finite values */
 void dan_dc_put_f32(dan_dc_bw_t *w, float v);
 void dan_dc_put_bytes(dan_dc_bw_t *w, const uint8_t *p, size_t n); /* uint8[n] */
 /* Length prefix of a dynamic array: dan_dc_array_len_bits(max) bits. */
@@ -62,14 +61,14 @@ int dan_dc_bw_finish(const dan_dc_bw_t *w);
  * returns 0; nothing outside [data, data+len) is read. */
 typedef struct {
     const uint8_t *data;
-    size_t len;   /* bytes */
-    size_t bit;   /* bits read so far */
+    size_t len; /* bytes */
+    size_t bit; /* bits read so far */
     bool error;
 } dan_dc_br_t;
 
 void dan_dc_br_init(dan_dc_br_t *r, const uint8_t *data, size_t len);
-uint64_t dan_dc_get_uint(dan_dc_br_t *r, unsigned bits);  /* 1..64 */
-int64_t dan_dc_get_int(dan_dc_br_t *r, unsigned bits);    /* 2..64 */
+uint64_t dan_dc_get_uint(dan_dc_br_t *r, unsigned bits); /* 1..64 */
+int64_t dan_dc_get_int(dan_dc_br_t *r, unsigned bits);   /* 2..64 */
 bool dan_dc_get_bool(dan_dc_br_t *r);
 float dan_dc_get_f16(dan_dc_br_t *r);
 float dan_dc_get_f32(dan_dc_br_t *r);

@@ -27,39 +27,39 @@ extern "C" {
 #endif
 
 /* ---- codes (block 0x40..0x4F; 0x40 IDENTIFY, 0x41 CONFIGURE) ---- */
-#define DAN_GW_CODE_ESC_CMD     0x42u  /* ESC command -> one ESC's telemetry */
-#define DAN_GW_CODE_ESC_TELEM   0x43u  /* paged telemetry of every ESC */
-#define DAN_GW_CODE_ARM         0x44u  /* armed state -> ArmingStatus */
-#define DAN_GW_CODE_CONFIG      0x45u  /* read / set gateway settings */
-#define DAN_GW_CODE_STATS       0x46u  /* counters of both sides */
-#define DAN_GW_CODE_NODES       0x47u  /* paged node table (NodeStatus) */
-#define DAN_GW_CODE_NODE_INFO   0x48u  /* one node's GetNodeInfo data */
-#define DAN_GW_CODE_TUN_OPEN    0x49u  /* open / configure / close a tunnel */
-#define DAN_GW_CODE_TUN_XFER    0x4Au  /* tunnel write + read, by offset */
-#define DAN_GW_CODE_CAN_SEND    0x4Bu  /* raw CAN frames to the bus */
-#define DAN_GW_CODE_CAN_RECV    0x4Cu  /* filtered raw CAN frames from the bus */
-#define DAN_GW_CODE_CAN_FILTER  0x4Du  /* raw receive filter */
+#define DAN_GW_CODE_ESC_CMD    0x42u /* ESC command -> one ESC's telemetry */
+#define DAN_GW_CODE_ESC_TELEM  0x43u /* paged telemetry of every ESC */
+#define DAN_GW_CODE_ARM        0x44u /* armed state -> ArmingStatus */
+#define DAN_GW_CODE_CONFIG     0x45u /* read / set gateway settings */
+#define DAN_GW_CODE_STATS      0x46u /* counters of both sides */
+#define DAN_GW_CODE_NODES      0x47u /* paged node table (NodeStatus) */
+#define DAN_GW_CODE_NODE_INFO  0x48u /* one node's GetNodeInfo data */
+#define DAN_GW_CODE_TUN_OPEN   0x49u /* open / configure / close a tunnel */
+#define DAN_GW_CODE_TUN_XFER   0x4Au /* tunnel write + read, by offset */
+#define DAN_GW_CODE_CAN_SEND   0x4Bu /* raw CAN frames to the bus */
+#define DAN_GW_CODE_CAN_RECV   0x4Cu /* filtered raw CAN frames from the bus */
+#define DAN_GW_CODE_CAN_FILTER 0x4Du /* raw receive filter */
 /* 0x4E, 0x4F reserved */
 
 /* ---- limits of the message set ---- */
-#define DAN_GW_ESC_MAX          DAN_DC_ESC_RAW_COMMAND_MAX_CMDS  /* channels per ESC_CMD */
-#define DAN_GW_ESC_INDEX_MAX    DAN_DC_ESC_INDEX_MAX
-#define DAN_GW_TUN_CHUNK_MAX    128u   /* data bytes in one TUN_XFER either way */
-#define DAN_GW_CAN_FRAMES_MAX   11u    /* frames in one CAN_SEND / CAN_RECV */
-#define DAN_GW_FILTERS_MAX      16u    /* filters in one CAN_FILTER */
-#define DAN_GW_NONE             0xFFu  /* "no next page" index */
+#define DAN_GW_ESC_MAX        DAN_DC_ESC_RAW_COMMAND_MAX_CMDS /* channels per ESC_CMD */
+#define DAN_GW_ESC_INDEX_MAX  DAN_DC_ESC_INDEX_MAX
+#define DAN_GW_TUN_CHUNK_MAX  128u  /* data bytes in one TUN_XFER either way */
+#define DAN_GW_CAN_FRAMES_MAX 11u   /* frames in one CAN_SEND / CAN_RECV */
+#define DAN_GW_FILTERS_MAX    16u   /* filters in one CAN_FILTER */
+#define DAN_GW_NONE           0xFFu /* "no next page" index */
 
 /* Gateway flags byte, in several responses. */
-#define DAN_GW_FLAG_ARMED       0x01u  /* ArmingStatus being broadcast: armed */
-#define DAN_GW_FLAG_FAILSAFE    0x02u  /* failsafe active (commands stopped) */
-#define DAN_GW_FLAG_CAN_OK      0x04u  /* CAN interface up */
+#define DAN_GW_FLAG_ARMED    0x01u /* ArmingStatus being broadcast: armed */
+#define DAN_GW_FLAG_FAILSAFE 0x02u /* failsafe active (commands stopped) */
+#define DAN_GW_FLAG_CAN_OK   0x04u /* CAN interface up */
 
 /* ---- ESC command (0x42) ----
  * Request: uint8 n (1..20), then the n int14 values bit-packed: value i
  * occupies stream bits 14i..14i+13, least significant bit first, stream
  * bit k is bit (k % 8) of byte k / 8; the last byte is zero-padded.
  * Response: a telemetry header and 0 or 1 records (see below). */
-#define DAN_GW_ESC_CMD_SIZE(n)  (1u + ((n) * 14u + 7u) / 8u)
+#define DAN_GW_ESC_CMD_SIZE(n) (1u + ((n)*14u + 7u) / 8u)
 
 /* Values outside -8192..8191 are DAN_ERR_ARG (no silent clipping). */
 int dan_gw_msg_esc_cmd_encode(const int16_t *values, size_t n, uint8_t *out, size_t cap);
@@ -69,19 +69,19 @@ int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, siz
 /* ---- ESC telemetry record (ESC_CMD and ESC_TELEM responses) ----
  * Floats stay IEEE binary16 bit patterns exactly as the ESC sent them in
  * esc.Status (dan_f16_to_f32() in dan/can_gw/f16.h converts). */
-#define DAN_GW_TELEM_STATUS     0x01u  /* esc.Status fields valid */
-#define DAN_GW_TELEM_EXT        0x02u  /* esc.StatusExtended fields valid */
+#define DAN_GW_TELEM_STATUS 0x01u /* esc.Status fields valid */
+#define DAN_GW_TELEM_EXT    0x02u /* esc.StatusExtended fields valid */
 
 typedef struct {
-    uint8_t esc_index;         /* 0..31 */
-    uint8_t node_id;           /* sender of the newest message */
-    uint8_t flags;             /* DAN_GW_TELEM_* */
-    uint8_t power_pct;         /* esc.Status.power_rating_pct */
-    uint32_t age_ms;           /* since esc.Status arrived */
-    uint16_t voltage_f16;      /* V */
-    uint16_t current_f16;      /* A */
-    uint16_t temperature_f16;  /* K */
-    int32_t rpm;               /* int18 */
+    uint8_t esc_index;        /* 0..31 */
+    uint8_t node_id;          /* sender of the newest message */
+    uint8_t flags;            /* DAN_GW_TELEM_* */
+    uint8_t power_pct;        /* esc.Status.power_rating_pct */
+    uint32_t age_ms;          /* since esc.Status arrived */
+    uint16_t voltage_f16;     /* V */
+    uint16_t current_f16;     /* A */
+    uint16_t temperature_f16; /* K */
+    int32_t rpm;              /* int18 */
     uint32_t error_count;
     /* StatusExtended */
     uint32_t ext_age_ms;
@@ -89,7 +89,7 @@ typedef struct {
     uint8_t output_pct;
     int16_t motor_temp_c;
     uint16_t motor_angle;
-    uint32_t status_flags;     /* uint19 */
+    uint32_t status_flags; /* uint19 */
 } dan_gw_telem_t;
 
 /* Header of both telemetry responses: uint8 gw_flags, uint8 aux (ESC_CMD:
@@ -114,8 +114,8 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
 /* ---- ARM (0x44) ----
  * Request: uint8 status, the ArmingStatus value (0 disarmed, 255 fully
  * armed; others are sent on as they are). Response: uint8 gw_flags. */
-#define DAN_GW_ARM_DISARMED     0u     /* ArmingStatus.STATUS_DISARMED */
-#define DAN_GW_ARM_FULLY_ARMED  255u   /* ArmingStatus.STATUS_FULLY_ARMED */
+#define DAN_GW_ARM_DISARMED    0u   /* ArmingStatus.STATUS_DISARMED */
+#define DAN_GW_ARM_FULLY_ARMED 255u /* ArmingStatus.STATUS_FULLY_ARMED */
 
 /* ---- CONFIG (0x45) ----
  * Request: uint8 set_mask, then for each set bit in bit order its field:
@@ -123,18 +123,18 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
  *   (1..50). An empty request or mask 0 only reads.
  * Response: uint8 node_id, uvarint esc_timeout_ms, uvarint arming_rate_hz,
  *   uint8 gw_flags. Values out of range are malformed (error frame). */
-#define DAN_GW_CFG_ESC_TIMEOUT  0x01u
-#define DAN_GW_CFG_ARMING_RATE  0x02u
-#define DAN_GW_ESC_TIMEOUT_MIN  50u
-#define DAN_GW_ESC_TIMEOUT_MAX  60000u
-#define DAN_GW_ARMING_RATE_MIN  1u
-#define DAN_GW_ARMING_RATE_MAX  50u
-#define DAN_GW_CONFIG_REQ_MAX   11u    /* mask + two 5-byte uvarints */
+#define DAN_GW_CFG_ESC_TIMEOUT 0x01u
+#define DAN_GW_CFG_ARMING_RATE 0x02u
+#define DAN_GW_ESC_TIMEOUT_MIN 50u
+#define DAN_GW_ESC_TIMEOUT_MAX 60000u
+#define DAN_GW_ARMING_RATE_MIN 1u
+#define DAN_GW_ARMING_RATE_MAX 50u
+#define DAN_GW_CONFIG_REQ_MAX  11u /* mask + two 5-byte uvarints */
 
 typedef struct {
-    uint8_t set_mask;          /* request only */
-    uint8_t node_id;           /* response only */
-    uint8_t gw_flags;          /* response only */
+    uint8_t set_mask; /* request only */
+    uint8_t node_id;  /* response only */
+    uint8_t gw_flags; /* response only */
     uint32_t esc_timeout_ms;
     uint32_t arming_rate_hz;
 } dan_gw_config_t;
@@ -149,26 +149,26 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
  * (later versions append; a decoder keeps the ones it knows). */
 /* X(ENUM, name, what): one list for the enum, the names (docs/PROTOCOL.md)
  * and the order on the wire. */
-#define DAN_GW_STATS(X)                                                                         \
-    X(DAN_FRAMES, dan_frames)           /* valid DAN frames received */                          \
-    X(DAN_CRC, dan_crc_errors)          /* DAN frames with a bad CRC */                          \
-    X(DAN_UNKNOWN, dan_unknown)         /* frames with codes not ours */                         \
-    X(DAN_ERRORS_SENT, dan_errors_sent) /* error frames sent */                                  \
-    X(DAN_REQUESTS, dan_requests)       /* gateway requests */                                   \
-    X(CAN_TX, can_tx)                   /* CAN frames queued for the bus */                      \
-    X(CAN_RX, can_rx)                   /* CAN frames received */                                \
-    X(CAN_TX_DROPPED, can_tx_dropped)   /* CAN output queue full */                              \
-    X(CAN_ERRORS, can_errors)           /* adapter / bus errors */                               \
-    X(DC_TRANSFERS, dc_transfers)       /* DroneCAN transfers received */                        \
-    X(DC_CRC, dc_crc_errors)            /* DroneCAN transfer CRC errors */                       \
-    X(DC_ERRORS, dc_errors)             /* other DroneCAN reassembly errors */                   \
-    X(ESC_CMDS, esc_cmds)               /* ESC commands received */                              \
-    X(FAILSAFES, failsafes)             /* failsafe events */                                    \
-    X(FAILSAFE_ACTIVE, failsafe_active) /* 1 while active */                                     \
-    X(TUN_DROPPED, tun_dropped)         /* tunnel bytes dropped (both ways) */                   \
-    X(RAW_DROPPED, raw_dropped)         /* raw frames dropped (receive ring full) */             \
-    X(NODES, nodes)                     /* nodes in the table */                                 \
-    X(BAD_CHECKS, bad_checks)           /* requests whose seal did not match (dropped) */        \
+#define DAN_GW_STATS(X)                                                                   \
+    X(DAN_FRAMES, dan_frames)           /* valid DAN frames received */                   \
+    X(DAN_CRC, dan_crc_errors)          /* DAN frames with a bad CRC */                   \
+    X(DAN_UNKNOWN, dan_unknown)         /* frames with codes not ours */                  \
+    X(DAN_ERRORS_SENT, dan_errors_sent) /* error frames sent */                           \
+    X(DAN_REQUESTS, dan_requests)       /* gateway requests */                            \
+    X(CAN_TX, can_tx)                   /* CAN frames queued for the bus */               \
+    X(CAN_RX, can_rx)                   /* CAN frames received */                         \
+    X(CAN_TX_DROPPED, can_tx_dropped)   /* CAN output queue full */                       \
+    X(CAN_ERRORS, can_errors)           /* adapter / bus errors */                        \
+    X(DC_TRANSFERS, dc_transfers)       /* DroneCAN transfers received */                 \
+    X(DC_CRC, dc_crc_errors)            /* DroneCAN transfer CRC errors */                \
+    X(DC_ERRORS, dc_errors)             /* other DroneCAN reassembly errors */            \
+    X(ESC_CMDS, esc_cmds)               /* ESC commands received */                       \
+    X(FAILSAFES, failsafes)             /* failsafe events */                             \
+    X(FAILSAFE_ACTIVE, failsafe_active) /* 1 while active */                              \
+    X(TUN_DROPPED, tun_dropped)         /* tunnel bytes dropped (both ways) */            \
+    X(RAW_DROPPED, raw_dropped)         /* raw frames dropped (receive ring full) */      \
+    X(NODES, nodes)                     /* nodes in the table */                          \
+    X(BAD_CHECKS, bad_checks)           /* requests whose seal did not match (dropped) */ \
     X(NODES_DROPPED, nodes_dropped)     /* new nodes with no room in the table */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
@@ -188,10 +188,10 @@ int dan_gw_msg_stats_decode(uint32_t *v, size_t cap, size_t *n, const uint8_t *p
  *   uint8 node_id, uint8 health | mode << 2 | sub_mode << 5,
  *   uvarint uptime_sec, uint16 vendor_status, uvarint age_ms,
  *   uint8 info_state (DAN_GW_INFO_*). */
-#define DAN_GW_INFO_NONE        0u     /* not asked yet */
-#define DAN_GW_INFO_PENDING     1u     /* GetNodeInfo requested */
-#define DAN_GW_INFO_VALID       2u
-#define DAN_GW_INFO_FAILED      3u     /* no answer after the retries */
+#define DAN_GW_INFO_NONE    0u /* not asked yet */
+#define DAN_GW_INFO_PENDING 1u /* GetNodeInfo requested */
+#define DAN_GW_INFO_VALID   2u
+#define DAN_GW_INFO_FAILED  3u /* no answer after the retries */
 
 typedef struct {
     uint8_t node_id;
@@ -240,9 +240,9 @@ int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t 
  * uint8 options (Targetted options, bit0 LOCK_PORT), uvarint baud.
  * Opening (again) discards buffered data and restarts both offsets at 0.
  * Response: uint8 port, uint8 result (0 OK, 1 refused: bad port or field). */
-#define DAN_GW_TUN_CLOSED       0u
-#define DAN_GW_TUN_TARGETTED    1u
-#define DAN_GW_TUN_BROADCAST    2u
+#define DAN_GW_TUN_CLOSED    0u
+#define DAN_GW_TUN_TARGETTED 1u
+#define DAN_GW_TUN_BROADCAST 2u
 
 typedef struct {
     uint8_t port;
@@ -254,7 +254,7 @@ typedef struct {
     uint32_t baud;
 } dan_gw_tun_open_t;
 
-#define DAN_GW_TUN_OPEN_REQ_MAX 11u    /* six bytes + a 5-byte uvarint */
+#define DAN_GW_TUN_OPEN_REQ_MAX 11u /* six bytes + a 5-byte uvarint */
 int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap);
 int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len);
 
@@ -271,12 +271,12 @@ int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t le
  * full buffer, CAN -> DAN), array data (<= min(rd_max, 128)). */
 typedef struct {
     uint8_t port;
-    uint32_t wr_offset;        /* req: offset of data; rsp: wr_next */
-    uint32_t wr_space;         /* rsp */
+    uint32_t wr_offset; /* req: offset of data; rsp: wr_next */
+    uint32_t wr_space;  /* rsp */
     uint32_t rd_offset;
-    uint32_t rd_max;           /* req */
-    uint32_t rd_dropped;       /* rsp */
-    const uint8_t *data;       /* decode: a view into the payload */
+    uint32_t rd_max;     /* req */
+    uint32_t rd_dropped; /* rsp */
+    const uint8_t *data; /* decode: a view into the payload */
     size_t len;
 } dan_gw_tun_xfer_t;
 
@@ -288,8 +288,8 @@ int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_
 /* ---- CAN frame item (CAN_SEND, CAN_RECV) ----
  * uint32 id_flags (bits 0..28 identifier, bit 31 extended, bit 30 RTR),
  * uint8 dlc (0..8), dlc data bytes (none for RTR). */
-#define DAN_GW_CAN_ID_EXT       0x80000000u
-#define DAN_GW_CAN_ID_RTR       0x40000000u
+#define DAN_GW_CAN_ID_EXT 0x80000000u
+#define DAN_GW_CAN_ID_RTR 0x40000000u
 
 void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f);
 size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f);
@@ -300,18 +300,18 @@ int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f);
  * Response: uint8 seq, uint8 accepted, uvarint queue_free. */
 typedef struct {
     uint8_t seq;
-    uint8_t count;             /* req: frames; rsp: accepted */
-    uint32_t queue_free;       /* rsp */
+    uint8_t count;       /* req: frames; rsp: accepted */
+    uint32_t queue_free; /* rsp */
 } dan_gw_can_send_t;
 
 /* CAN_RECV request: uvarint next_seq (frames before it were received),
  * uint8 max. Response: uvarint first_seq (of the first frame here),
  * uvarint dropped (total), uint8 count, frames. */
-#define DAN_GW_CAN_RECV_HDR_MAX 11u    /* the response header at its largest */
+#define DAN_GW_CAN_RECV_HDR_MAX 11u /* the response header at its largest */
 typedef struct {
-    uint32_t seq;              /* req: next_seq; rsp: first_seq */
-    uint32_t dropped;          /* rsp */
-    uint8_t count;             /* req: max; rsp: frames */
+    uint32_t seq;     /* req: next_seq; rsp: first_seq */
+    uint32_t dropped; /* rsp */
+    uint8_t count;    /* req: max; rsp: frames */
 } dan_gw_can_recv_t;
 
 /* CAN_FILTER request: uint8 op (DAN_GW_FILTER_*), uint8 count (<= 16),
@@ -320,13 +320,13 @@ typedef struct {
  * No entries: nothing passes (the default). ADD of an entry present and
  * REMOVE of one absent do nothing, so retries are harmless.
  * Response: uint8 result (0 OK, 1 table full), uint8 count, the table. */
-#define DAN_GW_FILTER_REPLACE   0u
-#define DAN_GW_FILTER_ADD       1u
-#define DAN_GW_FILTER_REMOVE    2u
-#define DAN_GW_FILTER_READ      3u
+#define DAN_GW_FILTER_REPLACE 0u
+#define DAN_GW_FILTER_ADD     1u
+#define DAN_GW_FILTER_REMOVE  2u
+#define DAN_GW_FILTER_READ    3u
 
 typedef struct {
-    uint32_t id;               /* with DAN_GW_CAN_ID_EXT */
+    uint32_t id; /* with DAN_GW_CAN_ID_EXT */
     uint32_t mask;
 } dan_gw_filter_t;
 
@@ -336,7 +336,7 @@ void dan_gw_msg_can_send_req_put(dan_writer_t *w, const dan_gw_can_send_t *s);
 int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s);
 int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap);
 int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len);
-#define DAN_GW_CAN_RECV_REQ_MAX 6u     /* a 5-byte uvarint + max */
+#define DAN_GW_CAN_RECV_REQ_MAX 6u /* a 5-byte uvarint + max */
 int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap);
 int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_t len);
 void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q);
@@ -367,8 +367,8 @@ static inline int32_t dan_gw_off_diff(uint32_t a, uint32_t b)
  * transport (docs/PROTOCOL.md 7).
  */
 #define DAN_GW_SEAL_SIZE 2u
-#define DAN_GW_REQUEST  0u
-#define DAN_GW_RESPONSE 1u
+#define DAN_GW_REQUEST   0u
+#define DAN_GW_RESPONSE  1u
 
 /* True for the codes that carry a seal. */
 bool dan_gw_sealed_code(uint32_t code);

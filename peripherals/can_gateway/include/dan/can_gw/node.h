@@ -71,9 +71,9 @@ extern "C" {
 #define DAN_GW_NODE_INFO_RETRY_US 1000000u
 
 #define DAN_GW_NODE_DEFAULT_ID          10u
-#define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT 500u   /* ms */
-#define DAN_GW_NODE_DEFAULT_ARMING_RATE 2u     /* Hz */
-#define DAN_GW_NODE_NAME "org.dan.can_gateway"
+#define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT 500u /* ms */
+#define DAN_GW_NODE_DEFAULT_ARMING_RATE 2u   /* Hz */
+#define DAN_GW_NODE_NAME                "org.dan.can_gateway"
 
 typedef struct {
     uint8_t node_id;            /* 1..127 (default 10) */
@@ -84,8 +84,8 @@ typedef struct {
     uint32_t vcs_commit;
     uint8_t hw_major, hw_minor;
     uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
-    const char *name;           /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
-    uint32_t raw_seq_start;     /* first raw-frame sequence number: give each boot a
+    const char *name;       /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
+    uint32_t raw_seq_start; /* first raw-frame sequence number: give each boot a
                                    different one (the daemon uses the clock), so a
                                    client's acknowledgement from before a restart
                                    never discards new frames */
@@ -95,18 +95,18 @@ void dan_gw_node_config_default(dan_gw_node_config_t *c);
 
 /* Counters kept here; STATS adds the DAN engine's. */
 typedef struct {
-    uint32_t can_tx;            /* frames queued */
+    uint32_t can_tx; /* frames queued */
     uint32_t can_rx;
-    uint32_t can_tx_dropped;    /* frames of transfers that did not fit */
-    uint32_t can_errors;        /* reported by the daemon */
+    uint32_t can_tx_dropped; /* frames of transfers that did not fit */
+    uint32_t can_errors;     /* reported by the daemon */
     uint32_t esc_cmds;
     uint32_t failsafes;
-    uint32_t tun_dropped;       /* bytes, both ways */
-    uint32_t raw_dropped;       /* raw receive ring full */
-    uint32_t nodes_dropped;     /* node table full */
-    uint32_t info_requests;     /* GetNodeInfo requests sent */
-    uint32_t dan_requests;      /* gateway requests handled */
-    uint32_t bad_checks;        /* requests whose seal failed (dropped) */
+    uint32_t tun_dropped;   /* bytes, both ways */
+    uint32_t raw_dropped;   /* raw receive ring full */
+    uint32_t nodes_dropped; /* node table full */
+    uint32_t info_requests; /* GetNodeInfo requests sent */
+    uint32_t dan_requests;  /* gateway requests handled */
+    uint32_t bad_checks;    /* requests whose seal failed (dropped) */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -119,43 +119,43 @@ typedef struct {
 
 /* One ESC index's newest telemetry (gw_node_esc.c). */
 typedef struct {
-    dan_gw_telem_t t;           /* age fields filled when sent */
+    dan_gw_telem_t t; /* age fields filled when sent */
     uint64_t status_us, ext_us;
 } dan_gw_node_esc_t;
 
 /* ESC commands, telemetry and the failsafe (gw_node_esc.c). */
 typedef struct {
-    bool active;                /* commands have been received */
-    bool failsafe;              /* failsafe active */
-    uint8_t n;                  /* channel count last used */
-    uint8_t rr;                 /* round-robin position of telemetry records */
+    bool active;   /* commands have been received */
+    bool failsafe; /* failsafe active */
+    uint8_t n;     /* channel count last used */
+    uint8_t rr;    /* round-robin position of telemetry records */
     uint64_t last_cmd_us;
     dan_gw_node_esc_t slot[DAN_GW_NODE_ESC_SLOTS];
 } dan_gw_node_escs_t;
 
 /* ArmingStatus (gw_node_arming.c). */
 typedef struct {
-    uint8_t status;             /* ArmingStatus value broadcast */
-    uint64_t due_us;            /* next periodic broadcast */
+    uint8_t status;  /* ArmingStatus value broadcast */
+    uint64_t due_us; /* next periodic broadcast */
 } dan_gw_node_arming_t;
 
 /* One node of the table (gw_node_table.c). */
 typedef struct {
-    dan_gw_node_entry_t e;      /* age_ms filled when sent */
+    dan_gw_node_entry_t e; /* age_ms filled when sent */
     uint64_t seen_us;
     uint64_t info_due_us;
     uint8_t info_tries;
-    uint8_t info_tid;           /* our GetNodeInfo transfer ID to this node */
+    uint8_t info_tid; /* our GetNodeInfo transfer ID to this node */
     dan_gw_node_info_t info;
 } dan_gw_node_slot_t;
 
 /* One tunnel port (gw_node_tunnel.c). */
 typedef struct {
-    dan_gw_tun_open_t cfg;      /* cfg.mode DAN_GW_TUN_CLOSED: unused */
-    uint32_t wr_next;           /* DAN -> CAN bytes accepted */
-    uint32_t tx_len;            /* of them, not yet sent on CAN */
-    uint32_t rd_base;           /* CAN -> DAN: oldest byte kept */
-    uint32_t rd_end;            /* next byte offset */
+    dan_gw_tun_open_t cfg; /* cfg.mode DAN_GW_TUN_CLOSED: unused */
+    uint32_t wr_next;      /* DAN -> CAN bytes accepted */
+    uint32_t tx_len;       /* of them, not yet sent on CAN */
+    uint32_t rd_base;      /* CAN -> DAN: oldest byte kept */
+    uint32_t rd_end;       /* next byte offset */
     uint32_t rd_dropped;
     uint64_t last_tx_us;
     uint8_t tx[DAN_GW_NODE_TUN_TX_BUF];
@@ -167,11 +167,11 @@ typedef struct {
     dan_gw_filter_t filters[DAN_GW_FILTERS_MAX];
     uint8_t nfilters;
     bool send_seq_valid;
-    uint16_t send_digest;       /* of the last accepted CAN_SEND (retry check) */
-    uint8_t send_seq;           /* last CAN_SEND seq accepted */
+    uint16_t send_digest; /* of the last accepted CAN_SEND (retry check) */
+    uint8_t send_seq;     /* last CAN_SEND seq accepted */
     uint8_t send_accepted;
     dan_can_frame_t ring[DAN_GW_NODE_RAW_RX];
-    uint32_t first;             /* sequence number of ring[head] */
+    uint32_t first; /* sequence number of ring[head] */
     uint16_t head, len;
 } dan_gw_node_raw_t;
 
@@ -183,7 +183,7 @@ typedef struct {
     dan_dc_tid_table_t tids;
     dan_gw_node_txq_t q_urgent, q_bulk;
     uint64_t start_us;
-    uint64_t last_dan_us;       /* last gateway request (0: none yet) */
+    uint64_t last_dan_us; /* last gateway request (0: none yet) */
     uint64_t status_due_us;
     bool can_ok;
     dan_gw_node_escs_t esc;
