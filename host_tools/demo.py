@@ -9,6 +9,7 @@ gateway and four DroneCAN ESCs, on virtual wires, no hardware.
 Every process runs in its own process group and is stopped at the end, on
 error, or on Ctrl-C/SIGTERM; nothing is left behind. Exit 0 on success.
 """
+
 import argparse
 import json
 import os
@@ -34,8 +35,13 @@ class Stack:
 
     def start(self, name, args, ready=True):
         log = open(self.tmp / f"{name}.log", "wb")
-        p = subprocess.Popen([str(a) for a in args], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                             stderr=log, start_new_session=True)
+        p = subprocess.Popen(
+            [str(a) for a in args],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=log,
+            start_new_session=True,
+        )
         p.name, p.log = name, log
         self.procs.append(p)
         if ready:
@@ -49,7 +55,9 @@ class Stack:
 
     def tail(self, name, n=15):
         try:
-            return "\n".join((self.tmp / f"{name}.log").read_text(errors="replace").splitlines()[-n:])
+            return "\n".join(
+                (self.tmp / f"{name}.log").read_text(errors="replace").splitlines()[-n:]
+            )
         except OSError:
             return ""
 
@@ -97,14 +105,20 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--keep", action="store_true", help="keep the temporary directory with logs")
     ap.add_argument("--ramp-seconds", type=float, default=6.0)
-    ap.add_argument("--plot", default=str(ROOT / "build" / "demo" / "esc.png"),
-                    help="where the ESC telemetry plot goes (default: build/demo/esc.png)")
+    ap.add_argument(
+        "--plot",
+        default=str(ROOT / "build" / "demo" / "esc.png"),
+        help="where the ESC telemetry plot goes (default: build/demo/esc.png)",
+    )
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
 
     for b in ("dan-vbus", "dan-gatewayd"):
         if not (BIN / b).exists():
-            print(f"demo: {BIN / b} is missing: run 'make demo' (it builds everything)", file=sys.stderr)
+            print(
+                f"demo: {BIN / b} is missing: run 'make demo' (it builds everything)",
+                file=sys.stderr,
+            )
             return 2
     tmp = Path(tempfile.mkdtemp(prefix="dan-demo-"))
     stack = Stack(tmp, args.verbose)
@@ -112,18 +126,51 @@ def main():
     ok = False
     try:
         step("Virtual wires: a DAN bus (dan-vbus) and a CAN bus of SLCAN adapters (slcan_hub.py)")
-        stack.start("dan-vbus", [BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan",
-                                 "--capture", tmp / "dan-bus.log"])
-        stack.start("slcan_hub", [PY, ROOT / "host_tools" / "slcan_hub.py", "-n", "5", "--link", tmp / "can",
-                                  "--log", tmp / "can-bus.log"])
+        stack.start(
+            "dan-vbus",
+            [BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan", "--capture", tmp / "dan-bus.log"],
+        )
+        stack.start(
+            "slcan_hub",
+            [
+                PY,
+                ROOT / "host_tools" / "slcan_hub.py",
+                "-n",
+                "5",
+                "--link",
+                tmp / "can",
+                "--log",
+                tmp / "can-bus.log",
+            ],
+        )
         print(f"DAN wire endpoints {tmp}/dan0 (the FC side: danprobe) and {tmp}/dan1 (the gateway)")
         print(f"CAN adapters {tmp}/can0 (gateway) and {tmp}/can1..4 (ESCs)")
 
         step("Four DroneCAN ESCs (pydronecan nodes 20..23) and the CAN-over-DAN gateway (node 10)")
-        stack.start("esc_sim", [PY, ROOT / "host_tools" / "esc_sim.py", "--log", tmp / "escs.jsonl",
-                                *sum((["--port", tmp / f"can{i}"] for i in range(1, 5)), [])])
-        stack.start("dan-gatewayd", [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can",
-                                     f"slcan:{tmp}/can0", "--node-id", "10", "--verbose"], ready=False)
+        stack.start(
+            "esc_sim",
+            [
+                PY,
+                ROOT / "host_tools" / "esc_sim.py",
+                "--log",
+                tmp / "escs.jsonl",
+                *sum((["--port", tmp / f"can{i}"] for i in range(1, 5)), []),
+            ],
+        )
+        stack.start(
+            "dan-gatewayd",
+            [
+                BIN / "dan-gatewayd",
+                "--uart",
+                tmp / "dan1",
+                "--can",
+                f"slcan:{tmp}/can0",
+                "--node-id",
+                "10",
+                "--verbose",
+            ],
+            ready=False,
+        )
         time.sleep(0.5)
         stack.check_alive()
 
@@ -137,8 +184,22 @@ def main():
         step("Arm")
         danprobe("arm", *port, "--bus-baud", "115200")
         step(f"Throttle ramp on four ESCs with live telemetry ({args.ramp_seconds:g} s)")
-        danprobe("esc", *port, "--bus-baud", "115200", "--count", "4", "--ramp", "0:3000",
-                 "--rate", "50", "--duration", args.ramp_seconds, "--plot", plot)
+        danprobe(
+            "esc",
+            *port,
+            "--bus-baud",
+            "115200",
+            "--count",
+            "4",
+            "--ramp",
+            "0:3000",
+            "--rate",
+            "50",
+            "--duration",
+            args.ramp_seconds,
+            "--plot",
+            plot,
+        )
         step("The gateway's DroneCAN node table")
         danprobe("nodes", *port, "--bus-baud", "115200")
         step("Disarm")
@@ -152,8 +213,10 @@ def main():
         arming = [json.loads(l) for l in open(tmp / "escs.jsonl") if '"arming"' in l]
         top = max((max(c["cmd"][:4]) for c in cmds), default=0)
         step("What the ESCs received")
-        print(f"{len(cmds)} RawCommand transfers, highest raw value {top}; "
-              f"{len(arming)} ArmingStatus messages, last status {arming[-1]['status'] if arming else '-'}")
+        print(
+            f"{len(cmds)} RawCommand transfers, highest raw value {top}; "
+            f"{len(arming)} ArmingStatus messages, last status {arming[-1]['status'] if arming else '-'}"
+        )
         print(f"plot of RPM, current, voltage and temperature: {plot}")
         if not cmds or top <= 0:
             raise RuntimeError("the ESCs received no throttle")

@@ -43,6 +43,7 @@ Errors are answered "error: ...".
 
 SIGTERM / SIGINT: exit 0, removing the symlinks and the control socket.
 """
+
 import argparse
 import json
 import os
@@ -55,8 +56,8 @@ import termios
 import time
 import tty
 
-OUT_LIMIT = 64 * 1024          # bytes buffered for one port's reader
-LINE_MAX = 64                  # longer command lines are dropped (BEL)
+OUT_LIMIT = 64 * 1024  # bytes buffered for one port's reader
+LINE_MAX = 64  # longer command lines are dropped (BEL)
 HEX = set(b"0123456789abcdefABCDEF")
 
 
@@ -65,8 +66,9 @@ def set_process_name(name):
     already contains slcan_hub for pgrep -f. Best effort."""
     try:
         import ctypes
+
         libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(15, name.encode()[:15], 0, 0, 0)   # PR_SET_NAME
+        libc.prctl(15, name.encode()[:15], 0, 0, 0)  # PR_SET_NAME
     except Exception:
         pass
 
@@ -84,19 +86,19 @@ def parse_frame(line):
     rtr = kind in (b"r", b"R")
     if len(line) < 2 + idlen:
         return None
-    idtxt = line[1:1 + idlen]
-    dlc_c = line[1 + idlen:2 + idlen]
+    idtxt = line[1 : 1 + idlen]
+    dlc_c = line[1 + idlen : 2 + idlen]
     if not all(b in HEX for b in idtxt) or dlc_c not in b"012345678" or not dlc_c:
         return None
     can_id = int(idtxt, 16)
     if can_id > (0x1FFFFFFF if ext else 0x7FF):
         return None
     dlc = int(dlc_c)
-    body = line[2 + idlen:]
+    body = line[2 + idlen :]
     if rtr:
         if body:
             return None
-        return ext, rtr, can_id, bytes(dlc)   # dlc only; data unused
+        return ext, rtr, can_id, bytes(dlc)  # dlc only; data unused
     if len(body) != 2 * dlc or not all(b in HEX for b in body):
         return None
     return ext, rtr, can_id, bytes.fromhex(body.decode())
@@ -195,24 +197,29 @@ class Port:
             del self.outbuf[:n]
 
     def stats(self):
-        d = dict(port=self.index, path=self.path, link=self.link,
-                 attached=self.attached, open=self.open,
-                 listen_only=self.listen_only, bitrate=self.bitrate,
-                 timestamps=self.timestamps)
+        d = dict(
+            port=self.index,
+            path=self.path,
+            link=self.link,
+            attached=self.attached,
+            open=self.open,
+            listen_only=self.listen_only,
+            bitrate=self.bitrate,
+            timestamps=self.timestamps,
+        )
         d.update(self.counters)
         return d
 
 
 class Hub:
     def __init__(self, n, link_prefix, log_path, control_path):
-        self.ports = [Port(i, (link_prefix + str(i)) if link_prefix else None)
-                      for i in range(n)]
+        self.ports = [Port(i, (link_prefix + str(i)) if link_prefix else None) for i in range(n)]
         self.t0 = time.monotonic()
         self.bus_frames = 0
         self.log = open(log_path, "a", buffering=1) if log_path else None
         self.control_path = control_path
         self.ctl = None
-        self.ctl_clients = {}      # fd -> (socket, bytearray)
+        self.ctl_clients = {}  # fd -> (socket, bytearray)
         self.stop = False
         self.exit_code = 0
 
@@ -257,8 +264,7 @@ class Hub:
         if self.log:
             t = time.time()
             idtxt = ("%08X" if ext else "%03X") % can_id
-            body = ("R%d" % len(data) if len(data) else "R") if rtr \
-                else data.hex().upper()
+            body = ("R%d" % len(data) if len(data) else "R") if rtr else data.hex().upper()
             self.log.write("(%.6f) hub%d %s#%s\n" % (t, src.index, idtxt, body))
         for p in self.ports:
             if p is src:
@@ -348,7 +354,7 @@ class Hub:
             # the slave, but tolerate it).
             return
         for b in data:
-            if b == 0x0D:               # CR ends a command
+            if b == 0x0D:  # CR ends a command
                 if p.discarding:
                     p.discarding = False
                     p.counters["errors"] += 1
@@ -356,7 +362,7 @@ class Hub:
                 else:
                     self.handle_line(p, bytes(p.inbuf))
                 p.inbuf.clear()
-            elif b == 0x0A:             # LF: tolerated, ignored
+            elif b == 0x0A:  # LF: tolerated, ignored
                 continue
             elif p.discarding:
                 continue
@@ -374,8 +380,9 @@ class Hub:
             return None
         cmd = words[0]
         if cmd == "stats" and len(words) == 1:
-            return json.dumps({"ports": [p.stats() for p in self.ports],
-                               "bus_frames": self.bus_frames})
+            return json.dumps(
+                {"ports": [p.stats() for p in self.ports], "bus_frames": self.bus_frames}
+            )
         if cmd in ("detach", "attach") and len(words) == 2:
             try:
                 k = int(words[1])
@@ -451,8 +458,7 @@ class Hub:
                     p = fdmap[fd]
                     if ev & select.POLLOUT:
                         p.flush()
-                    if ev & (select.POLLIN | select.POLLHUP | select.POLLERR) \
-                            and p.attached:
+                    if ev & (select.POLLIN | select.POLLHUP | select.POLLERR) and p.attached:
                         self.on_readable(p)
                 elif self.ctl and fd == self.ctl.fileno():
                     try:
@@ -471,17 +477,25 @@ def main(argv=None):
     ap = argparse.ArgumentParser(
         prog="slcan_hub.py",
         description=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-n", "--ports", type=int, default=2,
-                    help="number of emulated adapters (default 2)")
-    ap.add_argument("--link", metavar="PREFIX",
-                    help="create symlinks PREFIX0, PREFIX1, ... to the ptys")
-    ap.add_argument("--log", metavar="FILE",
-                    help="append every bus frame in candump log format: "
-                         "(t.tttttt) hubN ID#DATA, N = sending port")
-    ap.add_argument("--control", metavar="PATH",
-                    help="Unix socket for control commands "
-                         "(stats, detach K, attach K, quit)")
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument(
+        "-n", "--ports", type=int, default=2, help="number of emulated adapters (default 2)"
+    )
+    ap.add_argument(
+        "--link", metavar="PREFIX", help="create symlinks PREFIX0, PREFIX1, ... to the ptys"
+    )
+    ap.add_argument(
+        "--log",
+        metavar="FILE",
+        help="append every bus frame in candump log format: "
+        "(t.tttttt) hubN ID#DATA, N = sending port",
+    )
+    ap.add_argument(
+        "--control",
+        metavar="PATH",
+        help="Unix socket for control commands (stats, detach K, attach K, quit)",
+    )
     args = ap.parse_args(argv)
     if not 1 <= args.ports <= 64:
         ap.error("-n must be 1..64")
@@ -497,6 +511,7 @@ def main(argv=None):
 
     def on_signal(signum, frame):
         hub.stop = True
+
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)

@@ -1,4 +1,5 @@
 """danprobe command line: the subcommands are in danprobe/commands/."""
+
 import argparse
 import os
 import sys
@@ -19,8 +20,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="danprobe",
         description="DAN v1 bus tool: discover, configure and sniff a DAN wire; drive the "
-                    "CAN-over-DAN gateway (ESCs, nodes, tunnels, raw CAN, SLCAN).",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "CAN-over-DAN gateway (ESCs, nodes, tunnels, raw CAN, SLCAN).",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--version", action="version", version=f"danprobe {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -32,8 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    args = build_parser().parse_args(argv)     # exits 2 on bad arguments
-    gateway.register_names()                   # sniff names and decodes the gateway's codes
+    args = build_parser().parse_args(argv)  # exits 2 on bad arguments
+    gateway.register_names()  # sniff names and decodes the gateway's codes
     ctx = Context(args)
     try:
         return args.run(ctx)

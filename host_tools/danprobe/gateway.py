@@ -24,6 +24,7 @@ first CAN_RECV skips are not counted as lost (they were before our time).
 A CAN_SEND whose transaction failed is sent again with the same sequence
 number by can_send_again(), so a lost response never duplicates frames.
 """
+
 import random
 import struct
 from dataclasses import asdict, dataclass, field
@@ -77,22 +78,45 @@ ESC_TIMEOUT_RANGE = (50, 60000)
 ARMING_RATE_RANGE = (1, 50)
 
 # STATS counters, in wire order (later versions append)
-STAT_NAMES = ("dan_frames", "dan_crc_errors", "dan_unknown", "dan_errors_sent", "dan_requests",
-              "can_tx", "can_rx", "can_tx_dropped", "can_errors", "dc_transfers",
-              "dc_crc_errors", "dc_errors", "esc_cmds", "failsafes", "failsafe_active",
-              "tun_dropped", "raw_dropped", "nodes", "bad_checks", "nodes_dropped")
+STAT_NAMES = (
+    "dan_frames",
+    "dan_crc_errors",
+    "dan_unknown",
+    "dan_errors_sent",
+    "dan_requests",
+    "can_tx",
+    "can_rx",
+    "can_tx_dropped",
+    "can_errors",
+    "dc_transfers",
+    "dc_crc_errors",
+    "dc_errors",
+    "esc_cmds",
+    "failsafes",
+    "failsafe_active",
+    "tun_dropped",
+    "raw_dropped",
+    "nodes",
+    "bad_checks",
+    "nodes_dropped",
+)
 
 # node table info_state
 INFO_NONE, INFO_PENDING, INFO_VALID, INFO_FAILED = 0, 1, 2, 3
 INFO_STATE_NAMES = ("not asked", "requested", "valid", "no answer")
 HEALTH_NAMES = ("OK", "WARNING", "ERROR", "CRITICAL")
-MODE_NAMES = {0: "OPERATIONAL", 1: "INITIALIZATION", 2: "MAINTENANCE", 3: "SOFTWARE_UPDATE",
-              7: "OFFLINE"}
+MODE_NAMES = {
+    0: "OPERATIONAL",
+    1: "INITIALIZATION",
+    2: "MAINTENANCE",
+    3: "SOFTWARE_UPDATE",
+    7: "OFFLINE",
+}
 
 # tunnels
 TUN_CLOSED, TUN_TARGETTED, TUN_BROADCAST = 0, 1, 2
 TUN_LOCK_PORT = 0x01
-PROTOCOL_UNDEFINED = 255        # uavcan.tunnel.Protocol, as ArduPilot's Targetted sends
+PROTOCOL_UNDEFINED = 255  # uavcan.tunnel.Protocol, as ArduPilot's Targetted sends
 
 # raw CAN
 CAN_ID_EXT = 0x80000000
@@ -162,6 +186,7 @@ def reply_check(code: int, payload: bytes) -> bool:
 
 # ---- helpers ----
 
+
 def _signed(v: int, bits: int) -> int:
     return v - (1 << bits) if v & (1 << (bits - 1)) else v
 
@@ -189,13 +214,20 @@ def off_diff(a: int, b: int) -> int:
 
 
 def flags_names(flags: int) -> List[str]:
-    return [n for bit, n in ((FLAG_ARMED, "armed"), (FLAG_FAILSAFE, "failsafe"),
-                             (FLAG_CAN_OK, "can-up")) if flags & bit]
+    return [
+        n
+        for bit, n in ((FLAG_ARMED, "armed"), (FLAG_FAILSAFE, "failsafe"), (FLAG_CAN_OK, "can-up"))
+        if flags & bit
+    ]
 
 
 def flags_dict(flags: int) -> dict:
-    return {"flags": flags, "armed": bool(flags & FLAG_ARMED),
-            "failsafe": bool(flags & FLAG_FAILSAFE), "can_up": bool(flags & FLAG_CAN_OK)}
+    return {
+        "flags": flags,
+        "armed": bool(flags & FLAG_ARMED),
+        "failsafe": bool(flags & FLAG_FAILSAFE),
+        "can_up": bool(flags & FLAG_CAN_OK),
+    }
 
 
 def throttle_to_raw(pct: float) -> int:
@@ -205,6 +237,7 @@ def throttle_to_raw(pct: float) -> int:
 
 
 # ---- ESC_CMD (0x42) request: u8 n, n x int14 bit-packed LSB first ----
+
 
 def encode_esc_cmd(values: Sequence[int]) -> bytes:
     if not 1 <= len(values) <= ESC_MAX:
@@ -227,11 +260,12 @@ def decode_esc_cmd(payload) -> List[int]:
 
 # ---- telemetry (ESC_CMD and ESC_TELEM responses) ----
 
+
 @dataclass
 class TelemRecord:
     esc_index: int = 0
     node_id: int = 0
-    flags: int = 0              # TELEM_STATUS | TELEM_EXT
+    flags: int = 0  # TELEM_STATUS | TELEM_EXT
     age_ms: int = 0
     voltage_f16: int = 0
     current_f16: int = 0
@@ -249,13 +283,24 @@ class TelemRecord:
     def put(self, w: Writer):
         w.u8(self.esc_index).u8(self.node_id).u8(self.flags & (TELEM_STATUS | TELEM_EXT))
         if self.flags & TELEM_STATUS:
-            (w.uvarint(self.age_ms).u16(self.voltage_f16).u16(self.current_f16)
-             .u16(self.temperature_f16).u24(_twos(self.rpm, 24, "rpm")).u8(self.power_pct)
-             .uvarint(self.error_count))
+            (
+                w.uvarint(self.age_ms)
+                .u16(self.voltage_f16)
+                .u16(self.current_f16)
+                .u16(self.temperature_f16)
+                .u24(_twos(self.rpm, 24, "rpm"))
+                .u8(self.power_pct)
+                .uvarint(self.error_count)
+            )
         if self.flags & TELEM_EXT:
-            (w.uvarint(self.ext_age_ms).u8(self.input_pct).u8(self.output_pct)
-             .u16(_twos(self.motor_temp_c, 16, "motor_temp_c")).u16(self.motor_angle)
-             .u24(self.status_flags))
+            (
+                w.uvarint(self.ext_age_ms)
+                .u8(self.input_pct)
+                .u8(self.output_pct)
+                .u16(_twos(self.motor_temp_c, 16, "motor_temp_c"))
+                .u16(self.motor_angle)
+                .u24(self.status_flags)
+            )
 
     @classmethod
     def get(cls, r: Reader) -> "TelemRecord":
@@ -286,16 +331,31 @@ class TelemRecord:
         return f16_to_float(self.temperature_f16)
 
     def as_dict(self) -> dict:
-        d = {"index": self.esc_index, "node": self.node_id,
-             "status": bool(self.flags & TELEM_STATUS), "extended": bool(self.flags & TELEM_EXT)}
+        d = {
+            "index": self.esc_index,
+            "node": self.node_id,
+            "status": bool(self.flags & TELEM_STATUS),
+            "extended": bool(self.flags & TELEM_EXT),
+        }
         if self.flags & TELEM_STATUS:
-            d.update(age_ms=self.age_ms, voltage=self.voltage, current=self.current,
-                     temperature=self.temperature, rpm=self.rpm, power_pct=self.power_pct,
-                     error_count=self.error_count)
+            d.update(
+                age_ms=self.age_ms,
+                voltage=self.voltage,
+                current=self.current,
+                temperature=self.temperature,
+                rpm=self.rpm,
+                power_pct=self.power_pct,
+                error_count=self.error_count,
+            )
         if self.flags & TELEM_EXT:
-            d.update(ext_age_ms=self.ext_age_ms, input_pct=self.input_pct,
-                     output_pct=self.output_pct, motor_temp_c=self.motor_temp_c,
-                     motor_angle=self.motor_angle, status_flags=self.status_flags)
+            d.update(
+                ext_age_ms=self.ext_age_ms,
+                input_pct=self.input_pct,
+                output_pct=self.output_pct,
+                motor_temp_c=self.motor_temp_c,
+                motor_angle=self.motor_angle,
+                status_flags=self.status_flags,
+            )
         return d
 
 
@@ -303,6 +363,7 @@ class TelemRecord:
 class Telemetry:
     """Header (u8 flags, u8 aux, u8 count) and records. aux: ESC_CMD, the
     ESCs the gateway knows; ESC_TELEM, the next index to ask (NONE: end)."""
+
     flags: int = 0
     aux: int = 0
     records: List[TelemRecord] = field(default_factory=list)
@@ -321,13 +382,17 @@ class Telemetry:
         return t
 
     def as_dict(self) -> dict:
-        return {**flags_dict(self.flags), "aux": self.aux,
-                "records": [t.as_dict() for t in self.records]}
+        return {
+            **flags_dict(self.flags),
+            "aux": self.aux,
+            "records": [t.as_dict() for t in self.records],
+        }
 
 
 def _u8_payload(what: str):
     def decode(payload) -> int:
         return Reader(payload).u8(what)
+
     return decode
 
 
@@ -335,6 +400,7 @@ decode_u8 = _u8_payload("value")
 
 
 # ---- CONFIG (0x45) ----
+
 
 @dataclass
 class ConfigRequest:
@@ -356,11 +422,13 @@ class ConfigRequest:
         c = cls(r.u8("set_mask") if r.remaining() else 0)
         try:
             if c.set_mask & CFG_ESC_TIMEOUT:
-                c.esc_timeout_ms = _check(r.uvarint("esc_timeout_ms"), *ESC_TIMEOUT_RANGE,
-                                          "esc_timeout_ms")
+                c.esc_timeout_ms = _check(
+                    r.uvarint("esc_timeout_ms"), *ESC_TIMEOUT_RANGE, "esc_timeout_ms"
+                )
             if c.set_mask & CFG_ARMING_RATE:
-                c.arming_rate_hz = _check(r.uvarint("arming_rate_hz"), *ARMING_RATE_RANGE,
-                                          "arming_rate_hz")
+                c.arming_rate_hz = _check(
+                    r.uvarint("arming_rate_hz"), *ARMING_RATE_RANGE, "arming_rate_hz"
+                )
         except ValueError as e:
             if isinstance(e, MalformedError):
                 raise
@@ -379,21 +447,33 @@ class ConfigResponse:
     flags: int = 0
 
     def encode(self) -> bytes:
-        return (Writer().u8(self.node_id).uvarint(self.esc_timeout_ms).uvarint(self.arming_rate_hz)
-                .u8(self.flags).bytes())
+        return (
+            Writer()
+            .u8(self.node_id)
+            .uvarint(self.esc_timeout_ms)
+            .uvarint(self.arming_rate_hz)
+            .u8(self.flags)
+            .bytes()
+        )
 
     @classmethod
     def decode(cls, payload) -> "ConfigResponse":
         r = Reader(payload)
-        return cls(r.u8("node_id"), r.uvarint("esc_timeout_ms"), r.uvarint("arming_rate_hz"),
-                   r.u8("flags"))
+        return cls(
+            r.u8("node_id"), r.uvarint("esc_timeout_ms"), r.uvarint("arming_rate_hz"), r.u8("flags")
+        )
 
     def as_dict(self) -> dict:
-        return {"node_id": self.node_id, "esc_timeout_ms": self.esc_timeout_ms,
-                "arming_rate_hz": self.arming_rate_hz, **flags_dict(self.flags)}
+        return {
+            "node_id": self.node_id,
+            "esc_timeout_ms": self.esc_timeout_ms,
+            "arming_rate_hz": self.arming_rate_hz,
+            **flags_dict(self.flags),
+        }
 
 
 # ---- STATS (0x46): u8 n, n x uvarint ----
+
 
 def encode_stats(values: Sequence[int]) -> bytes:
     w = Writer().u8(len(values))
@@ -404,18 +484,22 @@ def encode_stats(values: Sequence[int]) -> bytes:
 
 def decode_stats(payload) -> List[int]:
     r = Reader(payload)
-    return [r.uvarint(STAT_NAMES[i] if i < len(STAT_NAMES) else f"counter {i}")
-            for i in range(r.u8("count"))]
+    return [
+        r.uvarint(STAT_NAMES[i] if i < len(STAT_NAMES) else f"counter {i}")
+        for i in range(r.u8("count"))
+    ]
 
 
 def stats_dict(values: Sequence[int]) -> Dict[str, int]:
     """Counters by the document's names; ones a later version appends are
     named counter_N."""
-    return {(STAT_NAMES[i] if i < len(STAT_NAMES) else f"counter_{i}"): v
-            for i, v in enumerate(values)}
+    return {
+        (STAT_NAMES[i] if i < len(STAT_NAMES) else f"counter_{i}"): v for i, v in enumerate(values)
+    }
 
 
 # ---- NODES (0x47) ----
+
 
 @dataclass
 class NodeEntry:
@@ -429,15 +513,28 @@ class NodeEntry:
     info_state: int = 0
 
     def put(self, w: Writer):
-        (w.u8(self.node_id).u8((self.health & 3) | (self.mode & 7) << 2 | (self.sub_mode & 7) << 5)
-         .uvarint(self.uptime_sec).u16(self.vendor_status).uvarint(self.age_ms)
-         .u8(self.info_state))
+        (
+            w.u8(self.node_id)
+            .u8((self.health & 3) | (self.mode & 7) << 2 | (self.sub_mode & 7) << 5)
+            .uvarint(self.uptime_sec)
+            .u16(self.vendor_status)
+            .uvarint(self.age_ms)
+            .u8(self.info_state)
+        )
 
     @classmethod
     def get(cls, r: Reader) -> "NodeEntry":
         nid, hm = r.u8("node_id"), r.u8("health/mode")
-        return cls(nid, hm & 3, (hm >> 2) & 7, hm >> 5, r.uvarint("uptime_sec"),
-                   r.u16("vendor_status"), r.uvarint("age_ms"), r.u8("info_state"))
+        return cls(
+            nid,
+            hm & 3,
+            (hm >> 2) & 7,
+            hm >> 5,
+            r.uvarint("uptime_sec"),
+            r.u16("vendor_status"),
+            r.uvarint("age_ms"),
+            r.u8("info_state"),
+        )
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -448,7 +545,7 @@ class NodeEntry:
 
 @dataclass
 class NodesPage:
-    next: int = 0               # node id to ask for next (0: end)
+    next: int = 0  # node id to ask for next (0: end)
     entries: List[NodeEntry] = field(default_factory=list)
 
     def encode(self) -> bytes:
@@ -470,6 +567,7 @@ class NodesPage:
 
 # ---- NODE_INFO (0x48) ----
 
+
 @dataclass
 class NodeInfo:
     node_id: int = 0
@@ -488,8 +586,16 @@ class NodeInfo:
         if self.info_state == INFO_VALID:
             if len(self.unique_id) != 16 or len(self.name) > NAME_MAX:
                 raise ValueError("unique_id must be 16 bytes, name at most 80")
-            (w.u8(self.sw_major).u8(self.sw_minor).u8(self.sw_flags).u32(self.vcs_commit)
-             .u8(self.hw_major).u8(self.hw_minor).raw(self.unique_id).array(self.name))
+            (
+                w.u8(self.sw_major)
+                .u8(self.sw_minor)
+                .u8(self.sw_flags)
+                .u32(self.vcs_commit)
+                .u8(self.hw_major)
+                .u8(self.hw_minor)
+                .raw(self.unique_id)
+                .array(self.name)
+            )
         return w.bytes()
 
     @classmethod
@@ -506,35 +612,55 @@ class NodeInfo:
     def as_dict(self) -> dict:
         d = {"node_id": self.node_id, "info_state": self.info_state}
         if self.info_state == INFO_VALID:
-            d.update(name=self.name.decode("utf-8", "backslashreplace"),
-                     sw=[self.sw_major, self.sw_minor], sw_flags=self.sw_flags,
-                     vcs_commit=self.vcs_commit, hw=[self.hw_major, self.hw_minor],
-                     unique_id=self.unique_id.hex())
+            d.update(
+                name=self.name.decode("utf-8", "backslashreplace"),
+                sw=[self.sw_major, self.sw_minor],
+                sw_flags=self.sw_flags,
+                vcs_commit=self.vcs_commit,
+                hw=[self.hw_major, self.hw_minor],
+                unique_id=self.unique_id.hex(),
+            )
         return d
 
 
 # ---- TUN_OPEN (0x49) ----
+
 
 @dataclass
 class TunOpen:
     port: int = 0
     mode: int = TUN_CLOSED
     protocol: int = 0
-    target: int = 0             # Targetted: node id; Broadcast: channel_id
-    serial_id: int = 0          # int8
+    target: int = 0  # Targetted: node id; Broadcast: channel_id
+    serial_id: int = 0  # int8
     options: int = 0
     baud: int = 0
 
     def encode(self) -> bytes:
-        return (Writer().u8(self.port).u8(self.mode).u8(self.protocol).u8(self.target)
-                .u8(_twos(self.serial_id, 8, "serial_id")).u8(self.options).uvarint(self.baud)
-                .bytes())
+        return (
+            Writer()
+            .u8(self.port)
+            .u8(self.mode)
+            .u8(self.protocol)
+            .u8(self.target)
+            .u8(_twos(self.serial_id, 8, "serial_id"))
+            .u8(self.options)
+            .uvarint(self.baud)
+            .bytes()
+        )
 
     @classmethod
     def decode(cls, payload) -> "TunOpen":
         r = Reader(payload)
-        return cls(r.u8("port"), r.u8("mode"), r.u8("protocol"), r.u8("target"),
-                   _signed(r.u8("serial_id"), 8), r.u8("options"), r.uvarint("baud"))
+        return cls(
+            r.u8("port"),
+            r.u8("mode"),
+            r.u8("protocol"),
+            r.u8("target"),
+            _signed(r.u8("serial_id"), 8),
+            r.u8("options"),
+            r.uvarint("baud"),
+        )
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -543,7 +669,7 @@ class TunOpen:
 @dataclass
 class TunOpenResult:
     port: int = 0
-    result: int = 0             # 0 OK, 1 refused
+    result: int = 0  # 0 OK, 1 refused
 
     def encode(self) -> bytes:
         return Writer().u8(self.port).u8(self.result).bytes()
@@ -559,6 +685,7 @@ class TunOpenResult:
 
 # ---- TUN_XFER (0x4A) ----
 
+
 def _chunk(r: Reader) -> bytes:
     data = r.array("data")
     if len(data) > TUN_CHUNK_MAX:
@@ -569,56 +696,93 @@ def _chunk(r: Reader) -> bytes:
 @dataclass
 class TunXferRequest:
     port: int = 0
-    wr_offset: int = 0          # stream offset of data[0]
-    rd_offset: int = 0          # every byte before it was received
+    wr_offset: int = 0  # stream offset of data[0]
+    rd_offset: int = 0  # every byte before it was received
     rd_max: int = TUN_CHUNK_MAX
     data: bytes = b""
 
     def encode(self) -> bytes:
         if len(self.data) > TUN_CHUNK_MAX:
             raise ValueError(f"tunnel data: at most {TUN_CHUNK_MAX} bytes")
-        return (Writer().u8(self.port).uvarint(self.wr_offset).uvarint(self.rd_offset)
-                .uvarint(self.rd_max).array(self.data).bytes())
+        return (
+            Writer()
+            .u8(self.port)
+            .uvarint(self.wr_offset)
+            .uvarint(self.rd_offset)
+            .uvarint(self.rd_max)
+            .array(self.data)
+            .bytes()
+        )
 
     @classmethod
     def decode(cls, payload) -> "TunXferRequest":
         r = Reader(payload)
-        return cls(r.u8("port"), r.uvarint("wr_offset"), r.uvarint("rd_offset"),
-                   r.uvarint("rd_max"), _chunk(r))
+        return cls(
+            r.u8("port"),
+            r.uvarint("wr_offset"),
+            r.uvarint("rd_offset"),
+            r.uvarint("rd_max"),
+            _chunk(r),
+        )
 
     def as_dict(self) -> dict:
-        return {"port": self.port, "wr_offset": self.wr_offset, "rd_offset": self.rd_offset,
-                "rd_max": self.rd_max, "data": self.data.hex()}
+        return {
+            "port": self.port,
+            "wr_offset": self.wr_offset,
+            "rd_offset": self.rd_offset,
+            "rd_max": self.rd_max,
+            "data": self.data.hex(),
+        }
 
 
 @dataclass
 class TunXferResponse:
     port: int = 0
-    wr_next: int = 0            # bytes accepted so far
+    wr_next: int = 0  # bytes accepted so far
     wr_space: int = 0
-    rd_offset: int = 0          # offset of data[0]
-    rd_dropped: int = 0         # total bytes dropped, CAN -> DAN
+    rd_offset: int = 0  # offset of data[0]
+    rd_dropped: int = 0  # total bytes dropped, CAN -> DAN
     data: bytes = b""
 
     def encode(self) -> bytes:
         if len(self.data) > TUN_CHUNK_MAX:
             raise ValueError(f"tunnel data: at most {TUN_CHUNK_MAX} bytes")
-        return (Writer().u8(self.port).uvarint(self.wr_next).uvarint(self.wr_space)
-                .uvarint(self.rd_offset).uvarint(self.rd_dropped).array(self.data).bytes())
+        return (
+            Writer()
+            .u8(self.port)
+            .uvarint(self.wr_next)
+            .uvarint(self.wr_space)
+            .uvarint(self.rd_offset)
+            .uvarint(self.rd_dropped)
+            .array(self.data)
+            .bytes()
+        )
 
     @classmethod
     def decode(cls, payload) -> "TunXferResponse":
         r = Reader(payload)
-        return cls(r.u8("port"), r.uvarint("wr_next"), r.uvarint("wr_space"),
-                   r.uvarint("rd_offset"), r.uvarint("rd_dropped"), _chunk(r))
+        return cls(
+            r.u8("port"),
+            r.uvarint("wr_next"),
+            r.uvarint("wr_space"),
+            r.uvarint("rd_offset"),
+            r.uvarint("rd_dropped"),
+            _chunk(r),
+        )
 
     def as_dict(self) -> dict:
-        return {"port": self.port, "wr_next": self.wr_next, "wr_space": self.wr_space,
-                "rd_offset": self.rd_offset, "rd_dropped": self.rd_dropped,
-                "data": self.data.hex()}
+        return {
+            "port": self.port,
+            "wr_next": self.wr_next,
+            "wr_space": self.wr_space,
+            "rd_offset": self.rd_offset,
+            "rd_dropped": self.rd_dropped,
+            "data": self.data.hex(),
+        }
 
 
 # ---- raw CAN frames ----
+
 
 @dataclass
 class CanFrame:
@@ -626,7 +790,7 @@ class CanFrame:
     data: bytes = b""
     ext: bool = False
     rtr: bool = False
-    rtr_dlc: int = 0            # dlc of a remote frame (it has no data)
+    rtr_dlc: int = 0  # dlc of a remote frame (it has no data)
 
     @property
     def dlc(self) -> int:
@@ -638,8 +802,9 @@ class CanFrame:
 
     def check(self) -> "CanFrame":
         if not 0 <= self.id <= (EFF_MASK if self.ext else SFF_MASK):
-            raise ValueError(f"CAN id {self.id:X} out of range for a "
-                             f"{'29' if self.ext else '11'}-bit identifier")
+            raise ValueError(
+                f"CAN id {self.id:X} out of range for a {'29' if self.ext else '11'}-bit identifier"
+            )
         if self.dlc > 8 or (self.rtr and self.data):
             raise ValueError("CAN frame: at most 8 data bytes, none in a remote frame")
         return self
@@ -669,8 +834,14 @@ class CanFrame:
         return f"{ident}#{self.data.hex().upper()}"
 
     def as_dict(self) -> dict:
-        return {"id": self.id, "ext": self.ext, "rtr": self.rtr, "dlc": self.dlc,
-                "data": self.data.hex(), "text": self.candump()}
+        return {
+            "id": self.id,
+            "ext": self.ext,
+            "rtr": self.rtr,
+            "dlc": self.dlc,
+            "data": self.data.hex(),
+            "text": self.candump(),
+        }
 
 
 _HEX = set("0123456789abcdefABCDEF")
@@ -783,13 +954,17 @@ class CanRecvResponse:
         return q
 
     def as_dict(self) -> dict:
-        return {"first_seq": self.first_seq, "dropped": self.dropped,
-                "frames": [f.candump() for f in self.frames]}
+        return {
+            "first_seq": self.first_seq,
+            "dropped": self.dropped,
+            "frames": [f.candump() for f in self.frames],
+        }
 
 
 @dataclass
 class Filter:
     """Passes a frame with the same ext flag and (id & mask) == (self.id & mask)."""
+
     id: int = 0
     mask: int = 0
     ext: bool = False
@@ -801,13 +976,14 @@ class Filter:
         return f"{self.id:X}:{self.mask:X}" + (":ext" if self.ext else "")
 
 
-PASS_ALL = (Filter(0, 0, False), Filter(0, 0, True))     # every 11-bit and 29-bit frame
+PASS_ALL = (Filter(0, 0, False), Filter(0, 0, True))  # every 11-bit and 29-bit frame
 
 
 @dataclass
 class FilterTable:
     """CAN_FILTER request (op, entries) and response (result, the table)."""
-    op: int = FILTER_READ       # request: FILTER_*; response: 0 OK, 1 table full
+
+    op: int = FILTER_READ  # request: FILTER_*; response: 0 OK, 1 table full
     filters: List[Filter] = field(default_factory=list)
 
     def encode(self) -> bytes:
@@ -839,12 +1015,15 @@ class FilterTable:
 
 # ---- names for sniff ----
 
+
 def _describer(code: int, direction: int, fn: Callable) -> Callable[[bytes], dict]:
     """A registry describer: unseals a wire payload, decodes the inner one
     (fn returns a dict or an object with as_dict())."""
+
     def describe(payload: bytes) -> dict:
         v = fn(unseal(code, direction, payload))
         return v.as_dict() if hasattr(v, "as_dict") else v
+
     return describe
 
 
@@ -853,32 +1032,38 @@ def register_names():
     payloads, so sniff shows and decodes them (the CLI calls this at start)."""
     u8 = decode_u8
     for code, name, req, rsp in (
-            (CODE_ESC_CMD, "ESC_CMD", lambda p: {"values": decode_esc_cmd(p)}, Telemetry.decode),
-            (CODE_ESC_TELEM, "ESC_TELEM", lambda p: {"first": u8(p)}, Telemetry.decode),
-            (CODE_ARM, "ARM", lambda p: {"status": u8(p)}, lambda p: flags_dict(u8(p))),
-            (CODE_CONFIG, "CONFIG", ConfigRequest.decode, ConfigResponse.decode),
-            (CODE_STATS, "STATS", registry.describe_empty, lambda p: stats_dict(decode_stats(p))),
-            (CODE_NODES, "NODES", lambda p: {"first": u8(p)}, NodesPage.decode),
-            (CODE_NODE_INFO, "NODE_INFO", lambda p: {"node": u8(p)}, NodeInfo.decode),
-            (CODE_TUN_OPEN, "TUN_OPEN", TunOpen.decode, TunOpenResult.decode),
-            (CODE_TUN_XFER, "TUN_XFER", TunXferRequest.decode, TunXferResponse.decode),
-            (CODE_CAN_SEND, "CAN_SEND", CanSendRequest.decode, CanSendResponse.decode),
-            (CODE_CAN_RECV, "CAN_RECV", CanRecvRequest.decode, CanRecvResponse.decode),
-            (CODE_CAN_FILTER, "CAN_FILTER", FilterTable.decode, FilterTable.decode)):
-        registry.register_message(code, name, request=_describer(code, REQUEST, req),
-                                  response=_describer(code, RESPONSE, rsp))
+        (CODE_ESC_CMD, "ESC_CMD", lambda p: {"values": decode_esc_cmd(p)}, Telemetry.decode),
+        (CODE_ESC_TELEM, "ESC_TELEM", lambda p: {"first": u8(p)}, Telemetry.decode),
+        (CODE_ARM, "ARM", lambda p: {"status": u8(p)}, lambda p: flags_dict(u8(p))),
+        (CODE_CONFIG, "CONFIG", ConfigRequest.decode, ConfigResponse.decode),
+        (CODE_STATS, "STATS", registry.describe_empty, lambda p: stats_dict(decode_stats(p))),
+        (CODE_NODES, "NODES", lambda p: {"first": u8(p)}, NodesPage.decode),
+        (CODE_NODE_INFO, "NODE_INFO", lambda p: {"node": u8(p)}, NodeInfo.decode),
+        (CODE_TUN_OPEN, "TUN_OPEN", TunOpen.decode, TunOpenResult.decode),
+        (CODE_TUN_XFER, "TUN_XFER", TunXferRequest.decode, TunXferResponse.decode),
+        (CODE_CAN_SEND, "CAN_SEND", CanSendRequest.decode, CanSendResponse.decode),
+        (CODE_CAN_RECV, "CAN_RECV", CanRecvRequest.decode, CanRecvResponse.decode),
+        (CODE_CAN_FILTER, "CAN_FILTER", FilterTable.decode, FilterTable.decode),
+    ):
+        registry.register_message(
+            code,
+            name,
+            request=_describer(code, REQUEST, req),
+            response=_describer(code, RESPONSE, rsp),
+        )
 
 
 # ---- the client ----
 
+
 @dataclass
 class TunnelState:
-    wr_offset: int = 0          # bytes of ours the gateway has accepted
-    rd_offset: int = 0          # bytes we have received
-    wr_space: int = 0           # gateway buffer space, last seen
-    rd_dropped: int = 0         # bytes the gateway dropped (CAN -> DAN)
-    rd_lost: int = 0            # bytes skipped here (the gateway dropped them)
-    accepted: int = 0           # of the last xfer's data
+    wr_offset: int = 0  # bytes of ours the gateway has accepted
+    rd_offset: int = 0  # bytes we have received
+    wr_space: int = 0  # gateway buffer space, last seen
+    rd_dropped: int = 0  # bytes the gateway dropped (CAN -> DAN)
+    rd_lost: int = 0  # bytes skipped here (the gateway dropped them)
+    accepted: int = 0  # of the last xfer's data
 
 
 class GatewayClient:
@@ -890,14 +1075,14 @@ class GatewayClient:
     def __init__(self, master: Master, seed: Optional[int] = None):
         self.m = master
         master.reply_check = reply_check
-        self.flags = 0              # from the last response that carries them
-        self.escs_known = 0         # ESCs the gateway knows (ESC_CMD response)
-        self.esc: Dict[int, TelemRecord] = {}   # newest telemetry per ESC index
+        self.flags = 0  # from the last response that carries them
+        self.escs_known = 0  # ESCs the gateway knows (ESC_CMD response)
+        self.esc: Dict[int, TelemRecord] = {}  # newest telemetry per ESC index
         self.config: Optional[ConfigResponse] = None
         self.stats: List[int] = []
         self.tun: Dict[int, TunnelState] = {}
-        self.can_seq: Optional[int] = None      # last CAN_SEND sequence number used
-        self._unsent: Optional[CanSendRequest] = None   # a CAN_SEND whose transaction failed
+        self.can_seq: Optional[int] = None  # last CAN_SEND sequence number used
+        self._unsent: Optional[CanSendRequest] = None  # a CAN_SEND whose transaction failed
         self.can_accepted = 0
         self.can_queue_free = 0
         self.can_rx_next: Optional[int] = None  # next raw frame sequence number wanted
@@ -953,13 +1138,15 @@ class GatewayClient:
 
     def arm(self, status: int = ARM_FULLY_ARMED) -> int:
         """ArmingStatus value (0 disarmed, 255 fully armed); returns the flags."""
-        self.flags = self._call(CODE_ARM, bytes([_check(status, 0, 255, "arming status")]),
-                                decode_u8)
+        self.flags = self._call(
+            CODE_ARM, bytes([_check(status, 0, 255, "arming status")]), decode_u8
+        )
         return self.flags
 
     def read_config(self, set_req: Optional[ConfigRequest] = None) -> ConfigResponse:
-        self.config = self._call(CODE_CONFIG, (set_req or ConfigRequest()).encode(),
-                                 ConfigResponse.decode)
+        self.config = self._call(
+            CODE_CONFIG, (set_req or ConfigRequest()).encode(), ConfigResponse.decode
+        )
         self.flags = self.config.flags
         return self.config
 
@@ -1099,5 +1286,6 @@ class GatewayClient:
     def can_filter(self, op: int, filters: Sequence[Filter] = ()) -> FilterTable:
         """Changes (or, FILTER_READ, reads) the receive filter; returns the
         result (0 OK, 1 table full) and the gateway's table."""
-        return self._call(CODE_CAN_FILTER, FilterTable(op, list(filters)).encode(),
-                          FilterTable.decode)
+        return self._call(
+            CODE_CAN_FILTER, FilterTable(op, list(filters)).encode(), FilterTable.decode
+        )

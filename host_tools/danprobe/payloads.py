@@ -7,6 +7,7 @@ ignored (later versions may append fields); reserved mask bits are kept
 raw. Strings are decoded as UTF-8 with undecodable bytes escaped; unlike
 libdan's fixed 32-byte buffers they are never truncated.
 """
+
 import struct
 from dataclasses import asdict, dataclass
 from typing import List
@@ -20,7 +21,7 @@ BASE_BAUD = 9600
 MASK_BAUDS = (19200, 38400, 57600, 115200)
 MASK_DEFINED = 0x000F
 
-CONFIGURE_BPS = 0   # DAN-PERIPHERAL-CONFIGURATION-REQUEST-TYPE-ENUM-V1
+CONFIGURE_BPS = 0  # DAN-PERIPHERAL-CONFIGURATION-REQUEST-TYPE-ENUM-V1
 
 ACK_OK = 0
 ACK_FAIL = 1
@@ -55,6 +56,7 @@ def supports(mask: int, baud: int) -> bool:
 
 # ---- reader / writer ----
 
+
 class Reader:
     """Reads fields from a received payload; any read past its end (or a
     bad uvarint, or an array longer than what remains) raises PayloadError
@@ -69,9 +71,10 @@ class Reader:
 
     def raw(self, n: int, what: str = "bytes") -> bytes:
         if n > self.remaining():
-            raise PayloadError(f"{what}: needs {n} byte(s) at offset {self.pos}, "
-                               f"{self.remaining()} left")
-        out = self.data[self.pos:self.pos + n]
+            raise PayloadError(
+                f"{what}: needs {n} byte(s) at offset {self.pos}, {self.remaining()} left"
+            )
+        out = self.data[self.pos : self.pos + n]
         self.pos += n
         return out
 
@@ -148,6 +151,7 @@ class Writer:
 
 # ---- DAN-PERIPHERAL-IDENTITY-PAYLOAD-V1 ----
 
+
 @dataclass
 class Identity:
     dan_version: int = VERSION
@@ -155,20 +159,34 @@ class Identity:
     model: str = ""
     hw_version: str = ""
     sw_version: str = ""
-    baud_mask: int = 0          # raw, as on the wire
-    capabilities: int = 0       # raw, as on the wire
+    baud_mask: int = 0  # raw, as on the wire
+    capabilities: int = 0  # raw, as on the wire
 
     def encode(self) -> bytes:
-        return (Writer().u8(self.dan_version).string(self.manufacturer).string(self.model)
-                .string(self.hw_version).string(self.sw_version).u16(self.baud_mask)
-                .u16(self.capabilities).bytes())
+        return (
+            Writer()
+            .u8(self.dan_version)
+            .string(self.manufacturer)
+            .string(self.model)
+            .string(self.hw_version)
+            .string(self.sw_version)
+            .u16(self.baud_mask)
+            .u16(self.capabilities)
+            .bytes()
+        )
 
     @classmethod
     def decode(cls, payload) -> "Identity":
         r = Reader(payload)
-        return cls(r.u8("dan_version"), r.string("manufacturer"), r.string("model"),
-                   r.string("hw_version"), r.string("sw_version"), r.u16("baud_mask"),
-                   r.u16("capabilities"))
+        return cls(
+            r.u8("dan_version"),
+            r.string("manufacturer"),
+            r.string("model"),
+            r.string("hw_version"),
+            r.string("sw_version"),
+            r.u16("baud_mask"),
+            r.u16("capabilities"),
+        )
 
     @property
     def bauds(self) -> List[int]:
@@ -181,6 +199,7 @@ class Identity:
 
 
 # ---- DAN-PERIPHERAL-CONFIGURE-PAYLOAD-V1 ----
+
 
 @dataclass
 class Configure:
@@ -209,6 +228,7 @@ class Configure:
 
 # ---- DAN-PERIPHERAL-ACK (our rule: one byte, 0 OK or 1 FAIL) ----
 
+
 def encode_ack(value: int) -> bytes:
     if value not in (ACK_OK, ACK_FAIL):
         raise ValueError(f"ACK must be 0 or 1, not {value}")
@@ -224,10 +244,11 @@ def decode_ack(payload) -> int:
 
 # ---- DAN-ERROR-MESSAGE-V1 (payload of code 0) ----
 
+
 @dataclass
 class ErrorMessage:
-    code: int = 0           # the request code that caused the error
-    error: int = 0          # reserved, 0 in v1
+    code: int = 0  # the request code that caused the error
+    error: int = 0  # reserved, 0 in v1
     text: str = ""
 
     def encode(self) -> bytes:

@@ -1,4 +1,5 @@
 """Helpers to start dan-vbus and DAN programs for the end-to-end tests."""
+
 import json
 import socket
 
@@ -9,8 +10,21 @@ def start_vbus(procs, tmp, n, *extra):
     """Starts dan-vbus with n endpoints; returns (proc, [endpoint links], control path)."""
     prefix = tmp / "dan"
     ctl = tmp / "vbus.ctl"
-    p = procs.start([BIN / "dan-vbus", "-n", str(n), "--link", prefix, "--control", ctl,
-                     "--capture", tmp / "bus.cap", *extra], name="dan-vbus")
+    p = procs.start(
+        [
+            BIN / "dan-vbus",
+            "-n",
+            str(n),
+            "--link",
+            prefix,
+            "--control",
+            ctl,
+            "--capture",
+            tmp / "bus.cap",
+            *extra,
+        ],
+        name="dan-vbus",
+    )
     line = p.stdout.readline().decode()
     assert line.startswith("READY"), f"dan-vbus did not start: {line!r}"
     return p, [str(prefix) + str(i) for i in range(n)], ctl
@@ -49,8 +63,10 @@ def read_capture(tmp):
 
 
 def start_periph(procs, port, types, mask="0x0F", *extra):
-    p = procs.start([BIN / "dan-testperiph", "--port", port, "--types", types, "--mask", mask, *extra],
-                    name="dan-testperiph")
+    p = procs.start(
+        [BIN / "dan-testperiph", "--port", port, "--types", types, "--mask", mask, *extra],
+        name="dan-testperiph",
+    )
     line = p.stdout.readline().decode()
     assert line.startswith("READY"), f"dan-testperiph did not start: {line!r}"
     return p

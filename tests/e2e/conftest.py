@@ -4,6 +4,7 @@ Every process a test starts goes through the `spawn` fixture, which puts it
 in its own process group and kills the group at teardown, so no test leaves
 a process behind whatever happens.
 """
+
 import os
 import signal
 import subprocess
@@ -48,8 +49,13 @@ class Procs:
         name = name or Path(str(args[0])).name
         log = open(self.tmp / f"{name}.{len(self.procs)}.log", "wb")
         kw.setdefault("stdout", subprocess.PIPE)
-        p = subprocess.Popen([str(a) for a in args], stdin=subprocess.DEVNULL,
-                             stderr=log, start_new_session=True, **kw)
+        p = subprocess.Popen(
+            [str(a) for a in args],
+            stdin=subprocess.DEVNULL,
+            stderr=log,
+            start_new_session=True,
+            **kw,
+        )
         p.log_path = Path(log.name)
         p.log_file = log
         self.procs.append(p)

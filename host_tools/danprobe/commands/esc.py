@@ -1,11 +1,20 @@
 """danprobe esc: drive ESCs through the gateway and watch their telemetry."""
+
 import argparse
 import time
 
 from danprobe import gateway
-from danprobe.commands.common import (EXIT_USAGE, CliError, add_gateway_options,
-                                      gateway_operation, gateway_report, long_running,
-                                      positive_float, positive_int, telemetry_table)
+from danprobe.commands.common import (
+    EXIT_USAGE,
+    CliError,
+    add_gateway_options,
+    gateway_operation,
+    gateway_report,
+    long_running,
+    positive_float,
+    positive_int,
+    telemetry_table,
+)
 from danprobe.master import DanError, OperationTimeout
 from danprobe.port import now
 
@@ -17,7 +26,8 @@ DESCRIPTION = (
     "telemetry back (round robin), shown once a second (--json: every exchange as a JSON "
     "line). Values are raw (-8192..8191) or percent of full "
     "throttle with a '%' suffix (100% = 8191). At the end one command of zeros stops the "
-    "motors at once (the gateway's failsafe would after its timeout).")
+    "motors at once (the gateway's failsafe would after its timeout)."
+)
 
 
 def command_value(s: str) -> int:
@@ -31,7 +41,8 @@ def command_value(s: str) -> int:
         raise argparse.ArgumentTypeError(f"bad ESC value {s!r}: {e}") from None
     if not gateway.RAW_MIN <= v <= gateway.RAW_MAX:
         raise argparse.ArgumentTypeError(
-            f"ESC value {v} outside {gateway.RAW_MIN}..{gateway.RAW_MAX}")
+            f"ESC value {v} outside {gateway.RAW_MIN}..{gateway.RAW_MAX}"
+        )
     return v
 
 
@@ -57,42 +68,78 @@ def add_arguments(p):
     add_gateway_options(p, long_running=True)
     g = p.add_argument_group("esc options")
     what = g.add_mutually_exclusive_group(required=True)
-    what.add_argument("--values", type=value_list, metavar="LIST",
-                      help="one value per ESC, comma-separated: raw or N%% (0,100,200,300)")
-    what.add_argument("--throttle", type=throttle, metavar="PCT",
-                      help="the same throttle percent for --count ESCs (100 = raw 8191)")
-    what.add_argument("--ramp", type=ramp, metavar="FROM:TO",
-                      help="every ESC from FROM to TO (raw or N%%) over --duration")
-    g.add_argument("--count", type=positive_int, default=4, metavar="N",
-                   help="ESCs for --throttle and --ramp (default 4)")
-    g.add_argument("--rate", type=positive_float, default=50.0, metavar="HZ",
-                   help="exchanges per second (default 50)")
-    g.add_argument("--duration", type=positive_float, default=3.0, metavar="S",
-                   help="seconds to run (default 3)")
-    g.add_argument("--arm", action="store_true",
-                   help="ARM before the first command, disarm after the last")
-    g.add_argument("--plot", metavar="FILE.png",
-                   help="write RPM, current, voltage and temperature over time "
-                        "(needs matplotlib: pip install 'danprobe[plot]')")
+    what.add_argument(
+        "--values",
+        type=value_list,
+        metavar="LIST",
+        help="one value per ESC, comma-separated: raw or N%% (0,100,200,300)",
+    )
+    what.add_argument(
+        "--throttle",
+        type=throttle,
+        metavar="PCT",
+        help="the same throttle percent for --count ESCs (100 = raw 8191)",
+    )
+    what.add_argument(
+        "--ramp",
+        type=ramp,
+        metavar="FROM:TO",
+        help="every ESC from FROM to TO (raw or N%%) over --duration",
+    )
+    g.add_argument(
+        "--count",
+        type=positive_int,
+        default=4,
+        metavar="N",
+        help="ESCs for --throttle and --ramp (default 4)",
+    )
+    g.add_argument(
+        "--rate",
+        type=positive_float,
+        default=50.0,
+        metavar="HZ",
+        help="exchanges per second (default 50)",
+    )
+    g.add_argument(
+        "--duration",
+        type=positive_float,
+        default=3.0,
+        metavar="S",
+        help="seconds to run (default 3)",
+    )
+    g.add_argument(
+        "--arm", action="store_true", help="ARM before the first command, disarm after the last"
+    )
+    g.add_argument(
+        "--plot",
+        metavar="FILE.png",
+        help="write RPM, current, voltage and temperature over time "
+        "(needs matplotlib: pip install 'danprobe[plot]')",
+    )
 
 
 def _plot_module():
     try:
         import matplotlib
+
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise CliError("--plot needs matplotlib (pip install 'danprobe[plot]')",
-                       EXIT_USAGE) from None
+        raise CliError(
+            "--plot needs matplotlib (pip install 'danprobe[plot]')", EXIT_USAGE
+        ) from None
     return plt
 
 
 def write_plot(plt, path: str, samples, title: str):
     """samples: (t, TelemRecord) with the sample's time on our clock."""
     fig, axes = plt.subplots(4, 1, sharex=True, figsize=(9, 10))
-    series = (("RPM", lambda r: r.rpm), ("current (A)", lambda r: r.current),
-              ("voltage (V)", lambda r: r.voltage),
-              ("temperature (C)", lambda r: r.temperature - 273.15))
+    series = (
+        ("RPM", lambda r: r.rpm),
+        ("current (A)", lambda r: r.current),
+        ("voltage (V)", lambda r: r.voltage),
+        ("temperature (C)", lambda r: r.temperature - 273.15),
+    )
     escs = sorted({r.esc_index for _, r in samples})
     for ax, (label, get) in zip(axes, series):
         for e in escs:
@@ -113,18 +160,25 @@ def _live_line(t: float, values, gw, rate: float) -> str:
     for i in sorted(gw.esc):
         r = gw.esc[i]
         if r.flags & gateway.TELEM_STATUS:
-            parts.append(f"esc{i} {r.rpm} rpm {r.voltage:.1f} V {r.current:.1f} A "
-                         f"{r.temperature - 273.15:.0f} C")
-    return (f"{t:6.1f} s  cmd {','.join(map(str, values))}  "
-            + (" | ".join(parts) or "no telemetry") + f"  ({rate:.0f}/s)")
+            parts.append(
+                f"esc{i} {r.rpm} rpm {r.voltage:.1f} V {r.current:.1f} A "
+                f"{r.temperature - 273.15:.0f} C"
+            )
+    return (
+        f"{t:6.1f} s  cmd {','.join(map(str, values))}  "
+        + (" | ".join(parts) or "no telemetry")
+        + f"  ({rate:.0f}/s)"
+    )
 
 
 def run(ctx) -> int:
     a = ctx.args
     if a.values is not None:
+
         def values_at(t):
             return a.values
     elif a.throttle is not None:
+
         def values_at(t):
             return [a.throttle] * a.count
     else:
@@ -132,6 +186,7 @@ def run(ctx) -> int:
 
         def values_at(t):
             return [int(round(lo + (hi - lo) * min(t / a.duration, 1.0)))] * a.count
+
     if a.count > gateway.ESC_MAX:
         raise CliError(f"--count: at most {gateway.ESC_MAX} ESCs", EXIT_USAGE)
     plt = _plot_module() if a.plot else None
@@ -163,8 +218,15 @@ def run(ctx) -> int:
                         res["failed"] += 1
                         dog.failed(e)
                         if a.json:
-                            ctx.emit_json({"event": "exchange", "t": round(t - t0, 6),
-                                           "values": values, "ok": False, "error": str(e)})
+                            ctx.emit_json(
+                                {
+                                    "event": "exchange",
+                                    "t": round(t - t0, 6),
+                                    "values": values,
+                                    "ok": False,
+                                    "error": str(e),
+                                }
+                            )
                         continue
                     dog.ok()
                     res["exchanges"] += 1
@@ -173,10 +235,17 @@ def run(ctx) -> int:
                         if rec.flags & gateway.TELEM_STATUS:
                             res["samples"].append((t_rx - t0 - rec.age_ms / 1000.0, rec))
                     if a.json:
-                        ctx.emit_json({"event": "exchange", "t": round(t - t0, 6), "values": values,
-                                       "ok": True, **gateway.flags_dict(gw.flags),
-                                       "escs_known": gw.escs_known,
-                                       "telemetry": rec.as_dict() if rec else None})
+                        ctx.emit_json(
+                            {
+                                "event": "exchange",
+                                "t": round(t - t0, 6),
+                                "values": values,
+                                "ok": True,
+                                **gateway.flags_dict(gw.flags),
+                                "escs_known": gw.escs_known,
+                                "telemetry": rec.as_dict() if rec else None,
+                            }
+                        )
                     elif t_rx - last_line >= 1.0:
                         rate = (res["exchanges"] - count_at_line) / (t_rx - last_line)
                         print(_live_line(t_rx - t0, values, gw, rate), flush=True)
@@ -194,34 +263,47 @@ def run(ctx) -> int:
     rate = res["exchanges"] / res["seconds"] if res["seconds"] > 0 else 0.0
     plotted = None
     if plt is not None and res["samples"]:
-        write_plot(plt, a.plot, res["samples"],
-                   f"danprobe esc on {a.port}: {res['exchanges']} exchanges at {rate:.0f}/s")
+        write_plot(
+            plt,
+            a.plot,
+            res["samples"],
+            f"danprobe esc on {a.port}: {res['exchanges']} exchanges at {rate:.0f}/s",
+        )
         plotted = a.plot
         ctx.progress(f"plot written to {a.plot}")
     elif plt is not None and failure is None:
         ctx.error("no telemetry came back: no plot written")
 
     def human():
-        print(f"esc: {res['exchanges']} exchanges in {res['seconds']:.1f} s ({rate:.1f}/s), "
-              f"{res['failed']} failed; {gw.escs_known} ESC(s) known; flags "
-              f"{','.join(gateway.flags_names(gw.flags)) or 'none'}")
+        print(
+            f"esc: {res['exchanges']} exchanges in {res['seconds']:.1f} s ({rate:.1f}/s), "
+            f"{res['failed']} failed; {gw.escs_known} ESC(s) known; flags "
+            f"{','.join(gateway.flags_names(gw.flags)) or 'none'}"
+        )
         if records:
             print(telemetry_table(records))
         else:
             print("no telemetry came back")
 
-    fields = {"event": "summary", "exchanges": res["exchanges"], "failed": res["failed"],
-              "seconds": round(res["seconds"], 3), "rate": round(rate, 1),
-              "escs_known": gw.escs_known if gw else 0,
-              "esc": [r.as_dict() for r in sorted(records, key=lambda r: r.esc_index)],
-              "plot": plotted}
+    fields = {
+        "event": "summary",
+        "exchanges": res["exchanges"],
+        "failed": res["failed"],
+        "seconds": round(res["seconds"], 3),
+        "rate": round(rate, 1),
+        "escs_known": gw.escs_known if gw else 0,
+        "esc": [r.as_dict() for r in sorted(records, key=lambda r: r.esc_index)],
+        "plot": plotted,
+    }
     return gateway_report(ctx, m, failure, ms, fields, human)
 
 
 def _stop_motors(ctx, gw, n: int, disarm: bool):
     """Zero throttle (and disarm) at the end, however the loop ended."""
-    for what, call in (("zero throttle", lambda: gw.esc_command([0] * n)),
-                       ("disarm", lambda: gw.arm(gateway.ARM_DISARMED))):
+    for what, call in (
+        ("zero throttle", lambda: gw.esc_command([0] * n)),
+        ("disarm", lambda: gw.arm(gateway.ARM_DISARMED)),
+    ):
         if what == "disarm" and not disarm:
             break
         try:

@@ -1,11 +1,18 @@
 """danprobe slcan: the CAN bus behind the gateway as an SLCAN (Lawicel)
 adapter on a local pseudo-terminal."""
+
 import time
 
 from danprobe import gateway
-from danprobe.commands.common import (EXIT_USAGE, CliError, add_gateway_options,
-                                      gateway_operation, gateway_report, long_running,
-                                      positive_float)
+from danprobe.commands.common import (
+    EXIT_USAGE,
+    CliError,
+    add_gateway_options,
+    gateway_operation,
+    gateway_report,
+    long_running,
+    positive_float,
+)
 from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import PortError, now
 from danprobe.ptyport import Pty
@@ -18,10 +25,11 @@ DESCRIPTION = (
     "acknowledged (z/Z) once the gateway took them; every frame the gateway receives comes "
     "back as a t/T line (CAN_RECV, the filter set to pass everything while the channel is "
     "open). pydronecan: dronecan.make_node('slcan:PTY', node_id=N, bitrate=1000000). The bus "
-    "is DroneCAN's 1 Mbit/s: only S8 is accepted. Runs until Ctrl-C, SIGTERM or --duration.")
+    "is DroneCAN's 1 Mbit/s: only S8 is accepted. Runs until Ctrl-C, SIGTERM or --duration."
+)
 
 IDLE_POLL_S = 0.005
-TX_QUEUE_MAX = 64           # frames from the client not taken by the gateway yet
+TX_QUEUE_MAX = 64  # frames from the client not taken by the gateway yet
 ACK, BEL = b"\r", b"\x07"
 LINE_MAX = 64
 _HEX = frozenset(b"0123456789abcdefABCDEF")
@@ -42,7 +50,7 @@ def parse_frame(line: bytes):
     """A t/T/r/R line (no CR) as a CanFrame, or None if malformed."""
     kind = line[:1]
     idlen = 3 if kind in (b"t", b"r") else 8
-    ident, dlc = line[1:1 + idlen], line[1 + idlen:2 + idlen]
+    ident, dlc = line[1 : 1 + idlen], line[1 + idlen : 2 + idlen]
     if len(ident) != idlen or not _hex(ident) or dlc not in [b"%d" % i for i in range(9)]:
         return None
     n = int(dlc)
@@ -52,7 +60,7 @@ def parse_frame(line: bytes):
             if len(line) != 2 + idlen:
                 return None
             return gateway.CanFrame(fid, b"", kind == b"R", True, n).check()
-        data = line[2 + idlen:]
+        data = line[2 + idlen :]
         if len(data) != 2 * n or (n and not _hex(data)):
             return None
         return gateway.CanFrame(fid, bytes.fromhex(data.decode()), kind == b"T").check()
@@ -75,7 +83,7 @@ class Adapter:
         self.open = False
         self.listen_only = False
         self.timestamps = False
-        self.tx = []                # CanFrames waiting for the gateway
+        self.tx = []  # CanFrames waiting for the gateway
         self._line = bytearray()
         self._overlong = False
         self.errors = 0
@@ -108,7 +116,7 @@ class Adapter:
             if f is None or not self.open or self.listen_only or len(self.tx) >= TX_QUEUE_MAX:
                 return self._error()
             self.tx.append(f)
-            return b""              # z / Z once the gateway took it
+            return b""  # z / Z once the gateway took it
         if c == b"S":
             return ACK if arg == b"8" and not self.open else self._error()
         if c == b"s":
@@ -141,8 +149,7 @@ class Adapter:
 
 
 def run(ctx) -> int:
-    res = {"pty": None, "link": ctx.args.link, "to_can": 0, "from_can": 0, "errors": 0,
-           "lost": 0}
+    res = {"pty": None, "link": ctx.args.link, "to_can": 0, "from_can": 0, "errors": 0, "lost": 0}
 
     def op(m, gw):
         try:
@@ -154,15 +161,21 @@ def run(ctx) -> int:
             if ctx.args.json:
                 ctx.emit_json({"event": "ready", "pty": pty.path, "link": ctx.args.link})
             else:
-                print(f"slcan: {pty.path}" + (f" (link {ctx.args.link})" if ctx.args.link else "")
-                      + " is an SLCAN adapter on the CAN bus behind the gateway", flush=True)
+                print(
+                    f"slcan: {pty.path}"
+                    + (f" (link {ctx.args.link})" if ctx.args.link else "")
+                    + " is an SLCAN adapter on the CAN bus behind the gateway",
+                    flush=True,
+                )
             _serve(ctx, m, gw, pty, res)
 
     m, failure, ms = gateway_operation(ctx, op)
 
     def human():
-        print(f"slcan: stopped; {res['to_can']} frame(s) sent to CAN, {res['from_can']} received"
-              + (f", {res['lost']} lost" if res["lost"] else ""))
+        print(
+            f"slcan: stopped; {res['to_can']} frame(s) sent to CAN, {res['from_can']} received"
+            + (f", {res['lost']} lost" if res["lost"] else "")
+        )
 
     return gateway_report(ctx, m, failure, ms, {"event": "summary", **res}, human)
 
@@ -170,23 +183,22 @@ def run(ctx) -> int:
 def _serve(ctx, m, gw, pty, res):
     stop, dog = long_running(m, ctx)
     ad = Adapter()
-    previous = None             # the gateway's filter table before we opened the channel
-    filter_on = False           # ours (pass everything) is set
-    resend = False              # the last CAN_SEND's transaction failed: repeat it
+    previous = None  # the gateway's filter table before we opened the channel
+    filter_on = False  # ours (pass everything) is set
+    resend = False  # the last CAN_SEND's transaction failed: repeat it
     out = bytearray()
     t0 = now()
     with stop:
         try:
-            while not stop.stop and (ctx.args.duration is None or
-                                     now() - t0 < ctx.args.duration):
+            while not stop.stop and (ctx.args.duration is None or now() - t0 < ctx.args.duration):
                 was_open = ad.open
                 answers = ad.feed(pty.read())
                 if was_open and not ad.open:
-                    pty.discard_output()        # like an adapter: nothing stale after C
+                    pty.discard_output()  # like an adapter: nothing stale after C
                     out.clear()
                     resend = False
                 out += answers
-                del out[:pty.write(out)]
+                del out[: pty.write(out)]
                 moved = False
                 try:
                     if ad.open and not filter_on:
@@ -199,7 +211,7 @@ def _serve(ctx, m, gw, pty, res):
                         filter_on = False
                         ctx.progress("channel closed")
                     if ad.open and ad.tx:
-                        batch = ad.tx[:gateway.CAN_FRAMES_MAX]
+                        batch = ad.tx[: gateway.CAN_FRAMES_MAX]
                         accepted = gw.can_send_again() if resend else gw.can_send(batch)
                         resend = False
                         for f in batch[:accepted]:
@@ -223,7 +235,7 @@ def _serve(ctx, m, gw, pty, res):
                     dog.failed(e)
                     continue
                 dog.ok()
-                del out[:pty.write(out)]
+                del out[: pty.write(out)]
                 if not moved:
                     pty.wait_readable(IDLE_POLL_S)
         finally:
