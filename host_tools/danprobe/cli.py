@@ -3,11 +3,11 @@
 import argparse
 import os
 import sys
-from typing import List, Optional
+from typing import Optional
 
 from danprobe import __version__, gateway
 from danprobe.commands import COMMANDS
-from danprobe.commands.common import EXIT_FAIL, EXIT_USAGE, CliError, Context
+from danprobe.commands.common import EXIT_FAIL, CliError, Context
 from danprobe.master import DanError, OperationTimeout
 from danprobe.port import PortError
 
@@ -34,7 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Optional[List[str]] = None) -> int:
+def main(argv: Optional[list[str]] = None) -> int:
     args = build_parser().parse_args(argv)  # exits 2 on bad arguments
     gateway.register_names()  # sniff names and decodes the gateway's codes
     ctx = Context(args)

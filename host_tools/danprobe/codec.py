@@ -9,7 +9,7 @@ shared vectors in tests/vectors/ pin for both.
 """
 
 from dataclasses import asdict, dataclass
-from typing import List, NamedTuple, Optional, Tuple
+from typing import NamedTuple, Optional
 
 SYNC = 0x44  # 'D'
 MAX_PAYLOAD = 160  # DAN_MAX_PAYLOAD, libdan's default build
@@ -24,7 +24,7 @@ class MalformedError(ValueError):
 # ---- crc8_dvb_s2: polynomial 0xD5, init 0, no reflection, no final XOR ----
 
 
-def crc_table(poly: int, bits: int) -> Tuple[int, ...]:
+def crc_table(poly: int, bits: int) -> tuple[int, ...]:
     """Byte table of an MSB-first CRC of `bits` bits (no reflection)."""
     top, mask = 1 << (bits - 1), (1 << bits) - 1
     table = []
@@ -70,7 +70,7 @@ def uvarint_encode(v: int) -> bytes:
     return bytes(out)
 
 
-def uvarint_decode(data, pos: int = 0, end: Optional[int] = None) -> Tuple[int, int]:
+def uvarint_decode(data, pos: int = 0, end: Optional[int] = None) -> tuple[int, int]:
     """Decodes the uvarint at data[pos:end]. Returns (value, size); size 0
     means the input ends before the uvarint does (truncated). Raises
     MalformedError for an encoding longer than 5 bytes or a value above 32
@@ -220,7 +220,7 @@ class Decoder:
         self.stats.garbage += self._drop_front(n)
         return frame
 
-    def feed(self, data=b"") -> List[Frame]:
+    def feed(self, data=b"") -> list[Frame]:
         """Consumes data (any length, b"" too) and returns the frames
         completed, in order."""
         frames = []
@@ -272,7 +272,7 @@ class Decoder:
             return False
         return crc8(memoryview(p)[k + 1 : len(p) - 1]) == p[-1]
 
-    def abort(self) -> List[Frame]:
+    def abort(self) -> list[Frame]:
         """The line went idle: drops the partial frame (counted in aborted).
         A whole valid frame ending at the last byte received, started inside
         the dropped bytes, is kept and returned."""
@@ -286,7 +286,7 @@ class Decoder:
         self._clear()
         return []
 
-    def drain(self) -> List[Frame]:
+    def drain(self) -> list[Frame]:
         """abort() until nothing is buffered: what an idle line leaves."""
         frames = []
         while self.busy():

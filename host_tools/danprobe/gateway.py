@@ -27,8 +27,9 @@ number by can_send_again(), so a lost response never duplicates frames.
 
 import random
 import struct
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Optional
 
 from danprobe import registry
 from danprobe.codec import MalformedError, crc_table, uvarint_encode
@@ -213,7 +214,7 @@ def off_diff(a: int, b: int) -> int:
     return _signed((a - b) & 0xFFFFFFFF, 32)
 
 
-def flags_names(flags: int) -> List[str]:
+def flags_names(flags: int) -> list[str]:
     return [
         n
         for bit, n in ((FLAG_ARMED, "armed"), (FLAG_FAILSAFE, "failsafe"), (FLAG_CAN_OK, "can-up"))
@@ -249,7 +250,7 @@ def encode_esc_cmd(values: Sequence[int]) -> bytes:
     return bytes([len(values)]) + acc.to_bytes((14 * len(values) + 7) // 8, "little")
 
 
-def decode_esc_cmd(payload) -> List[int]:
+def decode_esc_cmd(payload) -> list[int]:
     r = Reader(payload)
     n = r.u8("count")
     if not 1 <= n <= ESC_MAX:
@@ -366,7 +367,7 @@ class Telemetry:
 
     flags: int = 0
     aux: int = 0
-    records: List[TelemRecord] = field(default_factory=list)
+    records: list[TelemRecord] = field(default_factory=list)
 
     def encode(self) -> bytes:
         w = Writer().u8(self.flags).u8(self.aux).u8(len(self.records))
@@ -482,7 +483,7 @@ def encode_stats(values: Sequence[int]) -> bytes:
     return w.bytes()
 
 
-def decode_stats(payload) -> List[int]:
+def decode_stats(payload) -> list[int]:
     r = Reader(payload)
     return [
         r.uvarint(STAT_NAMES[i] if i < len(STAT_NAMES) else f"counter {i}")
@@ -490,7 +491,7 @@ def decode_stats(payload) -> List[int]:
     ]
 
 
-def stats_dict(values: Sequence[int]) -> Dict[str, int]:
+def stats_dict(values: Sequence[int]) -> dict[str, int]:
     """Counters by the document's names; ones a later version appends are
     named counter_N."""
     return {
@@ -546,7 +547,7 @@ class NodeEntry:
 @dataclass
 class NodesPage:
     next: int = 0  # node id to ask for next (0: end)
-    entries: List[NodeEntry] = field(default_factory=list)
+    entries: list[NodeEntry] = field(default_factory=list)
 
     def encode(self) -> bytes:
         w = Writer().u8(self.next).u8(len(self.entries))
@@ -872,7 +873,7 @@ def parse_cansend(text: str) -> CanFrame:
 @dataclass
 class CanSendRequest:
     seq: int = 0
-    frames: List[CanFrame] = field(default_factory=list)
+    frames: list[CanFrame] = field(default_factory=list)
 
     def encode(self) -> bytes:
         if len(self.frames) > CAN_FRAMES_MAX:
@@ -933,7 +934,7 @@ class CanRecvRequest:
 class CanRecvResponse:
     first_seq: int = 0
     dropped: int = 0
-    frames: List[CanFrame] = field(default_factory=list)
+    frames: list[CanFrame] = field(default_factory=list)
 
     def encode(self) -> bytes:
         if len(self.frames) > CAN_FRAMES_MAX:
@@ -984,7 +985,7 @@ class FilterTable:
     """CAN_FILTER request (op, entries) and response (result, the table)."""
 
     op: int = FILTER_READ  # request: FILTER_*; response: 0 OK, 1 table full
-    filters: List[Filter] = field(default_factory=list)
+    filters: list[Filter] = field(default_factory=list)
 
     def encode(self) -> bytes:
         if len(self.filters) > FILTERS_MAX:
@@ -1077,10 +1078,10 @@ class GatewayClient:
         master.reply_check = reply_check
         self.flags = 0  # from the last response that carries them
         self.escs_known = 0  # ESCs the gateway knows (ESC_CMD response)
-        self.esc: Dict[int, TelemRecord] = {}  # newest telemetry per ESC index
+        self.esc: dict[int, TelemRecord] = {}  # newest telemetry per ESC index
         self.config: Optional[ConfigResponse] = None
-        self.stats: List[int] = []
-        self.tun: Dict[int, TunnelState] = {}
+        self.stats: list[int] = []
+        self.tun: dict[int, TunnelState] = {}
         self.can_seq: Optional[int] = None  # last CAN_SEND sequence number used
         self._unsent: Optional[CanSendRequest] = None  # a CAN_SEND whose transaction failed
         self.can_accepted = 0
@@ -1124,7 +1125,7 @@ class GatewayClient:
             self.esc[r.esc_index] = r
         return t
 
-    def telemetry(self) -> List[TelemRecord]:
+    def telemetry(self) -> list[TelemRecord]:
         """Every ESC's newest telemetry, page by page, in index order."""
         out, first = [], 0
         while True:
@@ -1150,7 +1151,7 @@ class GatewayClient:
         self.flags = self.config.flags
         return self.config
 
-    def read_stats(self) -> Dict[str, int]:
+    def read_stats(self) -> dict[str, int]:
         self.stats = self._call(CODE_STATS, b"", decode_stats)
         return stats_dict(self.stats)
 
@@ -1159,7 +1160,7 @@ class GatewayClient:
     def nodes_page(self, first: int = 1) -> NodesPage:
         return self._call(CODE_NODES, bytes([first]), NodesPage.decode)
 
-    def nodes(self) -> List[NodeEntry]:
+    def nodes(self) -> list[NodeEntry]:
         out, first = [], 1
         while True:
             p = self.nodes_page(first)
@@ -1252,7 +1253,7 @@ class GatewayClient:
             raise ValueError("no failed CAN_SEND to repeat")
         return self._can_send(self._unsent)
 
-    def can_recv(self, max_frames: int = CAN_FRAMES_MAX) -> List[CanFrame]:
+    def can_recv(self, max_frames: int = CAN_FRAMES_MAX) -> list[CanFrame]:
         """The next frames that passed the filter (acknowledging the ones
         received before)."""
         first = self.can_rx_next is None
@@ -1270,7 +1271,7 @@ class GatewayClient:
         self.can_rx_dropped = q.dropped
         return q.frames
 
-    def can_listen(self, filters: Sequence[Filter]) -> List[Filter]:
+    def can_listen(self, filters: Sequence[Filter]) -> list[Filter]:
         """Starts receiving with our filter: empties the filter, drops the
         frames still waiting in the gateway (they passed someone else's
         filter, earlier), then sets filters. Returns the table it replaced,

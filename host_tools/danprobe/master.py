@@ -12,7 +12,7 @@ import os
 import random
 from collections import deque
 from dataclasses import asdict, dataclass
-from typing import Callable, List, Optional
+from typing import Callable, Optional
 
 from danprobe import payloads
 from danprobe.codec import MAX_FRAME, Decoder, encode_frame
@@ -326,7 +326,7 @@ class Master:
     def __init__(
         self,
         port,
-        types: List[PeripheralType],
+        types: list[PeripheralType],
         baud: int = BASE_BAUD,
         config: Optional[MasterConfig] = None,
         echo: bool = True,
@@ -351,7 +351,7 @@ class Master:
     def baud(self) -> int:
         return self.link.baud
 
-    def present(self) -> List[Peer]:
+    def present(self) -> list[Peer]:
         return [p for p in self.peers if p.present]
 
     def set_time_limit(self, seconds: Optional[float]):
@@ -482,7 +482,7 @@ class Master:
 
     # ---- discovery ----
 
-    def _probe(self, peers: List[Peer], baud: int):
+    def _probe(self, peers: list[Peer], baud: int):
         """IDENTIFY each of peers at baud; the ones answering are present there."""
         self._switch_baud(baud)
         self.progress(f"probing {', '.join(p.type.name for p in peers)} at {baud} baud")
@@ -498,7 +498,7 @@ class Master:
                 f"found {p.type.name} at {baud} baud: {p.identity.manufacturer} {p.identity.model}"
             )
 
-    def probe(self, baud: int) -> List[Peer]:
+    def probe(self, baud: int) -> list[Peer]:
         """A quick look at one baud (a bus believed to be there): IDENTIFY
         every type at baud only. Returns the peers that answered (maybe
         none) and leaves the bus at baud."""
@@ -507,7 +507,7 @@ class Master:
         self._probe(self.peers, baud)
         return self.present()
 
-    def discover(self) -> List[Peer]:
+    def discover(self) -> list[Peer]:
         """IDENTIFY every type at 9600, then the missing ones at the other
         discovery bauds. Leaves the bus at the baud of the first peer
         found. Raises NotFound if nobody answered."""

@@ -10,7 +10,6 @@ libdan's fixed 32-byte buffers they are never truncated.
 
 import struct
 from dataclasses import asdict, dataclass
-from typing import List
 
 from danprobe.codec import MalformedError, uvarint_decode, uvarint_encode
 
@@ -44,7 +43,7 @@ def mask_bit_of_baud(baud: int) -> int:
     return 1 << MASK_BAUDS.index(baud) if baud in MASK_BAUDS else 0
 
 
-def bauds_of_mask(mask: int) -> List[int]:
+def bauds_of_mask(mask: int) -> list[int]:
     """Every baud a peripheral with this mask supports (9600 always),
     ascending; undefined bits are ignored."""
     return [BASE_BAUD] + [b for i, b in enumerate(MASK_BAUDS) if mask & (1 << i)]
@@ -189,7 +188,7 @@ class Identity:
         )
 
     @property
-    def bauds(self) -> List[int]:
+    def bauds(self) -> list[int]:
         return bauds_of_mask(self.baud_mask)
 
     def as_dict(self) -> dict:

@@ -11,7 +11,7 @@ Until then such a code shows as "can-gw 0x42".
 """
 
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, Tuple
+from typing import Callable, Optional
 
 from danprobe import payloads
 from danprobe.codec import MalformedError
@@ -74,7 +74,7 @@ class Message:
     response: Optional[Describer] = None  # payload sent back
 
 
-_MESSAGES: Dict[int, Message] = {}
+_MESSAGES: dict[int, Message] = {}
 
 
 def register_message(
@@ -138,7 +138,7 @@ REQUEST, RESPONSE = "request", "response"
 
 def describe(
     code: int, payload: bytes, role: Optional[str]
-) -> Tuple[Optional[str], Optional[dict], str]:
+) -> tuple[Optional[str], Optional[dict], str]:
     """Decodes a payload for display: (role, fields, problem). The guessed
     role's format is tried first, then the other one (a retried request
     looks like a response to a sniffer); fields is None when neither fits

@@ -4,7 +4,7 @@ files (docs/VBUS.md, "Capture format")."""
 
 import bisect
 from dataclasses import dataclass, field
-from typing import Dict, List, NamedTuple, Optional
+from typing import NamedTuple, Optional
 
 from danprobe.codec import Decoder, Frame
 from danprobe.master import GAP_CHARS, GAP_MIN_S, TURNAROUND_CHARS, char_s
@@ -61,7 +61,7 @@ class Event:
 @dataclass
 class Counters:
     frames: int = 0
-    by_name: Dict[str, int] = field(default_factory=dict)
+    by_name: dict[str, int] = field(default_factory=dict)
     bursts: int = 0
     collision_bursts: int = 0  # capture flags
     noise_bursts: int = 0
@@ -76,7 +76,7 @@ class Sniffer:
         self.reply_window_s = reply_window_s
         self.decoder = Decoder()
         self.counters = Counters()
-        self._chunks: List[_Chunk] = []
+        self._chunks: list[_Chunk] = []
         self._prev: Optional[Event] = None
         self._prev_end: Optional[float] = None
 
@@ -122,7 +122,7 @@ class Sniffer:
         self.counters.by_name[ev.name] = self.counters.by_name.get(ev.name, 0) + 1
         return ev
 
-    def _run(self, fn, time: float, source: Optional[int], baud: int) -> List[Event]:
+    def _run(self, fn, time: float, source: Optional[int], baud: int) -> list[Event]:
         before = self.decoder.stats.as_dict()
         frames = fn()
         after = self.decoder.stats.as_dict()
@@ -143,7 +143,7 @@ class Sniffer:
 
     def feed(
         self, data: bytes, time: float, source: Optional[int] = None, baud: int = 9600
-    ) -> List[Event]:
+    ) -> list[Event]:
         """Bytes heard on the line; time is when the first one started."""
         self._chunks.append(_Chunk(self.decoder.consumed, time, source, baud))
         return self._run(lambda: self.decoder.feed(data), time, source, baud)
@@ -151,7 +151,7 @@ class Sniffer:
     def busy(self) -> bool:
         return self.decoder.busy()
 
-    def idle(self, time: float, baud: int = 9600) -> List[Event]:
+    def idle(self, time: float, baud: int = 9600) -> list[Event]:
         """The line went idle: a partial frame is dropped (an "aborted" event)."""
         return self._run(self.decoder.drain, time, None, baud)
 
@@ -181,10 +181,10 @@ class Burst(NamedTuple):
     source: int
     baud: int
     data: bytes  # the bytes on the wire (after corruption, if flagged)
-    flags: List[str]
+    flags: list[str]
 
 
-def read_capture(path) -> List[Burst]:
+def read_capture(path) -> list[Burst]:
     """The bursts of a dan-vbus capture file, in start-time order."""
     bursts = []
     with open(path, encoding="ascii", errors="replace") as f:
@@ -213,7 +213,7 @@ def read_capture(path) -> List[Burst]:
     return bursts
 
 
-def sniff_capture(bursts: List[Burst], sniffer: Sniffer):
+def sniff_capture(bursts: list[Burst], sniffer: Sniffer):
     """Yields the events of a capture: the line is idle between bursts
     further apart than libdan's gap, and at a baud change."""
     end, baud = None, None

@@ -3,7 +3,7 @@
 import json
 import socket
 
-from conftest import BIN, wait_for
+from conftest import BIN
 
 
 def start_vbus(procs, tmp, n, *extra):

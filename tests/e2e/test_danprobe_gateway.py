@@ -21,11 +21,11 @@ import pytest
 
 from bus_util import vbus_cmd
 from conftest import BIN, ROOT, VECTORS, wait_for
-from test_gateway import Rig
 from danprobe import gateway as G
 from danprobe.codec import encode_frame
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
+from test_gateway import Rig
 
 GW_NODE = 10
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")

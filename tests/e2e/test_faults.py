@@ -10,18 +10,16 @@ asserts a speed.
 import json
 import os
 import random
-import signal
 import sys
 import threading
 import time
 
+import dronecan  # noqa: F401 (installed by make)
 import pytest
+import serial
 
 from bus_util import vbus_cmd, vbus_stats
 from conftest import BIN, ROOT, wait_for
-
-import dronecan  # noqa: F401 (installed by make)
-import serial
 
 ASAN_BIN = ROOT / "build" / "asan" / "bin"
 ZERO = [0, 0, 0, 0]

@@ -15,10 +15,9 @@ import subprocess
 
 import pytest
 
+import pydronecan_nodes
 from bus_util import periph_stats, read_capture, start_periph, start_vbus, vbus_stats
 from conftest import ROOT
-
-import pydronecan_nodes
 
 FW_ELF = os.environ.get("DAN_FW_ELF", str(ROOT / "build" / "fw" / "fc_firmware.elf"))
 QEMU = shutil.which("qemu-system-arm")
@@ -157,9 +156,11 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
     """The gateway phase against the real gateway: dan-gatewayd on the bus,
     an SLCAN hub as the CAN bus and a pydronecan ESC node that publishes
     esc.Status for ESC 0..3 and records what reaches CAN."""
-    import dronecan
     import threading
     import time
+
+    import dronecan
+
     from conftest import BIN
 
     U = dronecan.uavcan

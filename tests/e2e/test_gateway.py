@@ -7,17 +7,16 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 
 import json
 import os
-import sys
 import struct
+import sys
 import threading
 import time
 
+import dronecan
 import pytest
 
-from conftest import BIN, ROOT, wait_for
-
-import dronecan
 import pydronecan_nodes
+from conftest import BIN, ROOT, wait_for
 
 U = dronecan.uavcan
 

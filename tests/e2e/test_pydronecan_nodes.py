@@ -14,9 +14,8 @@ lock. With pydronecan_nodes.make_node every node starts.
 
 import sys
 
-from conftest import ROOT
-
 import pydronecan_nodes
+from conftest import ROOT
 
 sys.path.insert(0, str(ROOT / "tests" / "tools"))
 from node_start_repro import BusyLogger  # noqa: E402

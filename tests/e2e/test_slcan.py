@@ -11,17 +11,15 @@ import select
 import signal
 import socket
 import sys
-import termios
 import threading
 import time
 import tty
 
+import dronecan
 import pytest
 
-from conftest import BIN, ROOT, wait_for
-
-import dronecan
 import pydronecan_nodes
+from conftest import BIN, ROOT, wait_for
 
 HUB = ROOT / "host_tools" / "slcan_hub.py"
 CANTOOL = BIN / "dan-cantool"

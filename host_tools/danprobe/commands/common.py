@@ -7,7 +7,8 @@ import argparse
 import json
 import signal
 import sys
-from typing import Callable, Iterable, List, Optional, Tuple, Type
+from collections.abc import Iterable
+from typing import Callable, Optional
 
 from danprobe import gateway, registry
 from danprobe.master import DanError, DanTimeout, Master, MasterConfig, NotFound, OperationTimeout
@@ -59,7 +60,7 @@ def positive_float(s: str) -> float:
     return v
 
 
-def type_list(s: str) -> List[registry.PeripheralType]:
+def type_list(s: str) -> list[registry.PeripheralType]:
     out = []
     for name in filter(None, (x.strip() for x in s.split(","))):
         t = registry.lookup(name)
@@ -214,7 +215,7 @@ def master_operation(
     ctx: Context,
     baud: int,
     op: Callable[[Master], None],
-    expected: Tuple[Type[DanError], ...] = (DanError,),
+    expected: tuple[type[DanError], ...] = (DanError,),
 ):
     """Opens the port, runs op(master) and returns (master, failure, ms):
     failure is the expected DanError op raised, or None. OperationTimeout
@@ -395,7 +396,7 @@ class Watchdog:
             raise DanTimeout(f"the gateway has not answered for {self.seconds:g} s (last: {e})")
 
 
-def long_running(m: Master, ctx: Context) -> Tuple[StopSignals, Watchdog]:
+def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     """After the gateway was found: no overall time limit any more."""
     m.set_time_limit(None)
     return StopSignals(), Watchdog(ctx.args.timeout)

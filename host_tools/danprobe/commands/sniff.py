@@ -9,8 +9,8 @@ from danprobe.commands.common import (
     CliError,
     add_common_options,
     add_gap_option,
-    positive_int,
     positive_float,
+    positive_int,
 )
 from danprobe.master import char_s
 from danprobe.port import now
