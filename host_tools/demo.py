@@ -209,8 +209,8 @@ def main():
         stack.check_alive()
 
         # What the ESCs saw, from their own log: the proof the commands arrived.
-        cmds = [json.loads(l) for l in open(tmp / "escs.jsonl") if '"cmd"' in l]
-        arming = [json.loads(l) for l in open(tmp / "escs.jsonl") if '"arming"' in l]
+        cmds = [json.loads(line) for line in open(tmp / "escs.jsonl") if '"cmd"' in line]
+        arming = [json.loads(line) for line in open(tmp / "escs.jsonl") if '"arming"' in line]
         top = max((max(c["cmd"][:4]) for c in cmds), default=0)
         step("What the ESCs received")
         print(

@@ -135,7 +135,7 @@ def fcsim(stack, build, port, steps, name="fcsim", timeout=300, stamps=None):
 
 
 def step(lines, name):
-    return [l for l in lines if l.get("step") == name]
+    return [line for line in lines if line.get("step") == name]
 
 
 def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
@@ -334,7 +334,7 @@ def bench_raw(build, seconds):
     full = [(len(r[3]), c) for r, c in zip(rsp, per) if c > 0]
     # the wire bound of the same messages: a full CAN_RECV exchange
     req_b = statistics.mean(len(b[3]) for b in req)
-    rsp_b = max(l for l, _ in full) if full else 0
+    rsp_b = max(n for n, _ in full) if full else 0
     fpm = max(c for _, c in full) if full else 0
     bound = fpm * BAUD / 10 / (req_b + rsp_b) if fpm else 0.0
     bound_gaps = fpm * 1e6 / ((req_b + rsp_b + 5) * C_US) if fpm else 0.0
@@ -409,13 +409,13 @@ def bench_discovery(build, runs=3):
                     "dan-master",
                 )
                 out, _ = m.communicate(timeout=120)
-                lines = [json.loads(l) for l in out.decode().splitlines() if l.strip()]
+                lines = [json.loads(line) for line in out.decode().splitlines() if line.strip()]
                 if m.returncode != 0:
                     raise RuntimeError(f"dan-master failed: {lines}")
             finally:
                 st.close()
             cap = read_capture(tmp / "bus.cap")
-        ms = sum(l["ms"] for l in lines)
+        ms = sum(line["ms"] for line in lines)
         wire_s = sum(len(b[3]) * 10 / b[2] for b in cap)
         res.append((ms / 1000, wire_s, len(cap), lines[-1]["baud"]))
     secs = statistics.median(r[0] for r in res)
@@ -527,7 +527,7 @@ def bench_latency(build, samples=60):
             src = slcan_open(tmp / "can2")
             req = encode_frame(0x42, seal(0x42, REQUEST, PROBE_ESC))
             gw_lat, vbus_hop, hub_hop = [], [], []
-            for i in range(samples):
+            for _ in range(samples):
                 # gateway: the request's last byte leaves the wire -> RawCommand read from the hub
                 # (includes the vbus hop to the gateway and the hub hop out: compare with those bare)
                 mon.read(65536)
@@ -605,7 +605,9 @@ def soak(build, seconds):
             while p.poll() is None:
                 samples.append((round(time.monotonic() - t0, 1), rss_kb(gwd.pid)))
                 time.sleep(1.0)
-            lines = [json.loads(l) for l in p.stdout.read().decode().splitlines() if l.strip()]
+            lines = [
+                json.loads(line) for line in p.stdout.read().decode().splitlines() if line.strip()
+            ]
             stats = json.loads((tmp / "gw.stats").read_text())
         finally:
             st.close()

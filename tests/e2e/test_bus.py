@@ -36,7 +36,7 @@ def master(port, *steps, types=TYPES, timeout=120, check=True, opts=()):
         capture_output=True,
         timeout=timeout,
     )
-    out = [json.loads(l) for l in r.stdout.decode().splitlines() if l.startswith("{")]
+    out = [json.loads(line) for line in r.stdout.decode().splitlines() if line.startswith("{")]
     if check:
         assert r.returncode == 0, (r.returncode, out, r.stderr.decode())
     return r.returncode, out

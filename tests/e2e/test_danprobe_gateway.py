@@ -492,10 +492,10 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
     assert rc == 0, err
     assert "gateway at 115200 baud" in err
     summary = out.splitlines()
-    head = next(i for i, l in enumerate(summary) if l.startswith("esc:"))
+    head = next(i for i, line in enumerate(summary) if line.startswith("esc:"))
     exchanges = int(re.match(r"esc: (\d+) exchanges", summary[head]).group(1))
     assert exchanges > 20
-    live = [l for l in summary[:head] if "cmd 0,100,200,300" in l]
+    live = [line for line in summary[:head] if "cmd 0,100,200,300" in line]
     assert live, out  # one line a second
     table = summary[head + 1 :]
     assert table[0].split()[:3] == ["esc", "node", "rpm"] and len(table) == 5
@@ -539,13 +539,13 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
     )
     assert rc == 0, err
     lines = [json.loads(x) for x in out.splitlines()]
-    ex = [l for l in lines if l.get("event") == "exchange"]
+    ex = [line for line in lines if line.get("event") == "exchange"]
     end = lines[-1]
     assert end["event"] == "summary" and end["plot"] == str(png) and end["exchanges"] == len(ex)
-    sent = [l["values"][0] for l in ex]
+    sent = [line["values"][0] for line in ex]
     assert sent == sorted(sent) and sent[0] < 200 and 1800 < sent[-1] <= 2048
     assert len(ex[0]["values"]) == 4
-    assert sum(1 for l in ex if l["telemetry"]) > 0.9 * len(ex)
+    assert sum(1 for line in ex if line["telemetry"]) > 0.9 * len(ex)
     assert end["esc"][0]["rpm"] > 1000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
 
@@ -659,7 +659,7 @@ def test_can_dump_filter_and_send(stack):
         "000#",
     ]
     o, _ = rec.communicate(timeout=60)
-    got = [l.split()[-1] for l in o.decode().splitlines()]
+    got = [line.split()[-1] for line in o.decode().splitlines()]
     for f in ("123#DEADBEEF", "1ABCDE01#0102030405060708", "7FF#R2", "000#"):
         assert got.count(f) == 1, (f, got)  # once: no duplicate on retries
     # sent twice by two runs: a new run's sequence number is never taken for a retry

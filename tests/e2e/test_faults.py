@@ -168,7 +168,7 @@ def rig(procs, tmp_path):
 
 
 def steps_of(out, name):
-    return [l for l in out if l.get("step") == name]
+    return [line for line in out if line.get("step") == name]
 
 
 def report(what, tried, failed, wrong, extra=""):
@@ -187,7 +187,7 @@ def test_noise_levels_and_recovery(rig):
         vals = f"{100 + k},{200 + k},{300 + k},{400 + k}"
         state = {}
 
-        def on_line(line, ber=ber):
+        def on_line(line, ber=ber, state=state):
             if line["step"] == "discover":
                 assert vbus_cmd(r.tmp / "vbus.ctl", f"ber {ber}") == "ok"
             elif line["step"] == "esc":

@@ -61,9 +61,9 @@ def run_firmware(procs, tmp_path, endpoint, append=None):
     p.log_file.flush()
     text = p.log_path.read_text()  # semihosting console (stderr)
     lines = []
-    for l in text.splitlines():
-        if l.startswith("{"):
-            lines.append(json.loads(l))
+    for line in text.splitlines():
+        if line.startswith("{"):
+            lines.append(json.loads(line))
     assert lines, f"no output from the firmware:\n{text}"
     return rc, {d["step"]: d for d in lines if "step" in d}, text
 

@@ -105,7 +105,7 @@ class Rig:
             [BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *steps]
         )
         out, _ = p.communicate(timeout=timeout)
-        lines = [json.loads(l) for l in out.decode().splitlines() if l.strip()]
+        lines = [json.loads(line) for line in out.decode().splitlines() if line.strip()]
         return p.returncode, lines
 
     def close(self):
@@ -131,7 +131,7 @@ def rig(procs, tmp_path):
 
 
 def step(lines, name):
-    return [l for l in lines if l["step"] == name]
+    return [line for line in lines if line["step"] == name]
 
 
 def test_esc_telemetry_arming_nodes_failsafe(rig):
@@ -186,7 +186,7 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
         "nodes",
         "stats",
     )
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     assert step(out, "configure")[0]["baud"] == 115200
     # exact values on the bus, 4 and 8 channels
     cmds = [c for _, c in raw]
@@ -296,7 +296,7 @@ def test_tunnel_64k_both_ways(rig):
         "stats",
         timeout=170,
     )
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     assert bytes(got) == data
     assert dst.read_bytes() == bytes(b ^ 0x5A for b in data)
     x = step(out, "xfer")[0]
@@ -334,7 +334,7 @@ def test_tunnel_broadcast(rig):
     rc, out = r.fcsim(
         "discover", "configure", "tunnel:0:broadcast:2:7", f"xfer:0:{src}:{dst}:1200:30000"
     )
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     wait_for(lambda: len(got) >= len(data), 20, what="broadcast tunnel data")
     assert bytes(got) == data
     assert dst.read_bytes()[:1200] == b"".join(sent)[:1200]
@@ -364,7 +364,7 @@ def test_raw_frames_filtered(rig):
         "cansend:123#DEADBEEF,1ABCDE01#0102030405060708",
         "sleep:200",
     )
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     o, _ = rec.communicate(timeout=40)
     lines = o.decode().split()
     assert "123#DEADBEEF" in o.decode()
@@ -375,7 +375,7 @@ def test_raw_frames_filtered(rig):
     )
     assert snd.wait(20) == 0
     rc, out = r.fcsim("discover", "candump:2:10000")
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     assert step(out, "candump")[0]["frames"] == ["1AB#0102", "155#"]
     del lines
 

@@ -292,11 +292,11 @@ def test_nonstandard_baud_250000(bus):
     assert read_exact(a, len(msg)) == msg
     assert [ep["baud"] for ep in b.stats()["endpoints"]] == [250000, 250000]
     lines = wait_for(
-        lambda: sum(len(l[3]) for l in b.capture()) == len(msg) and b.capture(),
+        lambda: sum(len(line[3]) for line in b.capture()) == len(msg) and b.capture(),
         what="capture lines for all 5000 bytes",
     )
     assert {(src, baud) for _, src, baud, *_ in lines} == {(0, 250000)}
-    assert b"".join(l[3] for l in lines) == msg  # bursts over 4096 bytes are split
+    assert b"".join(line[3] for line in lines) == msg  # bursts over 4096 bytes are split
 
 
 def test_baud_mismatch_corrupts(bus):
@@ -336,11 +336,11 @@ def test_collision_corrupts_and_is_counted(bus):
     assert st["collided_bytes"] >= 20
 
     def collided():
-        lines = [l for l in b.capture() if "collision" in l[4]]
-        return {l[1] for l in lines} == {0, 1} and lines
+        lines = [line for line in b.capture() if "collision" in line[4]]
+        return {line[1] for line in lines} == {0, 1} and lines
 
     lines = wait_for(collided, what="collision lines from both writers in the capture")
-    for _, src, _, tx, flags, rx in lines:
+    for _, src, _, tx, _flags, rx in lines:
         assert rx is not None and len(rx) == len(tx)
         if src == 1:  # every byte of the short burst overlapped
             assert tx == b"C" * 10 and all(x != y for x, y in zip(tx, rx))
@@ -366,7 +366,7 @@ def test_noise_ber_and_reproducibility(bus):
         a.write(msg)
         assert read_exact(r, len(msg)) == msg
         assert read_exact(a, len(msg)) == msg
-        lines = wait_for(lambda: len(b.capture()) >= 2 and b.capture(), what="capture")
+        lines = wait_for(lambda b=b: len(b.capture()) >= 2 and b.capture(), what="capture")
         assert "noise" in lines[0][4] and lines[0][5] == got
         assert lines[1][4] == set() and lines[1][5] is None and lines[1][3] == msg
         b.close()
@@ -386,9 +386,9 @@ def test_capture_lines_match_traffic(bus):
     lines = wait_for(lambda: len(b.capture()) >= 3 and b.capture(), what="3 capture lines")
     assert len(lines) == 3
     assert [(src, baud, tx) for _, src, baud, tx, _, _ in lines] == sent
-    times = [l[0] for l in lines]
+    times = [line[0] for line in lines]
     assert times == sorted(times) and times[0] >= 0
-    assert all(l[4] == set() and l[5] is None for l in lines)
+    assert all(line[4] == set() and line[5] is None for line in lines)
     header = b.cap_path.read_text().splitlines()[0]
     assert header.startswith("#")
 

@@ -107,7 +107,7 @@ def main():
         else:
             add("gw_client", bytes([code - 0x42, 0]) + payload)
     # a session: identify, configure, the requests, CAN traffic, time passing
-    dc = [can_frames(l.split(" : ")[1]) for l in lines("dronecan.txt")]
+    dc = [can_frames(line.split(" : ")[1]) for line in lines("dronecan.txt")]
     can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")

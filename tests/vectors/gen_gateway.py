@@ -86,7 +86,6 @@ def emit(msg, d, fields, payload):
 
 
 def esc_cmd(values):
-    bits = 0
     acc = 0
     for i, v in enumerate(values):
         acc |= (v & 0x3FFF) << (14 * i)

@@ -72,7 +72,9 @@ def h(b):
 
 
 def write(name, header, lines):
-    (HERE / name).write_text("".join(f"# {l}\n" for l in header) + "".join(l + "\n" for l in lines))
+    (HERE / name).write_text(
+        "".join(f"# {line}\n" for line in header) + "".join(line + "\n" for line in lines)
+    )
 
 
 def main():
