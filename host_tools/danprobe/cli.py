@@ -5,7 +5,7 @@ import os
 import sys
 from typing import Optional
 
-from danprobe import __version__, gateway
+from danprobe import __version__, gateway_client
 from danprobe.commands import COMMANDS
 from danprobe.commands.common import EXIT_FAIL, CliError, Context
 from danprobe.master import DanError, OperationTimeout
@@ -36,7 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[list[str]] = None) -> int:
     args = build_parser().parse_args(argv)  # exits 2 on bad arguments
-    gateway.register_names()  # sniff names and decodes the gateway's codes
+    gateway_client.register_names()  # sniff names and decodes the gateway's codes
     ctx = Context(args)
     try:
         return args.run(ctx)

@@ -38,7 +38,7 @@ import time
 from pathlib import Path
 
 from danprobe.codec import encode_frame  # the host tool's codec (same venv)
-from danprobe.gateway import REQUEST, seal
+from danprobe.gateway_msgs import REQUEST, seal
 
 ROOT = Path(__file__).resolve().parents[2]
 BAUD = 115200

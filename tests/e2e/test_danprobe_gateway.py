@@ -21,8 +21,10 @@ import pytest
 
 from bus_util import vbus_cmd
 from conftest import BIN, ROOT, VECTORS, wait_for
-from danprobe import gateway as G
+from danprobe import gateway_can as GC
+from danprobe import gateway_msgs as G
 from danprobe.codec import encode_frame
+from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
 from test_gateway import Rig
@@ -50,7 +52,7 @@ def frame_of(text):
     idf, dlc, data = text.split("/")
     idf = int(idf, 16)
     rtr = bool(idf & G.CAN_ID_RTR)
-    return G.CanFrame(
+    return GC.CanFrame(
         idf & G.EFF_MASK,
         b"" if rtr else unhex(data),
         bool(idf & G.CAN_ID_EXT),
@@ -61,7 +63,7 @@ def frame_of(text):
 
 def filter_of(text):
     i, m = (int(x, 16) for x in text.split("/"))
-    return G.Filter(i & G.EFF_MASK, m, bool(i & G.CAN_ID_EXT))
+    return GC.Filter(i & G.EFF_MASK, m, bool(i & G.CAN_ID_EXT))
 
 
 def ints(text):
@@ -125,22 +127,22 @@ def vector_object(msg, d, fields):
         )
         return x.encode(), G.TunXferResponse.decode, x
     if key == ("can_send", "req"):
-        s = G.CanSendRequest(i("seq"), [frame_of(v) for v in rep("frame")])
-        return s.encode(), G.CanSendRequest.decode, s
+        s = GC.CanSendRequest(i("seq"), [frame_of(v) for v in rep("frame")])
+        return s.encode(), GC.CanSendRequest.decode, s
     if key == ("can_send", "rsp"):
-        s = G.CanSendResponse(i("seq"), i("accepted"), i("free"))
-        return s.encode(), G.CanSendResponse.decode, s
+        s = GC.CanSendResponse(i("seq"), i("accepted"), i("free"))
+        return s.encode(), GC.CanSendResponse.decode, s
     if key == ("can_recv", "req"):
-        s = G.CanRecvRequest(i("seq"), i("max"))
-        return s.encode(), G.CanRecvRequest.decode, s
+        s = GC.CanRecvRequest(i("seq"), i("max"))
+        return s.encode(), GC.CanRecvRequest.decode, s
     if key == ("can_recv", "rsp"):
-        s = G.CanRecvResponse(i("seq"), i("dropped"), [frame_of(v) for v in rep("frame")])
-        return s.encode(), G.CanRecvResponse.decode, s
+        s = GC.CanRecvResponse(i("seq"), i("dropped"), [frame_of(v) for v in rep("frame")])
+        return s.encode(), GC.CanRecvResponse.decode, s
     if msg == "can_filter":
-        t = G.FilterTable(
+        t = GC.FilterTable(
             i("op") if d == "req" else i("result"), [filter_of(v) for v in rep("filter")]
         )
-        return t.encode(), G.FilterTable.decode, t
+        return t.encode(), GC.FilterTable.decode, t
     raise AssertionError(f"no codec for {msg} {d}")
 
 
@@ -174,12 +176,12 @@ def test_codec_details_and_malformed_payloads():
     assert G.stats_dict([0] * 21)["counter_20"] == 0  # later versions append counters
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
     # cansend syntax
-    assert G.parse_cansend("123#DEADBEEF") == G.CanFrame(0x123, bytes.fromhex("deadbeef"))
-    assert G.parse_cansend("1ABCDE01#01.02.03").ext
-    assert G.parse_cansend("1404#").ext and not G.parse_cansend("7FF#").ext
-    assert G.parse_cansend("7FF#R2").candump() == "7FF#R2" and G.parse_cansend("7FF#R").dlc == 0
+    assert GC.parse_cansend("123#DEADBEEF") == GC.CanFrame(0x123, bytes.fromhex("deadbeef"))
+    assert GC.parse_cansend("1ABCDE01#01.02.03").ext
+    assert GC.parse_cansend("1404#").ext and not GC.parse_cansend("7FF#").ext
+    assert GC.parse_cansend("7FF#R2").candump() == "7FF#R2" and GC.parse_cansend("7FF#R").dlc == 0
     assert (
-        G.CanFrame(0x1404060A, bytes.fromhex("0001900c800b01c0"), True).candump()
+        GC.CanFrame(0x1404060A, bytes.fromhex("0001900c800b01c0"), True).candump()
         == "1404060A#0001900C800B01C0"
     )
     for bad in (
@@ -193,7 +195,7 @@ def test_codec_details_and_malformed_payloads():
         "#00",
     ):
         with pytest.raises(ValueError):
-            G.parse_cansend(bad)
+            GC.parse_cansend(bad)
     for bad in ([], [0] * 21, [8192], [-8193]):
         with pytest.raises(ValueError):
             G.encode_esc_cmd(bad)
@@ -207,10 +209,10 @@ def test_codec_details_and_malformed_payloads():
         (G.ConfigRequest.decode, "0131"),  # timeout 49
         (G.ConfigRequest.decode, "0233"),  # rate 51
         (G.TunXferResponse.decode, "0000000000" + "8101" + "00" * 129),  # 129 data bytes
-        (G.CanSendRequest.decode, "070c"),  # 12 frames
-        (G.CanRecvResponse.decode, "0000012301000009"),  # dlc 9
-        (G.CanRecvResponse.decode, "000001000800000100"),  # 11-bit id 0x800
-        (G.FilterTable.decode, "0001000000200000ff00"),  # reserved id bit
+        (GC.CanSendRequest.decode, "070c"),  # 12 frames
+        (GC.CanRecvResponse.decode, "0000012301000009"),  # dlc 9
+        (GC.CanRecvResponse.decode, "000001000800000100"),  # 11-bit id 0x800
+        (GC.FilterTable.decode, "0001000000200000ff00"),  # reserved id bit
         (G.NodesPage.decode, "0001140000"),  # entry cut short
     ]
     for decode, hexs in malformed:
@@ -266,14 +268,14 @@ def test_seal_vectors():
 
 def test_client_can_send_sequence_numbers():
     def ok(code, payload):
-        req = G.CanSendRequest.decode(payload)
-        return G.CanSendResponse(req.seq, len(req.frames), 100).encode()
+        req = GC.CanSendRequest.decode(payload)
+        return GC.CanSendResponse(req.seq, len(req.frames), 100).encode()
 
     m = ScriptedMaster(ok, ok, DanTimeout("lost"), ok, ok)
-    gw = G.GatewayClient(m, seed=7)
-    f = [G.CanFrame(0x123, b"\x01")]
+    gw = GatewayClient(m, seed=7)
+    f = [GC.CanFrame(0x123, b"\x01")]
     assert gw.can_send(f) == 1
-    sync, first = (G.CanSendRequest.decode(p) for _, p in m.sent)
+    sync, first = (GC.CanSendRequest.decode(p) for _, p in m.sent)
     assert sync.frames == [] and first.seq == (sync.seq + 1) & 0xFF and first.frames == f
     with pytest.raises(DanTimeout):
         gw.can_send(f + f)
@@ -281,7 +283,7 @@ def test_client_can_send_sequence_numbers():
     assert gw.can_send_again() == 2  # the same request, the same seq
     assert m.sent[3] == m.sent[2] and not gw.can_send_failed
     gw.can_send(f)
-    assert G.CanSendRequest.decode(m.sent[4][1]).seq == (first.seq + 2) & 0xFF
+    assert GC.CanSendRequest.decode(m.sent[4][1]).seq == (first.seq + 2) & 0xFF
     assert all(code == G.CODE_CAN_SEND for code, _ in m.sent)
 
 
@@ -296,7 +298,7 @@ def test_client_tunnel_offsets_and_can_recv_ack():
         rsp(1, 500, 0, 0, 0, b"").encode(),  # took more than we sent
         G.TunOpenResult(2, 1).encode(),
     )
-    gw = G.GatewayClient(m)
+    gw = GatewayClient(m)
     gw.tunnel_open(G.TunOpen(1, G.TUN_TARGETTED, 255, 30, 2, 1, 115200))
     data = bytes(range(200))
     assert gw.tunnel_xfer(1, data) == b"abc"
@@ -315,23 +317,23 @@ def test_client_tunnel_offsets_and_can_recv_ack():
     with pytest.raises(Nack):
         gw.tunnel_open(G.TunOpen(2, G.TUN_BROADCAST, 2, 7))
 
-    fr = [G.CanFrame(0x1AB, b"\x01\x02"), G.CanFrame(0x155, b"")]
+    fr = [GC.CanFrame(0x1AB, b"\x01\x02"), GC.CanFrame(0x155, b"")]
     m = ScriptedMaster(
-        G.CanRecvResponse(500, 0, fr).encode(),
-        G.CanRecvResponse(502, 0, fr[:1]).encode(),
+        GC.CanRecvResponse(500, 0, fr).encode(),
+        GC.CanRecvResponse(502, 0, fr[:1]).encode(),
         DanTimeout("lost"),
-        G.CanRecvResponse(503, 0, []).encode(),
-        G.CanRecvResponse(510, 4, fr).encode(),
-        G.CanRecvResponse(400, 4, []).encode(),
+        GC.CanRecvResponse(503, 0, []).encode(),
+        GC.CanRecvResponse(510, 4, fr).encode(),
+        GC.CanRecvResponse(400, 4, []).encode(),
         RemoteError(ErrorMessage(G.CODE_CAN_RECV, 0, "no")),
     )
-    gw = G.GatewayClient(m)
+    gw = GatewayClient(m)
     assert gw.can_recv() == fr and gw.can_rx_next == 502 and gw.can_rx_lost == 0  # joined late
-    assert gw.can_recv() == fr[:1] and G.CanRecvRequest.decode(m.sent[1][1]).next_seq == 502
+    assert gw.can_recv() == fr[:1] and GC.CanRecvRequest.decode(m.sent[1][1]).next_seq == 502
     with pytest.raises(DanTimeout):
         gw.can_recv()
-    assert G.CanRecvRequest.decode(m.sent[2][1]).next_seq == 503
-    assert gw.can_recv() == [] and G.CanRecvRequest.decode(m.sent[3][1]).next_seq == 503
+    assert GC.CanRecvRequest.decode(m.sent[2][1]).next_seq == 503
+    assert gw.can_recv() == [] and GC.CanRecvRequest.decode(m.sent[3][1]).next_seq == 503
     assert gw.can_recv() == fr
     assert (gw.can_rx_lost, gw.can_rx_next, gw.can_rx_dropped) == (7, 512, 4)
     assert gw.can_recv() == [] and gw.can_rx_resyncs == 1  # the gateway restarted

@@ -1,6 +1,6 @@
 """danprobe arm: make the gateway broadcast ArmingStatus armed."""
 
-from danprobe import gateway
+from danprobe import gateway_msgs
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
@@ -25,7 +25,7 @@ def add_arguments(p):
     g.add_argument(
         "--status",
         type=non_negative_int,
-        default=gateway.ARM_FULLY_ARMED,
+        default=gateway_msgs.ARM_FULLY_ARMED,
         metavar="N",
         help="ArmingStatus value to send, 0..255 (default 255)",
     )
@@ -44,10 +44,10 @@ def set_arming(ctx, status: int) -> int:
     m, failure, ms = gateway_operation(ctx, op)
 
     def human():
-        state = "armed" if flags & gateway.FLAG_ARMED else "disarmed"
+        state = "armed" if flags & gateway_msgs.FLAG_ARMED else "disarmed"
         print(
             f"{ctx.args.command}: ok, gateway {state} (ArmingStatus {status}); flags "
-            f"{','.join(gateway.flags_names(flags)) or 'none'} ({ms:.1f} ms)"
+            f"{','.join(gateway_msgs.flags_names(flags)) or 'none'} ({ms:.1f} ms)"
         )
 
     return gateway_report(
@@ -55,7 +55,7 @@ def set_arming(ctx, status: int) -> int:
         m,
         failure,
         ms,
-        {"status": status, **(gateway.flags_dict(flags) if flags is not None else {})},
+        {"status": status, **(gateway_msgs.flags_dict(flags) if flags is not None else {})},
         human,
     )
 

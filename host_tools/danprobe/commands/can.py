@@ -4,7 +4,7 @@ can-utils' formats."""
 import argparse
 import time
 
-from danprobe import gateway
+from danprobe import gateway_can, gateway_msgs
 from danprobe.commands.common import (
     EXIT_FAIL,
     EXIT_USAGE,
@@ -31,7 +31,7 @@ DESCRIPTION = (
 IDLE_POLL_S = 0.01
 
 
-def filter_spec(s: str) -> gateway.Filter:
+def filter_spec(s: str) -> gateway_can.Filter:
     """ID:MASK[:ext] in hex; more than 3 ID digits also means extended."""
     parts = s.split(":")
     if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] not in ("ext", "std")):
@@ -41,17 +41,17 @@ def filter_spec(s: str) -> gateway.Filter:
     except ValueError:
         raise argparse.ArgumentTypeError(f"ID and MASK are hex numbers: {s!r}") from None
     ext = parts[2] == "ext" if len(parts) == 3 else len(parts[0]) > 3
-    top = gateway.EFF_MASK if ext else gateway.SFF_MASK
-    if not 0 <= fid <= top or not 0 <= mask <= gateway.EFF_MASK:
+    top = gateway_msgs.EFF_MASK if ext else gateway_msgs.SFF_MASK
+    if not 0 <= fid <= top or not 0 <= mask <= gateway_msgs.EFF_MASK:
         raise argparse.ArgumentTypeError(
             f"{s!r}: ID or MASK out of range for a {'29' if ext else '11'}-bit filter"
         )
-    return gateway.Filter(fid, mask, ext)
+    return gateway_can.Filter(fid, mask, ext)
 
 
-def frame_spec(s: str) -> gateway.CanFrame:
+def frame_spec(s: str) -> gateway_can.CanFrame:
     try:
-        return gateway.parse_cansend(s)
+        return gateway_can.parse_cansend(s)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
 
@@ -70,7 +70,7 @@ def add_arguments(p):
         action="append",
         metavar="ID:MASK[:ext]",
         help="pass frames with (id & MASK) == (ID & MASK) (hex; repeatable, up to "
-        f"{gateway.FILTERS_MAX}); default: every frame",
+        f"{gateway_msgs.FILTERS_MAX}); default: every frame",
     )
     g.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
     g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
@@ -92,15 +92,15 @@ def add_arguments(p):
     )
 
 
-def log_line(t: float, ifname: str, f: gateway.CanFrame) -> str:
+def log_line(t: float, ifname: str, f: gateway_can.CanFrame) -> str:
     return f"({t:.6f}) {ifname} {f.candump()}"
 
 
 def _dump(ctx) -> int:
     a = ctx.args
-    filters = a.filter or list(gateway.PASS_ALL)
-    if len(filters) > gateway.FILTERS_MAX:
-        raise CliError(f"at most {gateway.FILTERS_MAX} filters", EXIT_USAGE)
+    filters = a.filter or list(gateway_can.PASS_ALL)
+    if len(filters) > gateway_msgs.FILTERS_MAX:
+        raise CliError(f"at most {gateway_msgs.FILTERS_MAX} filters", EXIT_USAGE)
     res = {"frames": 0, "lost": 0, "dropped": 0}
 
     def op(m, gw):
@@ -144,7 +144,7 @@ def _dump(ctx) -> int:
             finally:
                 res["lost"], res["dropped"] = gw.can_rx_lost, gw.can_rx_dropped
                 try:
-                    gw.can_filter(gateway.FILTER_REPLACE, previous)
+                    gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
                 except DanError as e:
                     ctx.error(f"could not restore the gateway's filter: {e}")
 
@@ -172,7 +172,7 @@ def _send(ctx) -> int:
     def op(m, gw):
         frames = list(a.frames)
         while frames:
-            batch = frames[: gateway.CAN_FRAMES_MAX]
+            batch = frames[: gateway_msgs.CAN_FRAMES_MAX]
             tries = 0
             accepted = None
             while accepted is None:

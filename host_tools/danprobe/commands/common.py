@@ -10,7 +10,7 @@ import sys
 from collections.abc import Iterable
 from typing import Callable, Optional
 
-from danprobe import gateway, registry
+from danprobe import gateway_client, gateway_msgs, registry
 from danprobe.master import DanError, DanTimeout, Master, MasterConfig, NotFound, OperationTimeout
 from danprobe.port import PortError, SerialPort, now
 
@@ -330,7 +330,7 @@ def find_gateway(ctx: Context, m: Master):
     return peer
 
 
-def gateway_operation(ctx: Context, op: Callable[[Master, gateway.GatewayClient], None]):
+def gateway_operation(ctx: Context, op: Callable[[Master, gateway_client.GatewayClient], None]):
     """Opens the port, finds the gateway and runs op(master, client); returns
     (master, failure, ms) like master_operation()."""
     a = ctx.args
@@ -339,7 +339,7 @@ def gateway_operation(ctx: Context, op: Callable[[Master, gateway.GatewayClient]
 
     def run(m: Master):
         find_gateway(ctx, m)
-        op(m, gateway.GatewayClient(m))
+        op(m, gateway_client.GatewayClient(m))
 
     return master_operation(ctx, a.baud or DEFAULT_BAUD, run)
 
@@ -402,10 +402,10 @@ def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     return StopSignals(), Watchdog(ctx.args.timeout)
 
 
-def telemetry_table(records: Iterable[gateway.TelemRecord]) -> str:
+def telemetry_table(records: Iterable[gateway_msgs.TelemRecord]) -> str:
     rows = [("esc", "node", "rpm", "voltage", "current", "temp", "power", "errors", "age")]
     for t in sorted(records, key=lambda r: r.esc_index):
-        if t.flags & gateway.TELEM_STATUS:
+        if t.flags & gateway_msgs.TELEM_STATUS:
             rows.append(
                 (
                     str(t.esc_index),

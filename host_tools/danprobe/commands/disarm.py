@@ -1,6 +1,6 @@
 """danprobe disarm: make the gateway broadcast ArmingStatus disarmed."""
 
-from danprobe import gateway
+from danprobe import gateway_msgs
 from danprobe.commands.arm import set_arming
 from danprobe.commands.common import add_gateway_options
 
@@ -17,4 +17,4 @@ def add_arguments(p):
 
 
 def run(ctx) -> int:
-    return set_arming(ctx, gateway.ARM_DISARMED)
+    return set_arming(ctx, gateway_msgs.ARM_DISARMED)

@@ -3,7 +3,7 @@
 import argparse
 import time
 
-from danprobe import gateway
+from danprobe import gateway_msgs
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
@@ -35,21 +35,21 @@ def command_value(s: str) -> int:
     s = s.strip()
     try:
         if s.endswith("%"):
-            return gateway.throttle_to_raw(float(s[:-1]))
+            return gateway_msgs.throttle_to_raw(float(s[:-1]))
         v = int(s, 0)
     except ValueError as e:
         raise argparse.ArgumentTypeError(f"bad ESC value {s!r}: {e}") from None
-    if not gateway.RAW_MIN <= v <= gateway.RAW_MAX:
+    if not gateway_msgs.RAW_MIN <= v <= gateway_msgs.RAW_MAX:
         raise argparse.ArgumentTypeError(
-            f"ESC value {v} outside {gateway.RAW_MIN}..{gateway.RAW_MAX}"
+            f"ESC value {v} outside {gateway_msgs.RAW_MIN}..{gateway_msgs.RAW_MAX}"
         )
     return v
 
 
 def value_list(s: str):
     vals = [command_value(x) for x in s.split(",") if x.strip()]
-    if not 1 <= len(vals) <= gateway.ESC_MAX:
-        raise argparse.ArgumentTypeError(f"1..{gateway.ESC_MAX} values, not {len(vals)}")
+    if not 1 <= len(vals) <= gateway_msgs.ESC_MAX:
+        raise argparse.ArgumentTypeError(f"1..{gateway_msgs.ESC_MAX} values, not {len(vals)}")
     return vals
 
 
@@ -159,7 +159,7 @@ def _live_line(t: float, values, gw, rate: float) -> str:
     parts = []
     for i in sorted(gw.esc):
         r = gw.esc[i]
-        if r.flags & gateway.TELEM_STATUS:
+        if r.flags & gateway_msgs.TELEM_STATUS:
             parts.append(
                 f"esc{i} {r.rpm} rpm {r.voltage:.1f} V {r.current:.1f} A "
                 f"{r.temperature - 273.15:.0f} C"
@@ -187,8 +187,8 @@ def run(ctx) -> int:
         def values_at(t):
             return [int(round(lo + (hi - lo) * min(t / a.duration, 1.0)))] * a.count
 
-    if a.count > gateway.ESC_MAX:
-        raise CliError(f"--count: at most {gateway.ESC_MAX} ESCs", EXIT_USAGE)
+    if a.count > gateway_msgs.ESC_MAX:
+        raise CliError(f"--count: at most {gateway_msgs.ESC_MAX} ESCs", EXIT_USAGE)
     plt = _plot_module() if a.plot else None
     res = {"exchanges": 0, "failed": 0, "seconds": 0.0, "samples": [], "client": None}
 
@@ -199,7 +199,7 @@ def run(ctx) -> int:
         n_values = len(values_at(0.0))
         with stop:
             if a.arm:
-                gw.arm(gateway.ARM_FULLY_ARMED)
+                gw.arm(gateway_msgs.ARM_FULLY_ARMED)
                 ctx.progress("armed")
             t0 = now()
             due = last_line = t0
@@ -232,7 +232,7 @@ def run(ctx) -> int:
                     res["exchanges"] += 1
                     t_rx = now()
                     if rec is not None:
-                        if rec.flags & gateway.TELEM_STATUS:
+                        if rec.flags & gateway_msgs.TELEM_STATUS:
                             res["samples"].append((t_rx - t0 - rec.age_ms / 1000.0, rec))
                     if a.json:
                         ctx.emit_json(
@@ -241,7 +241,7 @@ def run(ctx) -> int:
                                 "t": round(t - t0, 6),
                                 "values": values,
                                 "ok": True,
-                                **gateway.flags_dict(gw.flags),
+                                **gateway_msgs.flags_dict(gw.flags),
                                 "escs_known": gw.escs_known,
                                 "telemetry": rec.as_dict() if rec else None,
                             }
@@ -278,7 +278,7 @@ def run(ctx) -> int:
         print(
             f"esc: {res['exchanges']} exchanges in {res['seconds']:.1f} s ({rate:.1f}/s), "
             f"{res['failed']} failed; {gw.escs_known} ESC(s) known; flags "
-            f"{','.join(gateway.flags_names(gw.flags)) or 'none'}"
+            f"{','.join(gateway_msgs.flags_names(gw.flags)) or 'none'}"
         )
         if records:
             print(telemetry_table(records))
@@ -302,7 +302,7 @@ def _stop_motors(ctx, gw, n: int, disarm: bool):
     """Zero throttle (and disarm) at the end, however the loop ended."""
     for what, call in (
         ("zero throttle", lambda: gw.esc_command([0] * n)),
-        ("disarm", lambda: gw.arm(gateway.ARM_DISARMED)),
+        ("disarm", lambda: gw.arm(gateway_msgs.ARM_DISARMED)),
     ):
         if what == "disarm" and not disarm:
             break

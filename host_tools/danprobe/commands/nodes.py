@@ -2,7 +2,7 @@
 
 import time
 
-from danprobe import gateway
+from danprobe import gateway_msgs
 from danprobe.commands.common import (
     add_gateway_options,
     format_table,
@@ -58,7 +58,7 @@ class NodeTable:
             known = self.info.get(e.node_id)
             if (
                 known is None
-                or known[1].info_state != gateway.INFO_VALID
+                or known[1].info_state != gateway_msgs.INFO_VALID
                 or e.uptime_sec < known[0]
             ):
                 self.info[e.node_id] = (e.uptime_sec, self.gw.node_info(e.node_id))
@@ -70,8 +70,8 @@ class NodeTable:
             i = self.info.get(e.node_id)
             d.update(i[1].as_dict() if i else {})
             d["info_state_name"] = (
-                gateway.INFO_STATE_NAMES[d["info_state"]]
-                if d["info_state"] < len(gateway.INFO_STATE_NAMES)
+                gateway_msgs.INFO_STATE_NAMES[d["info_state"]]
+                if d["info_state"] < len(gateway_msgs.INFO_STATE_NAMES)
                 else str(d["info_state"])
             )
             out.append(d)
@@ -80,7 +80,7 @@ class NodeTable:
     def text(self) -> str:
         rows = [("id", "health", "mode", "uptime", "name", "sw", "hw", "unique id", "info")]
         for d in self.rows():
-            valid = d["info_state"] == gateway.INFO_VALID
+            valid = d["info_state"] == gateway_msgs.INFO_VALID
             rows.append(
                 (
                     str(d["node_id"]),

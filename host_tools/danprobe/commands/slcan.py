@@ -3,7 +3,7 @@ adapter on a local pseudo-terminal."""
 
 import time
 
-from danprobe import gateway
+from danprobe import gateway_can, gateway_msgs
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
@@ -59,16 +59,16 @@ def parse_frame(line: bytes):
         if kind in (b"r", b"R"):
             if len(line) != 2 + idlen:
                 return None
-            return gateway.CanFrame(fid, b"", kind == b"R", True, n).check()
+            return gateway_can.CanFrame(fid, b"", kind == b"R", True, n).check()
         data = line[2 + idlen :]
         if len(data) != 2 * n or (n and not _hex(data)):
             return None
-        return gateway.CanFrame(fid, bytes.fromhex(data.decode()), kind == b"T").check()
+        return gateway_can.CanFrame(fid, bytes.fromhex(data.decode()), kind == b"T").check()
     except ValueError:
         return None
 
 
-def format_frame(f: gateway.CanFrame, stamp_ms=None) -> bytes:
+def format_frame(f: gateway_can.CanFrame, stamp_ms=None) -> bytes:
     kind = ("R" if f.ext else "r") if f.rtr else ("T" if f.ext else "t")
     text = kind + (f"{f.id:08X}" if f.ext else f"{f.id:03X}") + str(f.dlc) + f.data.hex().upper()
     if stamp_ms is not None:
@@ -202,16 +202,16 @@ def _serve(ctx, m, gw, pty, res):
                 moved = False
                 try:
                     if ad.open and not filter_on:
-                        listening = gw.can_listen(gateway.PASS_ALL)
+                        listening = gw.can_listen(gateway_can.PASS_ALL)
                         previous = listening if previous is None else previous
                         filter_on = True
                         ctx.progress("channel open: receiving every frame")
                     elif not ad.open and filter_on:
-                        gw.can_filter(gateway.FILTER_REPLACE, previous)
+                        gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
                         filter_on = False
                         ctx.progress("channel closed")
                     if ad.open and ad.tx:
-                        batch = ad.tx[: gateway.CAN_FRAMES_MAX]
+                        batch = ad.tx[: gateway_msgs.CAN_FRAMES_MAX]
                         accepted = gw.can_send_again() if resend else gw.can_send(batch)
                         resend = False
                         for f in batch[:accepted]:
@@ -242,6 +242,6 @@ def _serve(ctx, m, gw, pty, res):
             res["errors"], res["lost"] = ad.errors, gw.can_rx_lost
             if filter_on:
                 try:
-                    gw.can_filter(gateway.FILTER_REPLACE, previous)
+                    gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
                 except DanError as e:
                     ctx.error(f"could not restore the gateway's filter: {e}")

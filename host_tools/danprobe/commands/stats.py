@@ -1,6 +1,6 @@
 """danprobe stats: the gateway's settings and counters."""
 
-from danprobe import gateway
+from danprobe import gateway_msgs
 from danprobe.commands.common import (
     add_gateway_options,
     format_table,
@@ -34,7 +34,7 @@ def run(ctx) -> int:
     def human():
         print(
             f"stats: gateway node {cfg.node_id}, ESC timeout {cfg.esc_timeout_ms} ms, arming "
-            f"{cfg.arming_rate_hz} Hz, flags {','.join(gateway.flags_names(cfg.flags)) or 'none'}"
+            f"{cfg.arming_rate_hz} Hz, flags {','.join(gateway_msgs.flags_names(cfg.flags)) or 'none'}"
             f" ({ms:.1f} ms)"
         )
         print(format_table([("counter", "value")] + [(k, str(v)) for k, v in stats.items()]))

@@ -1,6 +1,6 @@
 """danprobe telemetry: every ESC's newest telemetry, as the gateway keeps it."""
 
-from danprobe import gateway
+from danprobe import gateway_msgs
 from danprobe.commands.common import (
     add_gateway_options,
     gateway_operation,
@@ -34,7 +34,7 @@ def run(ctx) -> int:
     def human():
         print(
             f"telemetry: {len(records)} ESC(s); gateway flags "
-            f"{','.join(gateway.flags_names(flags)) or 'none'} ({ms:.1f} ms)"
+            f"{','.join(gateway_msgs.flags_names(flags)) or 'none'} ({ms:.1f} ms)"
         )
         if records:
             print(telemetry_table(records))
@@ -44,6 +44,6 @@ def run(ctx) -> int:
         m,
         failure,
         ms,
-        {**gateway.flags_dict(flags), "esc": [r.as_dict() for r in records]},
+        {**gateway_msgs.flags_dict(flags), "esc": [r.as_dict() for r in records]},
         human,
     )

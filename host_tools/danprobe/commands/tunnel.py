@@ -2,7 +2,7 @@
 
 import time
 
-from danprobe import gateway
+from danprobe import gateway_client, gateway_msgs
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
@@ -79,7 +79,7 @@ def add_arguments(p):
     g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
 
 
-def tunnel_config(a) -> gateway.TunOpen:
+def tunnel_config(a) -> gateway_msgs.TunOpen:
     if (a.target is None) == (a.protocol is None and a.channel is None):
         raise CliError(
             "give --target NODE (Targetted) or --protocol P --channel C (Broadcast)", EXIT_USAGE
@@ -89,26 +89,26 @@ def tunnel_config(a) -> gateway.TunOpen:
             raise CliError(
                 "--target 1..127, --serial-id -1..15, --serial-baud up to 16777215", EXIT_USAGE
             )
-        return gateway.TunOpen(
+        return gateway_msgs.TunOpen(
             a.tunnel_port,
-            gateway.TUN_TARGETTED,
-            gateway.PROTOCOL_UNDEFINED,
+            gateway_msgs.TUN_TARGETTED,
+            gateway_msgs.PROTOCOL_UNDEFINED,
             a.target,
             a.serial_id,
-            gateway.TUN_LOCK_PORT if a.lock else 0,
+            gateway_msgs.TUN_LOCK_PORT if a.lock else 0,
             a.serial_baud,
         )
     if a.protocol is None or a.channel is None or a.protocol > 255 or a.channel > 255:
         raise CliError("Broadcast needs --protocol P and --channel C (0..255)", EXIT_USAGE)
-    return gateway.TunOpen(a.tunnel_port, gateway.TUN_BROADCAST, a.protocol, a.channel)
+    return gateway_msgs.TunOpen(a.tunnel_port, gateway_msgs.TUN_BROADCAST, a.protocol, a.channel)
 
 
-def describe(cfg: gateway.TunOpen) -> str:
-    if cfg.mode == gateway.TUN_TARGETTED:
+def describe(cfg: gateway_msgs.TunOpen) -> str:
+    if cfg.mode == gateway_msgs.TUN_TARGETTED:
         return (
             f"Targetted node {cfg.target} serial {cfg.serial_id}"
             + (f" at {cfg.baud} baud" if cfg.baud else "")
-            + (" (locked)" if cfg.options & gateway.TUN_LOCK_PORT else "")
+            + (" (locked)" if cfg.options & gateway_msgs.TUN_LOCK_PORT else "")
         )
     return f"Broadcast protocol {cfg.protocol} channel {cfg.target}"
 
@@ -148,11 +148,11 @@ def run(ctx) -> int:
             try:
                 _bridge(ctx, m, gw, cfg, pty, res)
             finally:
-                st = gw.tun.get(cfg.port, gateway.TunnelState())
+                st = gw.tun.get(cfg.port, gateway_client.TunnelState())
                 res["rd_lost"] += st.rd_lost
                 res["rd_dropped"] = st.rd_dropped
                 try:
-                    gw.tunnel_open(gateway.TunOpen(cfg.port, gateway.TUN_CLOSED))
+                    gw.tunnel_open(gateway_msgs.TunOpen(cfg.port, gateway_msgs.TUN_CLOSED))
                 except DanError as e:
                     ctx.error(f"could not close tunnel port {cfg.port}: {e}")
 
@@ -181,8 +181,8 @@ def _bridge(ctx, m, gw, cfg, pty, res):
             try:
                 data = gw.tunnel_xfer(
                     cfg.port,
-                    pending[: gateway.TUN_CHUNK_MAX],
-                    gateway.TUN_CHUNK_MAX if len(out) < OUT_LIMIT else 0,
+                    pending[: gateway_msgs.TUN_CHUNK_MAX],
+                    gateway_msgs.TUN_CHUNK_MAX if len(out) < OUT_LIMIT else 0,
                 )
             except OperationTimeout:
                 raise
