@@ -56,9 +56,19 @@ import termios
 import time
 import tty
 
+# this directory is sys.path[0]; the codec is standard library only
+from danprobe.slcan_codec import (
+    ACK,
+    BEL,
+    FRAME_KINDS,
+    LINE_MAX,
+    format_frame,
+    is_hex,
+    parse_frame,
+    tx_ack,
+)
+
 OUT_LIMIT = 64 * 1024  # bytes buffered for one port's reader
-LINE_MAX = 64  # longer command lines are dropped (BEL)
-HEX = set(b"0123456789abcdefABCDEF")
 
 
 def set_process_name(name):
@@ -71,47 +81,6 @@ def set_process_name(name):
         libc.prctl(15, name.encode()[:15], 0, 0, 0)  # PR_SET_NAME
     except Exception:
         pass
-
-
-def parse_frame(line):
-    """Parses a t/T/r/R line (bytes, no CR). Returns (ext, rtr, id, data)
-    or None when malformed."""
-    kind = line[:1]
-    if kind in (b"t", b"r"):
-        idlen, ext = 3, False
-    elif kind in (b"T", b"R"):
-        idlen, ext = 8, True
-    else:
-        return None
-    rtr = kind in (b"r", b"R")
-    if len(line) < 2 + idlen:
-        return None
-    idtxt = line[1 : 1 + idlen]
-    dlc_c = line[1 + idlen : 2 + idlen]
-    if not all(b in HEX for b in idtxt) or dlc_c not in b"012345678" or not dlc_c:
-        return None
-    can_id = int(idtxt, 16)
-    if can_id > (0x1FFFFFFF if ext else 0x7FF):
-        return None
-    dlc = int(dlc_c)
-    body = line[2 + idlen :]
-    if rtr:
-        if body:
-            return None
-        return ext, rtr, can_id, bytes(dlc)  # dlc only; data unused
-    if len(body) != 2 * dlc or not all(b in HEX for b in body):
-        return None
-    return ext, rtr, can_id, bytes.fromhex(body.decode())
-
-
-def format_frame(ext, rtr, can_id, data, ts=None):
-    kind = ("R" if rtr else "T") if ext else ("r" if rtr else "t")
-    s = kind + ("%08X" if ext else "%03X") % can_id + "%d" % len(data)
-    if not rtr:
-        s += data.hex().upper()
-    if ts is not None:
-        s += "%04X" % ts
-    return (s + "\r").encode()
 
 
 class Port:
@@ -259,12 +228,14 @@ class Hub:
         return int((time.monotonic() - self.t0) * 1000) % 60000
 
     def broadcast(self, src, frame):
-        ext, rtr, can_id, data = frame
         self.bus_frames += 1
         if self.log:
             t = time.time()
-            idtxt = ("%08X" if ext else "%03X") % can_id
-            body = ("R%d" % len(data) if len(data) else "R") if rtr else data.hex().upper()
+            idtxt = ("%08X" if frame.ext else "%03X") % frame.id
+            if frame.rtr:
+                body = "R%d" % frame.dlc if frame.dlc else "R"
+            else:
+                body = frame.data.hex().upper()
             self.log.write("(%.6f) hub%d %s#%s\n" % (t, src.index, idtxt, body))
         for p in self.ports:
             if p is src:
@@ -273,49 +244,47 @@ class Hub:
                 p.counters["dropped"] += 1
                 continue
             ts = self.timestamp() if p.timestamps else None
-            if p.write(format_frame(ext, rtr, can_id, data, ts), frame=True):
+            if p.write(format_frame(frame, ts), frame=True):
                 p.counters["frames_out"] += 1
 
     # ---- SLCAN command interpreter ----
 
     def handle_line(self, p, line):
-        ack, bel = b"\r", b"\a"
-
         def err():
             p.counters["errors"] += 1
-            p.write(bel)
+            p.write(BEL)
 
         if not line:
-            p.write(ack)
+            p.write(ACK)
             return
         c = line[:1]
         arg = line[1:]
-        if c in (b"t", b"T", b"r", b"R"):
+        if c in FRAME_KINDS:
             frame = parse_frame(line)
             if frame is None or not p.open or p.listen_only:
                 err()
                 return
             p.counters["frames_in"] += 1
-            p.write(b"z\r" if c in (b"t", b"r") else b"Z\r")
+            p.write(tx_ack(frame.ext))
             self.broadcast(p, frame)
         elif c == b"S":
             if p.open or len(arg) != 1 or arg not in b"012345678":
                 err()
                 return
             p.bitrate = [10, 20, 50, 100, 125, 250, 500, 800, 1000][int(arg)] * 1000
-            p.write(ack)
+            p.write(ACK)
         elif c == b"s":
-            if p.open or len(arg) != 4 or not all(b in HEX for b in arg):
+            if p.open or len(arg) != 4 or not is_hex(arg):
                 err()
                 return
             p.bitrate = "btr:" + arg.decode()
-            p.write(ack)
+            p.write(ACK)
         elif c in (b"O", b"L"):
             if p.open or arg:
                 err()
                 return
             p.open, p.listen_only = True, c == b"L"
-            p.write(ack)
+            p.write(ACK)
         elif c == b"C":
             if arg:
                 err()
@@ -327,7 +296,7 @@ class Hub:
                 termios.tcflush(p.slave, termios.TCIFLUSH)
             except termios.error:
                 pass
-            p.write(ack)
+            p.write(ACK)
         elif c == b"F" and not arg:
             p.write(b"F00\r")
         elif c == b"V" and not arg:
@@ -338,9 +307,9 @@ class Hub:
             p.write(b"NA123\r")
         elif c == b"Z" and arg in (b"0", b"1"):
             p.timestamps = arg == b"1"
-            p.write(ack)
-        elif c in (b"M", b"m") and len(arg) == 8 and all(b in HEX for b in arg):
-            p.write(ack)
+            p.write(ACK)
+        elif c in (b"M", b"m") and len(arg) == 8 and is_hex(arg):
+            p.write(ACK)
         else:
             err()
 
@@ -358,7 +327,7 @@ class Hub:
                 if p.discarding:
                     p.discarding = False
                     p.counters["errors"] += 1
-                    p.write(b"\a")
+                    p.write(BEL)
                 else:
                     self.handle_line(p, bytes(p.inbuf))
                 p.inbuf.clear()

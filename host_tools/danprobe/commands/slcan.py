@@ -16,6 +16,16 @@ from danprobe.commands.common import (
 from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import PortError, now
 from danprobe.ptyport import Pty
+from danprobe.slcan_codec import (
+    ACK,
+    BEL,
+    FRAME_KINDS,
+    LINE_MAX,
+    format_frame,
+    is_hex,
+    parse_frame,
+    tx_ack,
+)
 
 NAME = "slcan"
 HELP = "CAN gateway: an SLCAN (Lawicel) adapter on a pty, for pydronecan and the DroneCAN GUI"
@@ -30,9 +40,6 @@ DESCRIPTION = (
 
 IDLE_POLL_S = 0.005
 TX_QUEUE_MAX = 64  # frames from the client not taken by the gateway yet
-ACK, BEL = b"\r", b"\x07"
-LINE_MAX = 64
-_HEX = frozenset(b"0123456789abcdefABCDEF")
 
 
 def add_arguments(p):
@@ -42,38 +49,12 @@ def add_arguments(p):
     g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
 
 
-def _hex(b: bytes) -> bool:
-    return bool(b) and set(b) <= _HEX
-
-
-def parse_frame(line: bytes):
-    """A t/T/r/R line (no CR) as a CanFrame, or None if malformed."""
-    kind = line[:1]
-    idlen = 3 if kind in (b"t", b"r") else 8
-    ident, dlc = line[1 : 1 + idlen], line[1 + idlen : 2 + idlen]
-    if len(ident) != idlen or not _hex(ident) or dlc not in [b"%d" % i for i in range(9)]:
+def can_frame(line: bytes):
+    """A t/T/r/R line (no CR) as the gateway's CanFrame, or None if malformed."""
+    f = parse_frame(line)
+    if f is None:
         return None
-    n = int(dlc)
-    fid = int(ident, 16)
-    try:
-        if kind in (b"r", b"R"):
-            if len(line) != 2 + idlen:
-                return None
-            return gateway_can.CanFrame(fid, b"", kind == b"R", True, n).check()
-        data = line[2 + idlen :]
-        if len(data) != 2 * n or (n and not _hex(data)):
-            return None
-        return gateway_can.CanFrame(fid, bytes.fromhex(data.decode()), kind == b"T").check()
-    except ValueError:
-        return None
-
-
-def format_frame(f: gateway_can.CanFrame, stamp_ms=None) -> bytes:
-    kind = ("R" if f.ext else "r") if f.rtr else ("T" if f.ext else "t")
-    text = kind + (f"{f.id:08X}" if f.ext else f"{f.id:03X}") + str(f.dlc) + f.data.hex().upper()
-    if stamp_ms is not None:
-        text += f"{stamp_ms % 60000:04X}"
-    return text.encode() + ACK
+    return gateway_can.CanFrame(f.id, f.data, f.ext, f.rtr, f.dlc if f.rtr else 0)
 
 
 class Adapter:
@@ -111,8 +92,8 @@ class Adapter:
         c, arg = line[:1], line[1:]
         if not line:
             return ACK
-        if c in (b"t", b"T", b"r", b"R"):
-            f = parse_frame(line)
+        if c in FRAME_KINDS:
+            f = can_frame(line)
             if f is None or not self.open or self.listen_only or len(self.tx) >= TX_QUEUE_MAX:
                 return self._error()
             self.tx.append(f)
@@ -139,7 +120,7 @@ class Adapter:
         if line in (b"Z0", b"Z1"):
             self.timestamps = line == b"Z1"
             return ACK
-        if c in (b"M", b"m") and len(arg) == 8 and _hex(arg):
+        if c in (b"M", b"m") and len(arg) == 8 and is_hex(arg):
             return ACK
         return self._error()
 
@@ -215,7 +196,7 @@ def _serve(ctx, m, gw, pty, res):
                         accepted = gw.can_send_again() if resend else gw.can_send(batch)
                         resend = False
                         for f in batch[:accepted]:
-                            out += b"Z\r" if f.ext else b"z\r"
+                            out += tx_ack(f.ext)
                         del ad.tx[:accepted]
                         res["to_can"] += accepted
                         moved = moved or accepted > 0
