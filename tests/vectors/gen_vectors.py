@@ -12,39 +12,13 @@ change. Two anchors come from the project's brief, not from this script:
 import random
 from pathlib import Path
 
+from _wire import array, crc8, frame, u16, uvarint
+
 HERE = Path(__file__).resolve().parent
 
 
-def crc8(data):
-    crc = 0
-    for b in data:
-        crc ^= b
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0xD5) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc
-
-
-def uvarint(v):
-    out = bytearray()
-    while v >= 0x80:
-        out.append((v & 0x7F) | 0x80)
-        v >>= 7
-    out.append(v)
-    return bytes(out)
-
-
-def frame(code, payload=b""):
-    body = uvarint(code) + uvarint(len(payload)) + payload
-    return b"D" + body + bytes([crc8(body)])
-
-
 def string(s):
-    b = s.encode()
-    return uvarint(len(b)) + b
-
-
-def u16(v):
-    return bytes([v & 0xFF, v >> 8])
+    return array(s.encode())
 
 
 def identity(ver, manu, model, hw, sw, mask, caps):
