@@ -171,22 +171,19 @@ def _live_line(t: float, values, gw, rate: float) -> str:
     )
 
 
+def _values_function(a):
+    """values_at(t): the command values t seconds into the run."""
+    if a.values is not None:
+        return lambda t: a.values
+    if a.throttle is not None:
+        return lambda t: [a.throttle] * a.count
+    lo, hi = a.ramp
+    return lambda t: [int(round(lo + (hi - lo) * min(t / a.duration, 1.0)))] * a.count
+
+
 def run(ctx) -> int:
     a = ctx.args
-    if a.values is not None:
-
-        def values_at(t):
-            return a.values
-    elif a.throttle is not None:
-
-        def values_at(t):
-            return [a.throttle] * a.count
-    else:
-        lo, hi = a.ramp
-
-        def values_at(t):
-            return [int(round(lo + (hi - lo) * min(t / a.duration, 1.0)))] * a.count
-
+    values_at = _values_function(a)
     if a.count > gateway_msgs.ESC_MAX:
         raise CliError(f"--count: at most {gateway_msgs.ESC_MAX} ESCs", EXIT_USAGE)
     plt = _plot_module() if a.plot else None
@@ -194,70 +191,78 @@ def run(ctx) -> int:
 
     def op(m, gw):
         res["client"] = gw
-        stop, dog = long_running(m, ctx)
-        period = 1.0 / a.rate
-        n_values = len(values_at(0.0))
-        with stop:
-            if a.arm:
-                gw.arm(gateway_msgs.ARM_FULLY_ARMED)
-                ctx.progress("armed")
-            t0 = now()
-            due = last_line = t0
-            count_at_line = 0
-            try:
-                while not stop.stop:
-                    t = now()
-                    if t - t0 >= a.duration:
-                        break
-                    values = values_at(t - t0)
-                    try:
-                        rec = gw.esc_command(values)
-                    except OperationTimeout:
-                        raise
-                    except DanError as e:
-                        res["failed"] += 1
-                        dog.failed(e)
-                        if a.json:
-                            ctx.emit_json(
-                                {
-                                    "event": "exchange",
-                                    "t": round(t - t0, 6),
-                                    "values": values,
-                                    "ok": False,
-                                    "error": str(e),
-                                }
-                            )
-                        continue
-                    dog.ok()
-                    res["exchanges"] += 1
-                    t_rx = now()
-                    if rec is not None:
-                        if rec.flags & gateway_msgs.TELEM_STATUS:
-                            res["samples"].append((t_rx - t0 - rec.age_ms / 1000.0, rec))
-                    if a.json:
-                        ctx.emit_json(
-                            {
-                                "event": "exchange",
-                                "t": round(t - t0, 6),
-                                "values": values,
-                                "ok": True,
-                                **gateway_msgs.flags_dict(gw.flags),
-                                "escs_known": gw.escs_known,
-                                "telemetry": rec.as_dict() if rec else None,
-                            }
-                        )
-                    elif t_rx - last_line >= 1.0:
-                        rate = (res["exchanges"] - count_at_line) / (t_rx - last_line)
-                        print(_live_line(t_rx - t0, values, gw, rate), flush=True)
-                        last_line, count_at_line = t_rx, res["exchanges"]
-                    due = max(due + period, now() - period)
-                    while not stop.stop and now() < due:
-                        time.sleep(min(due - now(), 0.05))
-            finally:
-                res["seconds"] = now() - t0
-                _stop_motors(ctx, gw, n_values, a.arm)
+        _drive(ctx, m, gw, values_at, res)
 
     m, failure, ms = gateway_operation(ctx, op)
+    return _summary(ctx, plt, res, m, failure, ms)
+
+
+def _drive(ctx, m, gw, values_at, res):
+    """Exchanges at --rate for --duration (arming first with --arm), then
+    zero throttle however the loop ended."""
+    a = ctx.args
+    stop, dog = long_running(m, ctx)
+    period = 1.0 / a.rate
+    n_values = len(values_at(0.0))
+    with stop:
+        if a.arm:
+            gw.arm(gateway_msgs.ARM_FULLY_ARMED)
+            ctx.progress("armed")
+        t0 = now()
+        due = last_line = t0
+        count_at_line = 0
+
+        def exchange_event(t, values, ok, **more):
+            ctx.emit_json(
+                {"event": "exchange", "t": round(t - t0, 6), "values": values, "ok": ok, **more}
+            )
+
+        try:
+            while not stop.stop:
+                t = now()
+                if t - t0 >= a.duration:
+                    break
+                values = values_at(t - t0)
+                try:
+                    rec = gw.esc_command(values)
+                except OperationTimeout:
+                    raise
+                except DanError as e:
+                    res["failed"] += 1
+                    dog.failed(e)
+                    if a.json:
+                        exchange_event(t, values, False, error=str(e))
+                    continue
+                dog.ok()
+                res["exchanges"] += 1
+                t_rx = now()
+                if rec is not None:
+                    if rec.flags & gateway_msgs.TELEM_STATUS:
+                        res["samples"].append((t_rx - t0 - rec.age_ms / 1000.0, rec))
+                if a.json:
+                    exchange_event(
+                        t,
+                        values,
+                        True,
+                        **gateway_msgs.flags_dict(gw.flags),
+                        escs_known=gw.escs_known,
+                        telemetry=rec.as_dict() if rec else None,
+                    )
+                elif t_rx - last_line >= 1.0:
+                    rate = (res["exchanges"] - count_at_line) / (t_rx - last_line)
+                    print(_live_line(t_rx - t0, values, gw, rate), flush=True)
+                    last_line, count_at_line = t_rx, res["exchanges"]
+                due = max(due + period, now() - period)
+                while not stop.stop and now() < due:
+                    time.sleep(min(due - now(), 0.05))
+        finally:
+            res["seconds"] = now() - t0
+            _stop_motors(ctx, gw, n_values, a.arm)
+
+
+def _summary(ctx, plt, res, m, failure, ms) -> int:
+    """The plot (--plot) and the report of the run."""
+    a = ctx.args
     gw = res["client"]
     records = list(gw.esc.values()) if gw else []
     rate = res["exchanges"] / res["seconds"] if res["seconds"] > 0 else 0.0
