@@ -9,12 +9,13 @@ from danprobe.commands.common import (
     EXIT_FAIL,
     EXIT_USAGE,
     CliError,
+    add_duration_option,
     add_gateway_options,
     gateway_operation,
     gateway_report,
     long_running,
-    positive_float,
     positive_int,
+    time_left,
 )
 from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import now
@@ -73,7 +74,7 @@ def add_arguments(p):
         f"{gateway_msgs.FILTERS_MAX}); default: every frame",
     )
     g.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
-    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    add_duration_option(g)
     g.add_argument(
         "--ifname",
         default="can0",
@@ -113,7 +114,7 @@ def _dump(ctx) -> int:
                 while (
                     not stop.stop
                     and (a.count is None or res["frames"] < a.count)
-                    and (a.duration is None or now() - t0 < a.duration)
+                    and time_left(ctx, t0)
                 ):
                     try:
                         frames = gw.can_recv()

@@ -7,12 +7,14 @@ import argparse
 import json
 import signal
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from typing import Callable, Optional
 
 from danprobe import gateway_client, gateway_msgs, registry
 from danprobe.master import DanError, DanTimeout, Master, MasterConfig, NotFound, OperationTimeout
 from danprobe.port import PortError, SerialPort, now
+from danprobe.ptyport import Pty
 
 EXIT_OK = 0
 EXIT_FAIL = 1  # the operation failed: no answer, configure failed, port I/O error
@@ -108,6 +110,16 @@ def add_gap_option(g):
         metavar="N",
         help="idle time that ends a partial frame (default 20: USB adapters, ptys)",
     )
+
+
+def add_duration_option(g):
+    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+
+
+def add_pty_options(g):
+    """--link and --duration of a command that bridges to a local pty."""
+    g.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty")
+    add_duration_option(g)
 
 
 def add_master_options(p: argparse.ArgumentParser, *, types_default: str = DEFAULT_TYPES):
@@ -400,6 +412,34 @@ def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     """After the gateway was found: no overall time limit any more."""
     m.set_time_limit(None)
     return StopSignals(), Watchdog(ctx.args.timeout)
+
+
+def time_left(ctx: Context, t0: float) -> bool:
+    """--duration has not run out since t0 (without it, never)."""
+    d = ctx.args.duration
+    return d is None or now() - t0 < d
+
+
+@contextmanager
+def bridge_pty(ctx: Context, res: dict, what: str, **ready) -> Iterator[Pty]:
+    """The local pty of a bridging command (--link), closed at the end. Its
+    path goes into res["pty"] and is announced: a "ready" event (with the
+    ready fields) for --json, else the line "COMMAND: PATH (link L)WHAT"."""
+    a = ctx.args
+    try:
+        pty = Pty(a.link)
+    except PortError as e:
+        raise CliError(str(e), EXIT_USAGE) from None
+    res["pty"] = pty.path
+    with pty:
+        if a.json:
+            ctx.emit_json({"event": "ready", "pty": pty.path, "link": a.link, **ready})
+        else:
+            print(
+                f"{a.command}: {pty.path}" + (f" (link {a.link})" if a.link else "") + what,
+                flush=True,
+            )
+        yield pty
 
 
 def telemetry_table(records: Iterable[gateway_msgs.TelemRecord]) -> str:

@@ -5,17 +5,16 @@ import time
 
 from danprobe import gateway_can, gateway_msgs
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
     add_gateway_options,
+    add_pty_options,
+    bridge_pty,
     gateway_operation,
     gateway_report,
     long_running,
-    positive_float,
+    time_left,
 )
 from danprobe.master import DanError, OperationTimeout, RemoteError
-from danprobe.port import PortError, now
-from danprobe.ptyport import Pty
+from danprobe.port import now
 from danprobe.slcan_codec import (
     ACK,
     BEL,
@@ -45,8 +44,7 @@ TX_QUEUE_MAX = 64  # frames from the client not taken by the gateway yet
 def add_arguments(p):
     add_gateway_options(p, long_running=True)
     g = p.add_argument_group("slcan options")
-    g.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty")
-    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    add_pty_options(g)
 
 
 def can_frame(line: bytes):
@@ -133,21 +131,7 @@ def run(ctx) -> int:
     res = {"pty": None, "link": ctx.args.link, "to_can": 0, "from_can": 0, "errors": 0, "lost": 0}
 
     def op(m, gw):
-        try:
-            pty = Pty(ctx.args.link)
-        except PortError as e:
-            raise CliError(str(e), EXIT_USAGE) from None
-        res["pty"] = pty.path
-        with pty:
-            if ctx.args.json:
-                ctx.emit_json({"event": "ready", "pty": pty.path, "link": ctx.args.link})
-            else:
-                print(
-                    f"slcan: {pty.path}"
-                    + (f" (link {ctx.args.link})" if ctx.args.link else "")
-                    + " is an SLCAN adapter on the CAN bus behind the gateway",
-                    flush=True,
-                )
+        with bridge_pty(ctx, res, " is an SLCAN adapter on the CAN bus behind the gateway") as pty:
             _serve(ctx, m, gw, pty, res)
 
     m, failure, ms = gateway_operation(ctx, op)
@@ -171,7 +155,7 @@ def _serve(ctx, m, gw, pty, res):
     t0 = now()
     with stop:
         try:
-            while not stop.stop and (ctx.args.duration is None or now() - t0 < ctx.args.duration):
+            while not stop.stop and time_left(ctx, t0):
                 was_open = ad.open
                 answers = ad.feed(pty.read())
                 if was_open and not ad.open:

@@ -7,15 +7,16 @@ from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
     add_gateway_options,
+    add_pty_options,
+    bridge_pty,
     gateway_operation,
     gateway_report,
     long_running,
     non_negative_int,
-    positive_float,
+    time_left,
 )
 from danprobe.master import DanError, OperationTimeout, RemoteError
-from danprobe.port import PortError, now
-from danprobe.ptyport import Pty
+from danprobe.port import now
 
 NAME = "tunnel"
 HELP = "CAN gateway: bridge a DroneCAN serial tunnel to a local pseudo-terminal"
@@ -75,8 +76,7 @@ def add_arguments(p):
         metavar="N",
         help="the gateway's tunnel port to use (default 0)",
     )
-    g.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty")
-    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    add_pty_options(g)
 
 
 def tunnel_config(a) -> gateway_msgs.TunOpen:
@@ -128,23 +128,8 @@ def run(ctx) -> int:
 
     def op(m, gw):
         gw.tunnel_open(cfg)
-        try:
-            pty = Pty(a.link)
-        except PortError as e:
-            raise CliError(str(e), EXIT_USAGE) from None
-        res["pty"] = pty.path
-        with pty:
-            if a.json:
-                ctx.emit_json(
-                    {"event": "ready", "pty": pty.path, "link": a.link, "tunnel": cfg.as_dict()}
-                )
-            else:
-                print(
-                    f"tunnel: {pty.path}"
-                    + (f" (link {a.link})" if a.link else "")
-                    + f" <-> {describe(cfg)}, gateway port {cfg.port}",
-                    flush=True,
-                )
+        what = f" <-> {describe(cfg)}, gateway port {cfg.port}"
+        with bridge_pty(ctx, res, what, tunnel=cfg.as_dict()) as pty:
             try:
                 _bridge(ctx, m, gw, cfg, pty, res)
             finally:
@@ -173,7 +158,7 @@ def _bridge(ctx, m, gw, cfg, pty, res):
     pending = bytearray()  # from the pty client, for the gateway
     out = bytearray()  # from the tunnel, for the pty client
     with stop:
-        while not stop.stop and (ctx.args.duration is None or now() - t0 < ctx.args.duration):
+        while not stop.stop and time_left(ctx, t0):
             if len(pending) < IN_LIMIT:
                 pending += pty.read()
             if out:
