@@ -12,7 +12,6 @@ error, or on Ctrl-C/SIGTERM; nothing is left behind. Exit 0 on success.
 
 import argparse
 import json
-import os
 import shutil
 import signal
 import subprocess
@@ -20,6 +19,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import procgroup  # this directory is sys.path[0]
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = ROOT / "build" / "bin"
@@ -35,13 +36,7 @@ class Stack:
 
     def start(self, name, args, ready=True):
         log = open(self.tmp / f"{name}.log", "wb")
-        p = subprocess.Popen(
-            [str(a) for a in args],
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=log,
-            start_new_session=True,
-        )
+        p = procgroup.start(args, log)
         p.name, p.log = name, log
         self.procs.append(p)
         if ready:
@@ -67,18 +62,12 @@ class Stack:
                 raise RuntimeError(f"{p.name} exited with {p.returncode}:\n{self.tail(p.name)}")
 
     def stop(self):
+        """SIGTERM to all first, so they wind down together."""
         for p in reversed(self.procs):
             if p.poll() is None:
-                try:
-                    os.killpg(p.pid, signal.SIGTERM)
-                except ProcessLookupError:
-                    pass
+                procgroup.signal_group(p, signal.SIGTERM)
         for p in reversed(self.procs):
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(5)
+            procgroup.wait_or_kill(p, 10)
             p.stdout.close()
             p.log.close()
 

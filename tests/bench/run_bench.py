@@ -41,6 +41,9 @@ from danprobe.codec import encode_frame  # the host tool's codec (same venv)
 from danprobe.gateway_msgs import REQUEST, seal
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "host_tools"))
+import procgroup  # noqa: E402
+
 BAUD = 115200
 C_US = (10_000_000 + BAUD - 1) // BAUD  # one character, as libdan rounds it
 PY = sys.executable
@@ -56,13 +59,7 @@ class Stack:
 
     def start(self, args, name, stdout=subprocess.PIPE):
         log = open(self.tmp / f"{name}.log", "wb")
-        p = subprocess.Popen(
-            [str(a) for a in args],
-            stdin=subprocess.DEVNULL,
-            stdout=stdout,
-            stderr=log,
-            start_new_session=True,
-        )
+        p = procgroup.start(args, log, stdout)
         p.name, p.logf = name, log
         self.procs.append(p)
         return p
@@ -77,17 +74,7 @@ class Stack:
         return line.split()[1:]
 
     def stop(self, p, sig=signal.SIGTERM):
-        if p.poll() is None:
-            try:
-                os.killpg(p.pid, sig)
-                p.wait(10)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
-                try:
-                    os.killpg(p.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-                p.wait(5)
-        return p.returncode
+        return procgroup.stop(p, sig)
 
     def close(self):
         for p in reversed(self.procs):

@@ -5,9 +5,7 @@ in its own process group and kills the group at teardown, so no test leaves
 a process behind whatever happens.
 """
 
-import os
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -16,6 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))
+import procgroup  # noqa: E402
 import pydronecan_nodes  # noqa: E402
 
 # Before any pydronecan node exists: their I/O children start with spawn,
@@ -48,14 +47,7 @@ class Procs:
         in the test's tmp dir (shown on failure)."""
         name = name or Path(str(args[0])).name
         log = open(self.tmp / f"{name}.{len(self.procs)}.log", "wb")
-        kw.setdefault("stdout", subprocess.PIPE)
-        p = subprocess.Popen(
-            [str(a) for a in args],
-            stdin=subprocess.DEVNULL,
-            stderr=log,
-            start_new_session=True,
-            **kw,
-        )
+        p = procgroup.start(args, log, **kw)
         p.log_path = Path(log.name)
         p.log_file = log
         self.procs.append(p)
@@ -63,17 +55,7 @@ class Procs:
 
     def stop(self, p, sig=signal.SIGTERM, timeout=10.0):
         """Signals a process (group) and waits; returns its exit code."""
-        if p.poll() is None:
-            try:
-                os.killpg(p.pid, sig)
-            except ProcessLookupError:
-                pass
-            try:
-                p.wait(timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(5)
-        return p.returncode
+        return procgroup.stop(p, sig, timeout)
 
     def close(self):
         for p in reversed(self.procs):
