@@ -44,6 +44,8 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))
 import procgroup  # noqa: E402
 
+CAN_FLOOD = ROOT / "tests" / "tools" / "can_flood.py"
+
 BAUD = 115200
 C_US = (10_000_000 + BAUD - 1) // BAUD  # one character, as libdan rounds it
 PY = sys.executable
@@ -243,33 +245,6 @@ def bench_esc(build, seconds):
     }
 
 
-BLAST = r"""
-import os, sys, time, termios, tty, struct
-path, seconds = sys.argv[1], float(sys.argv[2])
-fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
-tty.setraw(fd)
-os.write(fd, b"C\rS8\rO\r")
-time.sleep(0.2)
-os.set_blocking(fd, False)
-n, end = 0, time.monotonic() + seconds
-print("READY", flush=True)
-while time.monotonic() < end:
-    batch = b"".join(b"T%08X8%016X\r" % (0x1ABC0000 + (k & 0xFF), k) for k in range(n, n + 16))
-    try:
-        os.write(fd, batch)
-        n += 16
-    except BlockingIOError:
-        time.sleep(0.001)
-    try:
-        while os.read(fd, 65536):
-            pass
-    except (BlockingIOError, OSError):
-        pass
-    time.sleep(0.002)
-print(n, flush=True)
-"""
-
-
 def bench_raw(build, seconds):
     with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
         tmp = Path(tmp)
@@ -281,7 +256,7 @@ def bench_raw(build, seconds):
             )
             if rc != 0:
                 raise RuntimeError(f"dan-fcsim failed: {out}")
-            src = st.start([PY, "-c", BLAST, tmp / "can1", seconds + 30], "blast")
+            src = st.start([PY, CAN_FLOOD, tmp / "can1", seconds + 30], "blast")
             st.ready(src)
             time.sleep(0.5)
             stamps = []
