@@ -104,8 +104,8 @@ def frame_text(idf, data):
     return "frame=%08X/%d/%s" % (idf, len(data), hx(data))
 
 
-def main():
-    print(HEADER, end="")
+def esc_vectors():
+    """ESC_CMD, telemetry, ESC_TELEM, ARM, CONFIG, STATS."""
     # ESC commands: the 4-channel one is the 12-byte frame of the brief
     esc_cmd([0, 100, 200, 300])
     esc_cmd([-1])
@@ -145,6 +145,10 @@ def main():
         ["values=" + ",".join(map(str, vals))],
         u8(len(vals)) + b"".join(uvarint(v) for v in vals),
     )
+
+
+def node_vectors():
+    """NODES, NODE_INFO."""
     emit("nodes", "req", ["first=1"], u8(1))
     nodes = [
         (20, 0, 0, 0, 1234, 0xBEEF, 150, 2),
@@ -188,6 +192,10 @@ def main():
         ["node=33", "state=1", "sw=0/0/0", "vcs=0", "hw=0/0", "uid=" + hx(bytes(16)), "name=-"],
         u8(33) + u8(1),
     )
+
+
+def tunnel_vectors():
+    """TUN_OPEN, TUN_XFER."""
     for port, mode, proto, target, serial, opts, baud in [
         (0, 1, 255, 20, 0, 1, 115200),
         (1, 2, 2, 7, 0, 0, 0),
@@ -240,6 +248,10 @@ def main():
             ],
             u8(port) + uvarint(wr) + uvarint(sp) + uvarint(rd) + uvarint(dr) + array(d),
         )
+
+
+def can_vectors():
+    """CAN_SEND, CAN_RECV, CAN_FILTER."""
     frames = [
         (0x80000000 | 0x1401550A, bytes([1, 0, 0, 0, 0, 0x34, 0x12, 0xC0])),
         (0x123, b""),
@@ -269,6 +281,14 @@ def main():
     emit("can_filter", "req", ["op=3"], u8(3) + u8(0))
     p = u8(0) + u8(1) + u32(filters[1][0]) + u32(filters[1][1])
     emit("can_filter", "rsp", ["result=0", "filter=%08X/%08X" % filters[1]], p)
+
+
+def main():
+    print(HEADER, end="")
+    esc_vectors()
+    node_vectors()
+    tunnel_vectors()
+    can_vectors()
 
 
 def crc16_ccitt_false(data):

@@ -51,7 +51,8 @@ def write(name, header, lines):
     )
 
 
-def main():
+def crc8_vectors():
+    """crc8.txt, after the brief's two anchor frames check out."""
     assert crc8(b"123456789") == 0xBC
     assert frame(0x20) == bytes.fromhex("442000B5")
     assert frame(0x21, configure(0, 115200)) == bytes.fromhex("44210400808407DC")
@@ -68,6 +69,9 @@ def main():
         ],
     )
 
+
+def uvarint_vectors():
+    """uvarint.txt."""
     ok = [
         0,
         1,
@@ -108,6 +112,9 @@ def main():
         lines,
     )
 
+
+def frame_vectors():
+    """frames.txt."""
     rnd = random.Random(1)
     frames = [
         (0x20, b""),
@@ -131,6 +138,9 @@ def main():
         [f"frame {c} {h(p)} {h(frame(c, p))}" for c, p in frames],
     )
 
+
+def payload_vectors():
+    """payloads.txt."""
     ident = ("identity", 1, "DAN Project", "vbus test A", "rev B", "1.2.3", 0x000F, 0)
     p_ident = identity(*ident[1:])
     lines = [
@@ -215,7 +225,9 @@ def main():
         lines,
     )
 
-    # Streams: wire bytes and the frames a resynchronising decoder returns.
+
+def stream_vectors():
+    """streams.txt: wire bytes and the frames a resynchronising decoder returns."""
     a, b, c = frame(0x20), frame(0x21, configure(0, 115200)), frame(0x60, b"hi")
     bad_crc = bytearray(b)
     bad_crc[-1] ^= 0xFF
@@ -252,6 +264,14 @@ def main():
         ],
         lines,
     )
+
+
+def main():
+    crc8_vectors()
+    uvarint_vectors()
+    frame_vectors()
+    payload_vectors()
+    stream_vectors()
 
 
 if __name__ == "__main__":
