@@ -65,6 +65,21 @@ class Procs:
             p.log_file.close()
 
 
+def closing_factory(make):
+    """For a fixture that hands out a factory (rig(**kw), bus(n=...)): yields
+    one that remembers what make() returned, then closes those, in order,
+    at teardown. Use as: yield from closing_factory(make)."""
+    made = []
+
+    def factory(*args, **kw):
+        made.append(make(*args, **kw))
+        return made[-1]
+
+    yield factory
+    for x in made:
+        x.close()
+
+
 @pytest.fixture
 def procs(tmp_path):
     ps = Procs(tmp_path)

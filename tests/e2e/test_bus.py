@@ -9,7 +9,14 @@ import time
 
 import pytest
 
-from bus_util import periph_stats, read_capture, start_periph, start_vbus, vbus_cmd, vbus_stats
+from bus_util import (
+    control,
+    periph_stats,
+    read_capture,
+    start_mixed_periphs,
+    start_vbus,
+    vbus_stats,
+)
 from conftest import BIN
 
 TYPES = "test-a,test-b,can-gw,vtx"
@@ -47,11 +54,7 @@ def bus3(procs, tmp_path):
     """dan-vbus with a master endpoint and three peripherals of different
     types: test-a (all bauds), test-b (all bauds), can-gw (no 57600)."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 5)
-    ps = [
-        start_periph(procs, eps[1], "test-a"),
-        start_periph(procs, eps[2], "test-b"),
-        start_periph(procs, eps[3], "can-gw", "0x0B"),
-    ]
+    ps = start_mixed_periphs(procs, eps)
     return eps, ctl, ps
 
 
@@ -177,7 +180,7 @@ def test_noise_recovered(bus3, procs):
     link is clean."""
     eps, ctl, ps = bus3
     master(eps[0], "discover", "configure")
-    assert vbus_cmd(ctl, "ber 0.002") == "ok"
+    assert control(ctl, "ber 0.002") == "ok"
     rc, out = master(
         eps[0],
         "discover",
@@ -192,7 +195,7 @@ def test_noise_recovered(bus3, procs):
     # Every exchange the master reported OK returned the right bytes (the
     # repeat step stops at the first failure, which is allowed under noise).
     assert rep["done"] >= 1
-    assert vbus_cmd(ctl, "ber 0") == "ok"
+    assert control(ctl, "ber 0") == "ok"
     rc, out = master(
         eps[0],
         "discover",
@@ -205,26 +208,19 @@ def test_noise_recovered(bus3, procs):
 
 
 def test_bad_arguments_and_missing_port(tmp_path):
-    r = subprocess.run(
-        [str(BIN / "dan-master"), "--port", str(tmp_path / "nope"), "discover"],
-        capture_output=True,
-        stdin=subprocess.DEVNULL,
-        timeout=30,
-    )
+    def dan_master(*args):
+        return subprocess.run(
+            [str(BIN / "dan-master"), *args],
+            capture_output=True,
+            stdin=subprocess.DEVNULL,
+            timeout=30,
+        )
+
+    r = dan_master("--port", str(tmp_path / "nope"), "discover")
     assert r.returncode == 2 and b"No such file" in r.stderr
-    r = subprocess.run(
-        [str(BIN / "dan-master"), "--port", "/dev/null", "--bogus"],
-        capture_output=True,
-        stdin=subprocess.DEVNULL,
-        timeout=30,
-    )
+    r = dan_master("--port", "/dev/null", "--bogus")
     assert r.returncode == 2 and b"unknown option" in r.stderr
-    r = subprocess.run(
-        [str(BIN / "dan-master"), "--port", "/dev/null", "discover"],
-        capture_output=True,
-        stdin=subprocess.DEVNULL,
-        timeout=30,
-    )
+    r = dan_master("--port", "/dev/null", "discover")
     assert r.returncode == 2 and b"not a serial port" in r.stderr
     r = subprocess.run([str(BIN / "dan-master"), "--help"], capture_output=True, timeout=30)
     assert r.returncode == 0 and b"steps:" in r.stdout

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from bus_util import start_periph, start_vbus
+from bus_util import danprobe, start_mixed_periphs, start_vbus
 from conftest import BIN, VECTORS, wait_for
 from danprobe import registry
 from danprobe.codec import (
@@ -254,16 +254,6 @@ def test_sniff_capture_counts_errors(tmp_path):
 # ---- the CLI on a virtual bus ----
 
 
-def danprobe(*args, timeout=120):
-    r = subprocess.run(
-        [sys.executable, "-m", "danprobe", *map(str, args)],
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        timeout=timeout,
-    )
-    return r.returncode, r.stdout.decode(), r.stderr.decode()
-
-
 def danprobe_json(*args):
     rc, out, err = danprobe(*args, "--json")
     assert rc == 0, (rc, out, err)
@@ -285,12 +275,7 @@ def dan_master(port, *steps, types=TYPES):
 def bus3(procs, tmp_path):
     """Master endpoint 0, test-a, test-b, can-gw (no 57600) on 1..3, endpoint 4 spare."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 5)
-    for ep, t, mask in (
-        (eps[1], "test-a", "0x0F"),
-        (eps[2], "test-b", "0x0F"),
-        (eps[3], "can-gw", "0x0B"),
-    ):
-        start_periph(procs, ep, t, mask)
+    start_mixed_periphs(procs, eps)
     return eps
 
 

@@ -11,7 +11,6 @@ import json
 import os
 import re
 import select
-import subprocess
 import sys
 import threading
 import time
@@ -19,17 +18,16 @@ import tty
 
 import pytest
 
-from bus_util import vbus_cmd
-from conftest import BIN, ROOT, VECTORS, wait_for
+from bus_util import control, danprobe
+from conftest import BIN, ROOT, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
 from danprobe import gateway_msgs as G
 from danprobe.codec import encode_frame
 from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
-from test_gateway import Rig
+from gw_rig import GW_NODE, Rig, TunnelFarEnd
 
-GW_NODE = 10
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
 
 
@@ -346,16 +344,6 @@ def test_client_tunnel_offsets_and_can_recv_ack():
 # ---- the real stack ----
 
 
-def danprobe(*args, timeout=120):
-    r = subprocess.run(
-        [sys.executable, "-m", "danprobe", *map(str, args)],
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        timeout=timeout,
-    )
-    return r.returncode, r.stdout.decode(), r.stderr.decode()
-
-
 def danprobe_json(*args):
     rc, out, err = danprobe(*args, "--json")
     assert rc == 0, (rc, out, err)
@@ -369,7 +357,7 @@ def ready(p, what):
 
 
 def hub_stats(ctl):
-    return json.loads(vbus_cmd(ctl, "stats"))  # the hub's control socket speaks alike
+    return json.loads(control(ctl, "stats"))
 
 
 class Stack(Rig):
@@ -386,28 +374,13 @@ class Stack(Rig):
 
         self.procs, self.tmp = procs, tmp
         self.dan = str(tmp / "dan0")
-        self.vbus = procs.start(
-            [BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan", "--capture", tmp / "bus.cap"]
-        )
-        ready(self.vbus, "dan-vbus")
         self.ctl = tmp / "hub.ctl"
         self.hub_log = tmp / "hub.log"
-        self.hub = procs.start(
-            [
-                "python3",
-                ROOT / "host_tools" / "slcan_hub.py",
-                "-n",
-                str(ncan),
-                "--link",
-                tmp / "can",
-                "--log",
-                self.hub_log,
-                "--control",
-                self.ctl,
-            ],
-            name="slcan_hub",
+        self.start_wires(
+            ncan,
+            vbus_extra=("--capture", tmp / "bus.cap"),
+            hub_extra=("--log", self.hub_log, "--control", self.ctl),
         )
-        ready(self.hub, "slcan_hub")
         self.gwd = procs.start(
             [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can", f"slcan:{tmp / 'can0'}"],
             stdout=None,
@@ -478,10 +451,7 @@ class Stack(Rig):
 @pytest.fixture
 def stack(procs, tmp_path):
     """stack(escs=N): a Stack, its pydronecan nodes closed at teardown."""
-    made = []
-    yield lambda **kw: made.append(Stack(procs, tmp_path, **kw)) or made[-1]
-    for s in made:
-        s.close()
+    yield from closing_factory(lambda **kw: Stack(procs, tmp_path, **kw))
 
 
 def test_esc_values_telemetry_arm_stats_nodes(stack):
@@ -702,46 +672,18 @@ def test_tunnel_targetted_and_broadcast(stack):
 
     U = dronecan.uavcan
     s = stack(escs=0)
-    far = s.node(s.free, 30, "org.test.far_end")
-    got = bytearray()
-    outq = bytearray()
-    lock = threading.Lock()
+    far_end = TunnelFarEnd(s.node(s.free, 30, "org.test.far_end"), 30, 2)
+    far, got = far_end.node, far_end.got
     bcast = bytearray()
-
-    def on_targetted(e):
-        m = e.message
-        if m.target_node != 30 or e.transfer.source_node_id != GW_NODE or m.serial_id != 2:
-            return
-        with lock:
-            got.extend(bytes(m.buffer))
-            outq.extend(bytes(b ^ 0x5A for b in m.buffer))  # the far end answers transformed
 
     def on_broadcast(e):
         m = e.message
         if m.channel_id == 7 and m.protocol.protocol == 2 and e.transfer.source_node_id == GW_NODE:
-            with lock:
+            with far_end.lock:
                 bcast.extend(bytes(m.buffer))
 
-    far.add_handler(U.tunnel.Targetted, on_targetted)
     far.add_handler(U.tunnel.Broadcast, on_broadcast)
-
-    def pump():
-        with lock:
-            chunk = bytes(outq[:120])
-            del outq[:120]
-        if chunk:
-            far.broadcast(
-                U.tunnel.Targetted(
-                    protocol=U.tunnel.Protocol(protocol=255),
-                    target_node=GW_NODE,
-                    serial_id=2,
-                    options=0,
-                    baudrate=0,
-                    buffer=list(chunk),
-                )
-            )
-
-    s.spin(far, pump, 0.005)
+    s.spin(far, far_end.pump, 0.005)
 
     link = s.tmp / "tun"
     p, ev = s.start_danprobe(

@@ -18,21 +18,12 @@ import dronecan  # noqa: F401 (installed by make)
 import pytest
 import serial
 
-from bus_util import vbus_cmd, vbus_stats
+from bus_util import control, ready, vbus_stats
 from conftest import BIN, ROOT, wait_for
 
 ASAN_BIN = ROOT / "build" / "asan" / "bin"
 CAN_FLOOD = ROOT / "tests" / "tools" / "can_flood.py"
 ZERO = [0, 0, 0, 0]
-
-
-def ready(p, what):
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY"), f"{what} did not start: {line!r}"
-
-
-def ctl(path, cmd):
-    return vbus_cmd(path, cmd)  # same line protocol for the hub's control socket
 
 
 class Rig:
@@ -168,6 +159,17 @@ def rig(procs, tmp_path):
     return lambda **kw: Rig(procs, tmp_path, **kw)
 
 
+def in_thread_after(step, action, unless=lambda: False):
+    """An fcsim on_line callback: when `step` reports, action() runs in a
+    thread while the FC goes on."""
+
+    def on_line(line):
+        if line["step"] == step and not unless():
+            threading.Thread(target=action, daemon=True).start()
+
+    return on_line
+
+
 def steps_of(out, name):
     return [line for line in out if line.get("step") == name]
 
@@ -190,9 +192,9 @@ def test_noise_levels_and_recovery(rig):
 
         def on_line(line, ber=ber, state=state):
             if line["step"] == "discover":
-                assert vbus_cmd(r.tmp / "vbus.ctl", f"ber {ber}") == "ok"
+                assert control(r.tmp / "vbus.ctl", f"ber {ber}") == "ok"
             elif line["step"] == "esc":
-                assert vbus_cmd(r.tmp / "vbus.ctl", "ber 0") == "ok"
+                assert control(r.tmp / "vbus.ctl", "ber 0") == "ok"
                 state["esc"] = line
 
         before = vbus_stats(r.tmp / "vbus.ctl")
@@ -298,22 +300,17 @@ def test_gateway_restart_back_at_9600(rig):
     r = rig()
     restarted = {}
 
-    def on_line(line):
-        if line["step"] == "configure" and "t" not in restarted:
-
-            def later():
-                time.sleep(1.0)
-                assert r.procs.stop(r.gwd) == 0
-                r.start_gw()
-                restarted["t"] = time.monotonic()
-
-            threading.Thread(target=later, daemon=True).start()
+    def restart():
+        time.sleep(1.0)
+        assert r.procs.stop(r.gwd) == 0
+        r.start_gw()
+        restarted["t"] = time.monotonic()
 
     rc, out = r.fcsim(
         "discover",
         "configure",
         "esc:55,66,77,88@5000@100",
-        on_line=on_line,
+        on_line=in_thread_after("configure", restart, unless=lambda: "t" in restarted),
         opts=("--recover", "5"),
     )
     e = steps_of(out, "esc")[0]
@@ -357,19 +354,15 @@ def test_can_adapter_unplugged_and_back(rig):
     r = rig()
     marks = {}
 
-    def on_line(line):
-        if line["step"] == "configure":
+    def unplug_and_back():
+        time.sleep(0.8)
+        assert control(r.tmp / "hub.ctl", "detach 0") == "ok"
+        marks["detach"] = time.monotonic()
+        time.sleep(1.5)
+        assert control(r.tmp / "hub.ctl", "attach 0") == "ok"
+        marks["attach"] = time.monotonic()
 
-            def later():
-                time.sleep(0.8)
-                assert ctl(r.tmp / "hub.ctl", "detach 0") == "ok"
-                marks["detach"] = time.monotonic()
-                time.sleep(1.5)
-                assert ctl(r.tmp / "hub.ctl", "attach 0") == "ok"
-                marks["attach"] = time.monotonic()
-
-            threading.Thread(target=later, daemon=True).start()
-
+    on_line = in_thread_after("configure", unplug_and_back)
     rc, out = r.fcsim("discover", "configure", "esc:12,13,14,15@6000@100", "stats", on_line=on_line)
     e = steps_of(out, "esc")[0]
     log = r.gwd.log_path.read_text()
@@ -425,18 +418,17 @@ def test_sigterm_during_esc_commands(rig):
     r = rig()
     killed = {}
 
-    def on_line(line):
-        if line["step"] == "arm":
-
-            def later():
-                time.sleep(1.0)
-                killed["t"] = time.monotonic()
-                killed["rc"] = r.procs.stop(r.gwd)
-
-            threading.Thread(target=later, daemon=True).start()
+    def kill_gateway():
+        time.sleep(1.0)
+        killed["t"] = time.monotonic()
+        killed["rc"] = r.procs.stop(r.gwd)
 
     rc, out = r.fcsim(
-        "discover", "configure", "arm", "esc:800,900,1000,1100@2500@100", on_line=on_line
+        "discover",
+        "configure",
+        "arm",
+        "esc:800,900,1000,1100@2500@100",
+        on_line=in_thread_after("arm", kill_gateway),
     )
     e = steps_of(out, "esc")[0]
     assert killed.get("rc") == 0

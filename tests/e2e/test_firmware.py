@@ -16,7 +16,14 @@ import subprocess
 import pytest
 
 import pydronecan_nodes
-from bus_util import periph_stats, read_capture, start_periph, start_vbus, vbus_stats
+from bus_util import (
+    periph_stats,
+    read_capture,
+    start_mixed_periphs,
+    start_periph,
+    start_vbus,
+    vbus_stats,
+)
 from conftest import ROOT
 
 FW_ELF = os.environ.get("DAN_FW_ELF", str(ROOT / "build" / "fw" / "fc_firmware.elf"))
@@ -73,11 +80,7 @@ def fc_bus(procs, tmp_path):
     """dan-vbus: endpoint 0 for the firmware, then test-a, test-b and a
     can-gw without 57600 (mask 0x0B)."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 4)
-    ps = [
-        start_periph(procs, eps[1], "test-a"),
-        start_periph(procs, eps[2], "test-b"),
-        start_periph(procs, eps[3], "can-gw", "0x0B"),
-    ]
+    ps = start_mixed_periphs(procs, eps)
     return eps, ctl, ps
 
 

@@ -5,22 +5,18 @@ the CAN bus and pydronecan nodes as the independent DroneCAN peers.
 Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
 
-import json
 import os
 import struct
 import sys
-import threading
 import time
 
 import dronecan
 import pytest
 
-import pydronecan_nodes
-from conftest import BIN, ROOT, wait_for
+from conftest import BIN, ROOT, closing_factory, wait_for
+from gw_rig import GW_NODE, Rig, TunnelFarEnd
 
 U = dronecan.uavcan
-
-GW_NODE = 10
 
 
 def f16(x):
@@ -28,106 +24,9 @@ def f16(x):
     return struct.unpack("<e", struct.pack("<e", x))[0]
 
 
-def ready_line(p, what):
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY"), f"{what} did not start: {line!r}"
-    return line.split()[1:]
-
-
-class Rig:
-    def __init__(self, procs, tmp, ncan=3, gw_args=()):
-        for b in ("dan-vbus", "dan-gatewayd", "dan-fcsim", "dan-cantool"):
-            if not (BIN / b).exists():
-                pytest.fail(f"{b} not built: run make test (it builds everything)")
-        self.procs, self.tmp = procs, tmp
-        self.vbus = procs.start([BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan"])
-        ready_line(self.vbus, "dan-vbus")
-        self.hub = procs.start(
-            [
-                "python3",
-                ROOT / "host_tools" / "slcan_hub.py",
-                "-n",
-                str(ncan),
-                "--link",
-                tmp / "can",
-            ],
-            name="slcan_hub",
-        )
-        ready_line(self.hub, "slcan_hub")
-        # Generous reply windows (here and in fcsim): a loaded 2-core host
-        # can stall a process that long; these tests check behaviour, not speed.
-        self.gwd = procs.start(
-            [
-                BIN / "dan-gatewayd",
-                "--uart",
-                tmp / "dan1",
-                "--can",
-                f"slcan:{tmp / 'can0'}",
-                "--verbose",
-                "--reply-window-ms",
-                "200",
-                *gw_args,
-            ],
-            stdout=None,
-        )
-        self.nodes = []
-        self.stop = threading.Event()
-        self.threads = []
-
-    def node(self, k, node_id, name):
-        info = U.protocol.GetNodeInfo.Response()
-        info.name = name
-        info.software_version.major = 2
-        info.software_version.minor = 7
-        info.hardware_version.major = 1
-        n = pydronecan_nodes.make_node(self.tmp / f"can{k}", node_id, node_info=info)
-        self.nodes.append(n)
-        return n
-
-    def spin(self, node, periodic=None, period=0.05):
-        def loop():
-            last = 0.0
-            while not self.stop.is_set():
-                try:
-                    node.spin(0.01)
-                except Exception:  # a malformed frame must not kill the thread
-                    pass
-                if periodic and time.monotonic() - last >= period:
-                    last = time.monotonic()
-                    periodic()
-
-        t = threading.Thread(target=loop, daemon=True)
-        t.start()
-        self.threads.append(t)
-
-    def fcsim(self, *steps, timeout=120):
-        p = self.procs.start(
-            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *steps]
-        )
-        out, _ = p.communicate(timeout=timeout)
-        lines = [json.loads(line) for line in out.decode().splitlines() if line.strip()]
-        return p.returncode, lines
-
-    def close(self):
-        self.stop.set()
-        for t in self.threads:
-            t.join(5)
-        for n in self.nodes:
-            n.close()
-
-
 @pytest.fixture
 def rig(procs, tmp_path):
-    made = []
-
-    def make(**kw):
-        r = Rig(procs, tmp_path, **kw)
-        made.append(r)
-        return r
-
-    yield make
-    for r in made:
-        r.close()
+    yield from closing_factory(lambda **kw: Rig(procs, tmp_path, **kw))
 
 
 def step(lines, name):
@@ -250,39 +149,8 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
 
 def test_tunnel_64k_both_ways(rig):
     r = rig()
-    far = r.node(1, 30, "org.test.far_end")
-    got = bytearray()
-    lock = threading.Lock()
-    outq = bytearray()
-
-    def on_targetted(e):
-        m = e.message
-        if m.target_node != 30 or e.transfer.source_node_id != GW_NODE or m.serial_id != 2:
-            return
-        data = bytes(m.buffer)
-        with lock:
-            got.extend(data)
-            outq.extend(bytes(b ^ 0x5A for b in data))  # the far end answers a transformed stream
-
-    far.add_handler(U.tunnel.Targetted, on_targetted)
-
-    def pump():
-        with lock:
-            chunk = bytes(outq[:120])
-            del outq[:120]
-        if chunk:
-            far.broadcast(
-                U.tunnel.Targetted(
-                    protocol=U.tunnel.Protocol(protocol=255),
-                    target_node=GW_NODE,
-                    serial_id=2,
-                    options=0,
-                    baudrate=0,
-                    buffer=list(chunk),
-                )
-            )
-
-    r.spin(far, pump, 0.002)
+    far = TunnelFarEnd(r.node(1, 30, "org.test.far_end"), 30, 2)
+    r.spin(far.node, far.pump, 0.002)
 
     data = os.urandom(64 * 1024)
     src = r.tmp / "in.bin"
@@ -297,7 +165,7 @@ def test_tunnel_64k_both_ways(rig):
         timeout=170,
     )
     assert rc == 0, [line for line in out if not line.get("ok", True)] or out
-    assert bytes(got) == data
+    assert bytes(far.got) == data
     assert dst.read_bytes() == bytes(b ^ 0x5A for b in data)
     x = step(out, "xfer")[0]
     print(f"\n64 KiB each way through the tunnel in {x['seconds']:.1f} s")

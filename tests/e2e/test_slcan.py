@@ -9,7 +9,6 @@ import pty
 import re
 import select
 import signal
-import socket
 import sys
 import threading
 import time
@@ -19,6 +18,7 @@ import dronecan
 import pytest
 
 import pydronecan_nodes
+from bus_util import control
 from conftest import BIN, ROOT, wait_for
 
 HUB = ROOT / "host_tools" / "slcan_hub.py"
@@ -73,17 +73,7 @@ class Hub:
             assert os.readlink(link) == pts
 
     def ctl(self, cmd):
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.settimeout(10)
-            s.connect(self.control)
-            s.sendall((cmd + "\n").encode())
-            buf = b""
-            while not buf.endswith(b"\n"):
-                b = s.recv(65536)
-                if not b:
-                    break
-                buf += b
-            return buf.decode().strip()
+        return control(self.control, cmd)
 
     def stats(self):
         return json.loads(self.ctl("stats"))["ports"]

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from conftest import BIN, wait_for
+from conftest import BIN, closing_factory, wait_for
 
 VBUS = Path(os.environ.get("DAN_VBUS", BIN / "dan-vbus"))
 TIMEOUT = 10.0
@@ -134,16 +134,10 @@ class Bus:
 
 @pytest.fixture
 def bus(procs, tmp_path):
-    made = []
-
     def make(n=2, extra=(), name="vbus"):
-        b = Bus(procs, tmp_path, n, [str(x) for x in extra], name)
-        made.append(b)
-        return b
+        return Bus(procs, tmp_path, n, [str(x) for x in extra], name)
 
-    yield make
-    for b in made:
-        b.close()
+    yield from closing_factory(make)
 
 
 def read_exact(port, n):
