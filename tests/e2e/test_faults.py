@@ -181,6 +181,11 @@ def report(what, tried, failed, wrong, extra=""):
     )
 
 
+def report_esc(what, e, wrong, extra=""):
+    """report() of an fcsim esc step e: tried = exchanges + errors."""
+    report(what, e["exchanges"] + e["errors"], e["errors"], wrong, extra)
+
+
 def test_noise_levels_and_recovery(rig):
     r = rig()
     rc, out = r.fcsim("discover", "configure", "arm")
@@ -227,7 +232,7 @@ def test_noise_levels_and_recovery(rig):
     t0 = time.monotonic()
     rc, out = r.fcsim("discover", "esc:7,8,9,10@1500@100")
     e = steps_of(out, "esc")[0]
-    report("after noise", e["exchanges"] + e["errors"], e["errors"], len(r.wrong_values()))
+    report_esc("after noise", e, len(r.wrong_values()))
     assert rc == 0 and e["errors"] == 0, out
     assert any(ev["cmd"] == [7, 8, 9, 10] for ev in r.esc_events(since=t0))
 
@@ -277,10 +282,9 @@ def test_collisions_with_a_jammer(rig):
     e = esc[0]
     wrong = r.wrong_values()
     coll = after["collisions"] - before["collisions"]
-    report(
+    report_esc(
         "jammer",
-        e["exchanges"] + e["errors"],
-        e["errors"],
+        e,
         len(wrong),
         f"jam bursts {count[0]}, collisions {coll}, distinct wrong commands "
         f"{len({tuple(w['cmd']) for w in wrong})}",
@@ -317,10 +321,9 @@ def test_gateway_restart_back_at_9600(rig):
     wrong = r.wrong_values()
     assert "t" in restarted
     after = [ev for ev in r.esc_events(since=restarted["t"]) if ev["cmd"] == [55, 66, 77, 88]]
-    report(
+    report_esc(
         "gateway restart",
-        e["exchanges"] + e["errors"],
-        e["errors"],
+        e,
         len(wrong),
         f"recovered {e['recoveries']} time(s), bus back at {e['baud']} baud; "
         f"{len(after)} commands at the ESCs after the restart",
@@ -338,10 +341,9 @@ def test_master_restart_finds_configured_gateway(rig):
     assert rc == 0, out
     rc, out = r.fcsim("discover", "esc:2,2,2,2@1000@100")
     e = steps_of(out, "esc")[0]
-    report(
+    report_esc(
         "master restart",
-        e["exchanges"] + e["errors"],
-        e["errors"],
+        e,
         len(r.wrong_values()),
         f"found at {steps_of(out, 'discover')[0]['baud']} baud",
     )
@@ -369,10 +371,9 @@ def test_can_adapter_unplugged_and_back(rig):
     assert "adapter lost" in log and "reopened" in log, log[-2000:]
     after = r.esc_events(since=marks["attach"] + 1.2)  # reopen retries every second
     wrong = r.wrong_values()
-    report(
+    report_esc(
         "CAN adapter detach/attach",
-        e["exchanges"] + e["errors"],
-        e["errors"],
+        e,
         len(wrong),
         f"commands at the ESCs after re-attach: {len(after)}, "
         f"can_tx_dropped {steps_of(out, 'stats')[0]['can_tx_dropped']}",
@@ -398,10 +399,9 @@ def test_can_flood_while_esc_commands_flow(rig):
         ev for ev in r.esc_events(since=t0) if ev["t"] <= t1 and ev["cmd"] == [21, 22, 23, 24]
     ]
     wrong = r.wrong_values()
-    report(
+    report_esc(
         "CAN flood",
-        e["exchanges"] + e["errors"],
-        e["errors"],
+        e,
         len(wrong),
         f"flood frames {sent}, gateway can_rx {st['can_rx']}, raw_dropped {st['raw_dropped']}, "
         f"ESC commands at ESC 0 during the flood {sum(1 for ev in during if ev['esc'] == 0)}",
@@ -443,10 +443,9 @@ def test_sigterm_during_esc_commands(rig):
         what="DISARMED at the ESCs",
     )
     wrong = r.wrong_values()
-    report(
+    report_esc(
         "SIGTERM",
-        e["exchanges"] + e["errors"],
-        e["errors"],
+        e,
         len(wrong),
         f"zero commands at ESCs {len(zero)}, DISARMED {len(disarm)}",
     )

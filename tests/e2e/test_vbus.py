@@ -262,28 +262,27 @@ def test_echo_and_delivery_to_all(bus):
     assert st["collisions"] == 0 and st["wire_bytes"] == 3 * n
 
 
-def test_pacing_9600(bus):
-    b = bus()
-    a, r = b.open(0, 9600), b.open(1, 9600)
-    msg = os.urandom(200)
+def paced_transfer(b, baud, n, at_least):
+    """n random bytes from endpoint 0 to 1 at baud: they take at least
+    at_least seconds to arrive, and come back as the echo. Returns them."""
+    a, r = b.open(0, baud), b.open(1, baud)
+    msg = os.urandom(n)
     t0 = time.monotonic()
     a.write(msg)
-    assert read_exact(r, 200) == msg
+    assert read_exact(r, n) == msg
     elapsed = time.monotonic() - t0
-    assert elapsed >= 0.2, f"200 bytes at 9600 baud arrived in {elapsed:.3f}s"  # 208 ms on the wire
-    assert read_exact(a, 200) == msg
+    assert elapsed >= at_least, f"{n} bytes at {baud} baud arrived in {elapsed:.3f}s"
+    assert read_exact(a, n) == msg
+    return msg
+
+
+def test_pacing_9600(bus):
+    paced_transfer(bus(), 9600, 200, 0.2)  # 208 ms on the wire
 
 
 def test_nonstandard_baud_250000(bus):
     b = bus()
-    a, r = b.open(0, 250000), b.open(1, 250000)
-    msg = os.urandom(5000)
-    t0 = time.monotonic()
-    a.write(msg)
-    assert read_exact(r, len(msg)) == msg
-    elapsed = time.monotonic() - t0
-    assert elapsed >= 0.195, f"5000 bytes at 250000 baud arrived in {elapsed:.3f}s"  # 200 ms
-    assert read_exact(a, len(msg)) == msg
+    msg = paced_transfer(b, 250000, 5000, 0.195)  # 200 ms
     assert [ep["baud"] for ep in b.stats()["endpoints"]] == [250000, 250000]
     lines = wait_for(
         lambda: sum(len(line[3]) for line in b.capture()) == len(msg) and b.capture(),
