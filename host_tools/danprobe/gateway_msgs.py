@@ -714,13 +714,7 @@ class TunXferRequest:
         )
 
     def as_dict(self) -> dict:
-        return {
-            "port": self.port,
-            "wr_offset": self.wr_offset,
-            "rd_offset": self.rd_offset,
-            "rd_max": self.rd_max,
-            "data": self.data.hex(),
-        }
+        return {**asdict(self), "data": self.data.hex()}
 
 
 @dataclass
@@ -759,11 +753,4 @@ class TunXferResponse:
         )
 
     def as_dict(self) -> dict:
-        return {
-            "port": self.port,
-            "wr_next": self.wr_next,
-            "wr_space": self.wr_space,
-            "rd_offset": self.rd_offset,
-            "rd_dropped": self.rd_dropped,
-            "data": self.data.hex(),
-        }
+        return {**asdict(self), "data": self.data.hex()}
