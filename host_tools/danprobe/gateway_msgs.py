@@ -681,44 +681,44 @@ def _chunk(r: Reader) -> bytes:
     return data
 
 
-@dataclass
-class TunXferRequest:
-    port: int = 0
-    wr_offset: int = 0  # stream offset of data[0]
-    rd_offset: int = 0  # every byte before it was received
-    rd_max: int = TUN_CHUNK_MAX
-    data: bytes = b""
+class _TunXfer:
+    """Both TUN_XFER layouts: u8 port, the uvarints named in OFFSETS (in that
+    order), then the data (uvarint length, at most 128 bytes)."""
+
+    OFFSETS = ()
 
     def encode(self) -> bytes:
         if len(self.data) > TUN_CHUNK_MAX:
             raise ValueError(f"tunnel data: at most {TUN_CHUNK_MAX} bytes")
-        return (
-            Writer()
-            .u8(self.port)
-            .uvarint(self.wr_offset)
-            .uvarint(self.rd_offset)
-            .uvarint(self.rd_max)
-            .array(self.data)
-            .bytes()
-        )
+        w = Writer().u8(self.port)
+        for name in self.OFFSETS:
+            w.uvarint(getattr(self, name))
+        return w.array(self.data).bytes()
 
     @classmethod
-    def decode(cls, payload) -> "TunXferRequest":
+    def decode(cls, payload):
         r = Reader(payload)
-        return cls(
-            r.u8("port"),
-            r.uvarint("wr_offset"),
-            r.uvarint("rd_offset"),
-            r.uvarint("rd_max"),
-            _chunk(r),
-        )
+        port = r.u8("port")
+        offsets = [r.uvarint(name) for name in cls.OFFSETS]
+        return cls(port, *offsets, _chunk(r))
 
     def as_dict(self) -> dict:
         return {**asdict(self), "data": self.data.hex()}
 
 
 @dataclass
-class TunXferResponse:
+class TunXferRequest(_TunXfer):
+    port: int = 0
+    wr_offset: int = 0  # stream offset of data[0]
+    rd_offset: int = 0  # every byte before it was received
+    rd_max: int = TUN_CHUNK_MAX
+    data: bytes = b""
+
+    OFFSETS = ("wr_offset", "rd_offset", "rd_max")
+
+
+@dataclass
+class TunXferResponse(_TunXfer):
     port: int = 0
     wr_next: int = 0  # bytes accepted so far
     wr_space: int = 0
@@ -726,31 +726,4 @@ class TunXferResponse:
     rd_dropped: int = 0  # total bytes dropped, CAN -> DAN
     data: bytes = b""
 
-    def encode(self) -> bytes:
-        if len(self.data) > TUN_CHUNK_MAX:
-            raise ValueError(f"tunnel data: at most {TUN_CHUNK_MAX} bytes")
-        return (
-            Writer()
-            .u8(self.port)
-            .uvarint(self.wr_next)
-            .uvarint(self.wr_space)
-            .uvarint(self.rd_offset)
-            .uvarint(self.rd_dropped)
-            .array(self.data)
-            .bytes()
-        )
-
-    @classmethod
-    def decode(cls, payload) -> "TunXferResponse":
-        r = Reader(payload)
-        return cls(
-            r.u8("port"),
-            r.uvarint("wr_next"),
-            r.uvarint("wr_space"),
-            r.uvarint("rd_offset"),
-            r.uvarint("rd_dropped"),
-            _chunk(r),
-        )
-
-    def as_dict(self) -> dict:
-        return {**asdict(self), "data": self.data.hex()}
+    OFFSETS = ("wr_next", "wr_space", "rd_offset", "rd_dropped")
