@@ -57,16 +57,7 @@ import time
 import tty
 
 # this directory is sys.path[0]; the codec is standard library only
-from danprobe.slcan_codec import (
-    ACK,
-    BEL,
-    FRAME_KINDS,
-    LINE_MAX,
-    format_frame,
-    is_hex,
-    parse_frame,
-    tx_ack,
-)
+from danprobe import slcan_codec as slcan
 
 OUT_LIMIT = 64 * 1024  # bytes buffered for one port's reader
 
@@ -244,7 +235,7 @@ class Hub:
                 p.counters["dropped"] += 1
                 continue
             ts = self.timestamp() if p.timestamps else None
-            if p.write(format_frame(frame, ts), frame=True):
+            if p.write(slcan.format_frame(frame, ts), frame=True):
                 p.counters["frames_out"] += 1
 
     # ---- SLCAN command interpreter ----
@@ -252,39 +243,39 @@ class Hub:
     def handle_line(self, p, line):
         def err():
             p.counters["errors"] += 1
-            p.write(BEL)
+            p.write(slcan.BEL)
 
         if not line:
-            p.write(ACK)
+            p.write(slcan.ACK)
             return
         c = line[:1]
         arg = line[1:]
-        if c in FRAME_KINDS:
-            frame = parse_frame(line)
+        if c in slcan.FRAME_KINDS:
+            frame = slcan.parse_frame(line)
             if frame is None or not p.open or p.listen_only:
                 err()
                 return
             p.counters["frames_in"] += 1
-            p.write(tx_ack(frame.ext))
+            p.write(slcan.tx_ack(frame.ext))
             self.broadcast(p, frame)
         elif c == b"S":
             if p.open or len(arg) != 1 or arg not in b"012345678":
                 err()
                 return
             p.bitrate = [10, 20, 50, 100, 125, 250, 500, 800, 1000][int(arg)] * 1000
-            p.write(ACK)
+            p.write(slcan.ACK)
         elif c == b"s":
-            if p.open or len(arg) != 4 or not is_hex(arg):
+            if p.open or len(arg) != 4 or not slcan.is_hex(arg):
                 err()
                 return
             p.bitrate = "btr:" + arg.decode()
-            p.write(ACK)
+            p.write(slcan.ACK)
         elif c in (b"O", b"L"):
             if p.open or arg:
                 err()
                 return
             p.open, p.listen_only = True, c == b"L"
-            p.write(ACK)
+            p.write(slcan.ACK)
         elif c == b"C":
             if arg:
                 err()
@@ -296,7 +287,7 @@ class Hub:
                 termios.tcflush(p.slave, termios.TCIFLUSH)
             except termios.error:
                 pass
-            p.write(ACK)
+            p.write(slcan.ACK)
         elif c == b"F" and not arg:
             p.write(b"F00\r")
         elif c == b"V" and not arg:
@@ -307,9 +298,9 @@ class Hub:
             p.write(b"NA123\r")
         elif c == b"Z" and arg in (b"0", b"1"):
             p.timestamps = arg == b"1"
-            p.write(ACK)
-        elif c in (b"M", b"m") and len(arg) == 8 and is_hex(arg):
-            p.write(ACK)
+            p.write(slcan.ACK)
+        elif c in (b"M", b"m") and len(arg) == 8 and slcan.is_hex(arg):
+            p.write(slcan.ACK)
         else:
             err()
 
@@ -327,7 +318,7 @@ class Hub:
                 if p.discarding:
                     p.discarding = False
                     p.counters["errors"] += 1
-                    p.write(BEL)
+                    p.write(slcan.BEL)
                 else:
                     self.handle_line(p, bytes(p.inbuf))
                 p.inbuf.clear()
@@ -335,7 +326,7 @@ class Hub:
                 continue
             elif p.discarding:
                 continue
-            elif len(p.inbuf) >= LINE_MAX:
+            elif len(p.inbuf) >= slcan.LINE_MAX:
                 p.discarding = True
                 p.inbuf.clear()
             else:
