@@ -9,9 +9,9 @@ gateway and four DroneCAN ESCs, on virtual wires, no hardware.
 Every process runs in its own process group and is stopped at the end, on
 error, or on Ctrl-C/SIGTERM; nothing is left behind. Exit 0 on success.
 """
+
 import argparse
 import json
-import os
 import shutil
 import signal
 import subprocess
@@ -19,6 +19,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import procgroup  # this directory is sys.path[0]
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = ROOT / "build" / "bin"
@@ -34,8 +36,7 @@ class Stack:
 
     def start(self, name, args, ready=True):
         log = open(self.tmp / f"{name}.log", "wb")
-        p = subprocess.Popen([str(a) for a in args], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                             stderr=log, start_new_session=True)
+        p = procgroup.start(args, log)
         p.name, p.log = name, log
         self.procs.append(p)
         if ready:
@@ -49,7 +50,9 @@ class Stack:
 
     def tail(self, name, n=15):
         try:
-            return "\n".join((self.tmp / f"{name}.log").read_text(errors="replace").splitlines()[-n:])
+            return "\n".join(
+                (self.tmp / f"{name}.log").read_text(errors="replace").splitlines()[-n:]
+            )
         except OSError:
             return ""
 
@@ -59,18 +62,12 @@ class Stack:
                 raise RuntimeError(f"{p.name} exited with {p.returncode}:\n{self.tail(p.name)}")
 
     def stop(self):
+        """SIGTERM to all first, so they wind down together."""
         for p in reversed(self.procs):
             if p.poll() is None:
-                try:
-                    os.killpg(p.pid, signal.SIGTERM)
-                except ProcessLookupError:
-                    pass
+                procgroup.signal_group(p, signal.SIGTERM)
         for p in reversed(self.procs):
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(5)
+            procgroup.wait_or_kill(p, 10)
             p.stdout.close()
             p.log.close()
 
@@ -93,70 +90,141 @@ def on_sigterm(signum, frame):
     raise KeyboardInterrupt  # unwinds to the cleanup in main()
 
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--keep", action="store_true", help="keep the temporary directory with logs")
     ap.add_argument("--ramp-seconds", type=float, default=6.0)
-    ap.add_argument("--plot", default=str(ROOT / "build" / "demo" / "esc.png"),
-                    help="where the ESC telemetry plot goes (default: build/demo/esc.png)")
+    ap.add_argument(
+        "--plot",
+        default=str(ROOT / "build" / "demo" / "esc.png"),
+        help="where the ESC telemetry plot goes (default: build/demo/esc.png)",
+    )
     ap.add_argument("--verbose", action="store_true")
-    args = ap.parse_args()
+    return ap.parse_args()
 
+
+def start_wires(stack, tmp):
+    step("Virtual wires: a DAN bus (dan-vbus) and a CAN bus of SLCAN adapters (slcan_hub.py)")
+    stack.start(
+        "dan-vbus",
+        [BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan", "--capture", tmp / "dan-bus.log"],
+    )
+    stack.start(
+        "slcan_hub",
+        [
+            PY,
+            ROOT / "host_tools" / "slcan_hub.py",
+            "-n",
+            "5",
+            "--link",
+            tmp / "can",
+            "--log",
+            tmp / "can-bus.log",
+        ],
+    )
+    print(f"DAN wire endpoints {tmp}/dan0 (the FC side: danprobe) and {tmp}/dan1 (the gateway)")
+    print(f"CAN adapters {tmp}/can0 (gateway) and {tmp}/can1..4 (ESCs)")
+
+
+def start_escs_and_gateway(stack, tmp):
+    step("Four DroneCAN ESCs (pydronecan nodes 20..23) and the CAN-over-DAN gateway (node 10)")
+    stack.start(
+        "esc_sim",
+        [
+            PY,
+            ROOT / "host_tools" / "esc_sim.py",
+            "--log",
+            tmp / "escs.jsonl",
+            *sum((["--port", tmp / f"can{i}"] for i in range(1, 5)), []),
+        ],
+    )
+    stack.start(
+        "dan-gatewayd",
+        [
+            BIN / "dan-gatewayd",
+            "--uart",
+            tmp / "dan1",
+            "--can",
+            f"slcan:{tmp}/can0",
+            "--node-id",
+            "10",
+            "--verbose",
+        ],
+        ready=False,
+    )
+    time.sleep(0.5)
+    stack.check_alive()
+
+
+def drive(port, ramp_seconds, plot):
+    """What a technician does with danprobe, step by step."""
+    step("Discover the DAN bus at 9600 baud")
+    danprobe("discover", *port)
+    step("Configure the bus to 115200 baud")
+    danprobe("configure", *port, "--baud", "115200")
+    step("Arm")
+    danprobe("arm", *port, "--bus-baud", "115200")
+    step(f"Throttle ramp on four ESCs with live telemetry ({ramp_seconds:g} s)")
+    danprobe(
+        "esc",
+        *port,
+        "--bus-baud",
+        "115200",
+        "--count",
+        "4",
+        "--ramp",
+        "0:3000",
+        "--rate",
+        "50",
+        "--duration",
+        ramp_seconds,
+        "--plot",
+        plot,
+    )
+    step("The gateway's DroneCAN node table")
+    danprobe("nodes", *port, "--bus-baud", "115200")
+    step("Disarm")
+    danprobe("disarm", *port, "--bus-baud", "115200")
+    step("Gateway counters")
+    danprobe("stats", *port, "--bus-baud", "115200")
+
+
+def what_the_escs_saw(tmp, plot):
+    """The ESCs' own log: the proof the commands arrived."""
+    cmds = [json.loads(line) for line in open(tmp / "escs.jsonl") if '"cmd"' in line]
+    arming = [json.loads(line) for line in open(tmp / "escs.jsonl") if '"arming"' in line]
+    top = max((max(c["cmd"][:4]) for c in cmds), default=0)
+    step("What the ESCs received")
+    print(
+        f"{len(cmds)} RawCommand transfers, highest raw value {top}; "
+        f"{len(arming)} ArmingStatus messages, last status {arming[-1]['status'] if arming else '-'}"
+    )
+    print(f"plot of RPM, current, voltage and temperature: {plot}")
+    if not cmds or top <= 0:
+        raise RuntimeError("the ESCs received no throttle")
+
+
+def main():
+    args = parse_args()
     for b in ("dan-vbus", "dan-gatewayd"):
         if not (BIN / b).exists():
-            print(f"demo: {BIN / b} is missing: run 'make demo' (it builds everything)", file=sys.stderr)
+            print(
+                f"demo: {BIN / b} is missing: run 'make demo' (it builds everything)",
+                file=sys.stderr,
+            )
             return 2
     tmp = Path(tempfile.mkdtemp(prefix="dan-demo-"))
     stack = Stack(tmp, args.verbose)
     signal.signal(signal.SIGTERM, on_sigterm)
     ok = False
     try:
-        step("Virtual wires: a DAN bus (dan-vbus) and a CAN bus of SLCAN adapters (slcan_hub.py)")
-        stack.start("dan-vbus", [BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan",
-                                 "--capture", tmp / "dan-bus.log"])
-        stack.start("slcan_hub", [PY, ROOT / "host_tools" / "slcan_hub.py", "-n", "5", "--link", tmp / "can",
-                                  "--log", tmp / "can-bus.log"])
-        print(f"DAN wire endpoints {tmp}/dan0 (the FC side: danprobe) and {tmp}/dan1 (the gateway)")
-        print(f"CAN adapters {tmp}/can0 (gateway) and {tmp}/can1..4 (ESCs)")
-
-        step("Four DroneCAN ESCs (pydronecan nodes 20..23) and the CAN-over-DAN gateway (node 10)")
-        stack.start("esc_sim", [PY, ROOT / "host_tools" / "esc_sim.py", "--log", tmp / "escs.jsonl",
-                                *sum((["--port", tmp / f"can{i}"] for i in range(1, 5)), [])])
-        stack.start("dan-gatewayd", [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can",
-                                     f"slcan:{tmp}/can0", "--node-id", "10", "--verbose"], ready=False)
-        time.sleep(0.5)
-        stack.check_alive()
-
-        port = ["--port", tmp / "dan0"]
+        start_wires(stack, tmp)
+        start_escs_and_gateway(stack, tmp)
         plot = Path(args.plot)
         plot.parent.mkdir(parents=True, exist_ok=True)
-        step("Discover the DAN bus at 9600 baud")
-        danprobe("discover", *port)
-        step("Configure the bus to 115200 baud")
-        danprobe("configure", *port, "--baud", "115200")
-        step("Arm")
-        danprobe("arm", *port, "--bus-baud", "115200")
-        step(f"Throttle ramp on four ESCs with live telemetry ({args.ramp_seconds:g} s)")
-        danprobe("esc", *port, "--bus-baud", "115200", "--count", "4", "--ramp", "0:3000",
-                 "--rate", "50", "--duration", args.ramp_seconds, "--plot", plot)
-        step("The gateway's DroneCAN node table")
-        danprobe("nodes", *port, "--bus-baud", "115200")
-        step("Disarm")
-        danprobe("disarm", *port, "--bus-baud", "115200")
-        step("Gateway counters")
-        danprobe("stats", *port, "--bus-baud", "115200")
+        drive(["--port", tmp / "dan0"], args.ramp_seconds, plot)
         stack.check_alive()
-
-        # What the ESCs saw, from their own log: the proof the commands arrived.
-        cmds = [json.loads(l) for l in open(tmp / "escs.jsonl") if '"cmd"' in l]
-        arming = [json.loads(l) for l in open(tmp / "escs.jsonl") if '"arming"' in l]
-        top = max((max(c["cmd"][:4]) for c in cmds), default=0)
-        step("What the ESCs received")
-        print(f"{len(cmds)} RawCommand transfers, highest raw value {top}; "
-              f"{len(arming)} ArmingStatus messages, last status {arming[-1]['status'] if arming else '-'}")
-        print(f"plot of RPM, current, voltage and temperature: {plot}")
-        if not cmds or top <= 0:
-            raise RuntimeError("the ESCs received no throttle")
+        what_the_escs_saw(tmp, plot)
         ok = True
     except KeyboardInterrupt:
         print("\ndemo: interrupted", file=sys.stderr)

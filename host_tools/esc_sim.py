@@ -15,6 +15,7 @@ at 1 Hz (pydronecan does this itself).
 so tests and the demo can check exactly what arrived. Prints READY once all
 nodes are up; exits 0 on SIGTERM/SIGINT.
 """
+
 import argparse
 import json
 import math
@@ -51,7 +52,10 @@ class Esc:
 
     def emit(self, event, **kw):
         if self.log:
-            self.log.write(json.dumps({"t": round(time.monotonic(), 6), "esc": self.idx, "event": event, **kw}) + "\n")
+            self.log.write(
+                json.dumps({"t": round(time.monotonic(), 6), "esc": self.idx, "event": event, **kw})
+                + "\n"
+            )
             self.log.flush()
 
     def on_cmd(self, e):
@@ -87,13 +91,21 @@ class Esc:
         msg.power_rating_pct = max(0, min(100, int(round(self.cmd * 100 / 8191))))
         msg.esc_index = self.idx
         self.node.broadcast(msg)
-        self.emit("status", rpm=msg.rpm, voltage=round(msg.voltage, 3), current=round(current, 3),
-                  temperature=round(self.temp, 2), power_rating_pct=msg.power_rating_pct)
+        self.emit(
+            "status",
+            rpm=msg.rpm,
+            voltage=round(msg.voltage, 3),
+            current=round(current, 3),
+            temperature=round(self.temp, 2),
+            power_rating_pct=msg.power_rating_pct,
+        )
 
 
 def main():
     ap = argparse.ArgumentParser(description="Simulated DroneCAN ESCs on SLCAN ports (pydronecan).")
-    ap.add_argument("--port", action="append", required=True, help="SLCAN tty, one per ESC, in ESC index order")
+    ap.add_argument(
+        "--port", action="append", required=True, help="SLCAN tty, one per ESC, in ESC index order"
+    )
     ap.add_argument("--node-id-base", type=int, default=20)
     ap.add_argument("--max-rpm", type=float, default=12000.0)
     ap.add_argument("--status-hz", type=float, default=20.0)

@@ -18,6 +18,7 @@ process that made the node. Every program of ours that makes pydronecan
 nodes calls `use_spawn()` first, or makes its nodes with `make_node()`.
 A spawned child imports dronecan again (about 0.35 s more per node).
 """
+
 import multiprocessing
 
 DEFAULT_BITRATE = 1000000

@@ -43,6 +43,7 @@ Errors are answered "error: ...".
 
 SIGTERM / SIGINT: exit 0, removing the symlinks and the control socket.
 """
+
 import argparse
 import json
 import os
@@ -55,9 +56,10 @@ import termios
 import time
 import tty
 
-OUT_LIMIT = 64 * 1024          # bytes buffered for one port's reader
-LINE_MAX = 64                  # longer command lines are dropped (BEL)
-HEX = set(b"0123456789abcdefABCDEF")
+# this directory is sys.path[0]; the codec is standard library only
+from danprobe import slcan_codec as slcan
+
+OUT_LIMIT = 64 * 1024  # bytes buffered for one port's reader
 
 
 def set_process_name(name):
@@ -65,51 +67,11 @@ def set_process_name(name):
     already contains slcan_hub for pgrep -f. Best effort."""
     try:
         import ctypes
+
         libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(15, name.encode()[:15], 0, 0, 0)   # PR_SET_NAME
+        libc.prctl(15, name.encode()[:15], 0, 0, 0)  # PR_SET_NAME
     except Exception:
         pass
-
-
-def parse_frame(line):
-    """Parses a t/T/r/R line (bytes, no CR). Returns (ext, rtr, id, data)
-    or None when malformed."""
-    kind = line[:1]
-    if kind in (b"t", b"r"):
-        idlen, ext = 3, False
-    elif kind in (b"T", b"R"):
-        idlen, ext = 8, True
-    else:
-        return None
-    rtr = kind in (b"r", b"R")
-    if len(line) < 2 + idlen:
-        return None
-    idtxt = line[1:1 + idlen]
-    dlc_c = line[1 + idlen:2 + idlen]
-    if not all(b in HEX for b in idtxt) or dlc_c not in b"012345678" or not dlc_c:
-        return None
-    can_id = int(idtxt, 16)
-    if can_id > (0x1FFFFFFF if ext else 0x7FF):
-        return None
-    dlc = int(dlc_c)
-    body = line[2 + idlen:]
-    if rtr:
-        if body:
-            return None
-        return ext, rtr, can_id, bytes(dlc)   # dlc only; data unused
-    if len(body) != 2 * dlc or not all(b in HEX for b in body):
-        return None
-    return ext, rtr, can_id, bytes.fromhex(body.decode())
-
-
-def format_frame(ext, rtr, can_id, data, ts=None):
-    kind = ("R" if rtr else "T") if ext else ("r" if rtr else "t")
-    s = kind + ("%08X" if ext else "%03X") % can_id + "%d" % len(data)
-    if not rtr:
-        s += data.hex().upper()
-    if ts is not None:
-        s += "%04X" % ts
-    return (s + "\r").encode()
 
 
 class Port:
@@ -195,24 +157,29 @@ class Port:
             del self.outbuf[:n]
 
     def stats(self):
-        d = dict(port=self.index, path=self.path, link=self.link,
-                 attached=self.attached, open=self.open,
-                 listen_only=self.listen_only, bitrate=self.bitrate,
-                 timestamps=self.timestamps)
+        d = dict(
+            port=self.index,
+            path=self.path,
+            link=self.link,
+            attached=self.attached,
+            open=self.open,
+            listen_only=self.listen_only,
+            bitrate=self.bitrate,
+            timestamps=self.timestamps,
+        )
         d.update(self.counters)
         return d
 
 
 class Hub:
     def __init__(self, n, link_prefix, log_path, control_path):
-        self.ports = [Port(i, (link_prefix + str(i)) if link_prefix else None)
-                      for i in range(n)]
+        self.ports = [Port(i, (link_prefix + str(i)) if link_prefix else None) for i in range(n)]
         self.t0 = time.monotonic()
         self.bus_frames = 0
         self.log = open(log_path, "a", buffering=1) if log_path else None
         self.control_path = control_path
         self.ctl = None
-        self.ctl_clients = {}      # fd -> (socket, bytearray)
+        self.ctl_clients = {}  # fd -> (socket, bytearray)
         self.stop = False
         self.exit_code = 0
 
@@ -252,13 +219,14 @@ class Hub:
         return int((time.monotonic() - self.t0) * 1000) % 60000
 
     def broadcast(self, src, frame):
-        ext, rtr, can_id, data = frame
         self.bus_frames += 1
         if self.log:
             t = time.time()
-            idtxt = ("%08X" if ext else "%03X") % can_id
-            body = ("R%d" % len(data) if len(data) else "R") if rtr \
-                else data.hex().upper()
+            idtxt = ("%08X" if frame.ext else "%03X") % frame.id
+            if frame.rtr:
+                body = "R%d" % frame.dlc if frame.dlc else "R"
+            else:
+                body = frame.data.hex().upper()
             self.log.write("(%.6f) hub%d %s#%s\n" % (t, src.index, idtxt, body))
         for p in self.ports:
             if p is src:
@@ -267,49 +235,47 @@ class Hub:
                 p.counters["dropped"] += 1
                 continue
             ts = self.timestamp() if p.timestamps else None
-            if p.write(format_frame(ext, rtr, can_id, data, ts), frame=True):
+            if p.write(slcan.format_frame(frame, ts), frame=True):
                 p.counters["frames_out"] += 1
 
     # ---- SLCAN command interpreter ----
 
     def handle_line(self, p, line):
-        ack, bel = b"\r", b"\a"
-
         def err():
             p.counters["errors"] += 1
-            p.write(bel)
+            p.write(slcan.BEL)
 
         if not line:
-            p.write(ack)
+            p.write(slcan.ACK)
             return
         c = line[:1]
         arg = line[1:]
-        if c in (b"t", b"T", b"r", b"R"):
-            frame = parse_frame(line)
+        if c in slcan.FRAME_KINDS:
+            frame = slcan.parse_frame(line)
             if frame is None or not p.open or p.listen_only:
                 err()
                 return
             p.counters["frames_in"] += 1
-            p.write(b"z\r" if c in (b"t", b"r") else b"Z\r")
+            p.write(slcan.tx_ack(frame.ext))
             self.broadcast(p, frame)
         elif c == b"S":
             if p.open or len(arg) != 1 or arg not in b"012345678":
                 err()
                 return
             p.bitrate = [10, 20, 50, 100, 125, 250, 500, 800, 1000][int(arg)] * 1000
-            p.write(ack)
+            p.write(slcan.ACK)
         elif c == b"s":
-            if p.open or len(arg) != 4 or not all(b in HEX for b in arg):
+            if p.open or len(arg) != 4 or not slcan.is_hex(arg):
                 err()
                 return
             p.bitrate = "btr:" + arg.decode()
-            p.write(ack)
+            p.write(slcan.ACK)
         elif c in (b"O", b"L"):
             if p.open or arg:
                 err()
                 return
             p.open, p.listen_only = True, c == b"L"
-            p.write(ack)
+            p.write(slcan.ACK)
         elif c == b"C":
             if arg:
                 err()
@@ -321,7 +287,7 @@ class Hub:
                 termios.tcflush(p.slave, termios.TCIFLUSH)
             except termios.error:
                 pass
-            p.write(ack)
+            p.write(slcan.ACK)
         elif c == b"F" and not arg:
             p.write(b"F00\r")
         elif c == b"V" and not arg:
@@ -332,9 +298,9 @@ class Hub:
             p.write(b"NA123\r")
         elif c == b"Z" and arg in (b"0", b"1"):
             p.timestamps = arg == b"1"
-            p.write(ack)
-        elif c in (b"M", b"m") and len(arg) == 8 and all(b in HEX for b in arg):
-            p.write(ack)
+            p.write(slcan.ACK)
+        elif c in (b"M", b"m") and len(arg) == 8 and slcan.is_hex(arg):
+            p.write(slcan.ACK)
         else:
             err()
 
@@ -348,19 +314,19 @@ class Hub:
             # the slave, but tolerate it).
             return
         for b in data:
-            if b == 0x0D:               # CR ends a command
+            if b == 0x0D:  # CR ends a command
                 if p.discarding:
                     p.discarding = False
                     p.counters["errors"] += 1
-                    p.write(b"\a")
+                    p.write(slcan.BEL)
                 else:
                     self.handle_line(p, bytes(p.inbuf))
                 p.inbuf.clear()
-            elif b == 0x0A:             # LF: tolerated, ignored
+            elif b == 0x0A:  # LF: tolerated, ignored
                 continue
             elif p.discarding:
                 continue
-            elif len(p.inbuf) >= LINE_MAX:
+            elif len(p.inbuf) >= slcan.LINE_MAX:
                 p.discarding = True
                 p.inbuf.clear()
             else:
@@ -374,8 +340,9 @@ class Hub:
             return None
         cmd = words[0]
         if cmd == "stats" and len(words) == 1:
-            return json.dumps({"ports": [p.stats() for p in self.ports],
-                               "bus_frames": self.bus_frames})
+            return json.dumps(
+                {"ports": [p.stats() for p in self.ports], "bus_frames": self.bus_frames}
+            )
         if cmd in ("detach", "attach") and len(words) == 2:
             try:
                 k = int(words[1])
@@ -451,8 +418,7 @@ class Hub:
                     p = fdmap[fd]
                     if ev & select.POLLOUT:
                         p.flush()
-                    if ev & (select.POLLIN | select.POLLHUP | select.POLLERR) \
-                            and p.attached:
+                    if ev & (select.POLLIN | select.POLLHUP | select.POLLERR) and p.attached:
                         self.on_readable(p)
                 elif self.ctl and fd == self.ctl.fileno():
                     try:
@@ -471,17 +437,25 @@ def main(argv=None):
     ap = argparse.ArgumentParser(
         prog="slcan_hub.py",
         description=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-n", "--ports", type=int, default=2,
-                    help="number of emulated adapters (default 2)")
-    ap.add_argument("--link", metavar="PREFIX",
-                    help="create symlinks PREFIX0, PREFIX1, ... to the ptys")
-    ap.add_argument("--log", metavar="FILE",
-                    help="append every bus frame in candump log format: "
-                         "(t.tttttt) hubN ID#DATA, N = sending port")
-    ap.add_argument("--control", metavar="PATH",
-                    help="Unix socket for control commands "
-                         "(stats, detach K, attach K, quit)")
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument(
+        "-n", "--ports", type=int, default=2, help="number of emulated adapters (default 2)"
+    )
+    ap.add_argument(
+        "--link", metavar="PREFIX", help="create symlinks PREFIX0, PREFIX1, ... to the ptys"
+    )
+    ap.add_argument(
+        "--log",
+        metavar="FILE",
+        help="append every bus frame in candump log format: "
+        "(t.tttttt) hubN ID#DATA, N = sending port",
+    )
+    ap.add_argument(
+        "--control",
+        metavar="PATH",
+        help="Unix socket for control commands (stats, detach K, attach K, quit)",
+    )
     args = ap.parse_args(argv)
     if not 1 <= args.ports <= 64:
         ap.error("-n must be 1..64")
@@ -497,6 +471,7 @@ def main(argv=None):
 
     def on_signal(signum, frame):
         hub.stop = True
+
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)

@@ -9,6 +9,7 @@ part's objects, flash = .text/.rodata/.data init, RAM = .data + .bss.
 The caller-owned state (one dan_master_t and one dan_gw_t per bus) is RAM
 too; its sizes come from the probe's symbols. Exit 1 if over a budget.
 """
+
 import argparse
 import re
 import subprocess
@@ -85,8 +86,9 @@ def total(sizes, parts=None):
 
 
 def symbol_sizes(nm, elf):
-    out = subprocess.run([nm, "--size-sort", "-S", "-C", elf], capture_output=True, text=True,
-                         check=True).stdout
+    out = subprocess.run(
+        [nm, "--size-sort", "-S", "-C", elf], capture_output=True, text=True, check=True
+    ).stdout
     syms = {}
     for line in out.splitlines():
         f = line.split()
@@ -114,16 +116,20 @@ def main():
     master_ram = syms.get("probe_master", (0, ""))[0]
     gw_ram = syms.get("probe_gw", (0, ""))[0]
 
-    print("libdan on Cortex-M4 (arm-none-eabi-gcc -mcpu=cortex-m4 -mthumb -Os, "
-          "-ffunction-sections -fdata-sections, --gc-sections)")
+    print(
+        "libdan on Cortex-M4 (arm-none-eabi-gcc -mcpu=cortex-m4 -mthumb -Os, "
+        "-ffunction-sections -fdata-sections, --gc-sections)"
+    )
     print(f"{'part':<44} {'flash':>6} {'RAM':>5}")
     for part in LIB_PARTS + [p for p in img if p not in LIB_PARTS and p != "probe"]:
         f, r = img.get(part, (0, 0))
         print(f"{part:<44} {f:>6} {r:>5}")
     lf, lr = total(img, LIB_PARTS)
     print(f"{'libdan total (codec + master + gateway)':<44} {lf:>6} {lr:>5}")
-    print(f"{'image delta over a minimal image':<44} {tf - bf:>6} {tr - br:>5}"
-          "   (includes the per-bus state below)")
+    print(
+        f"{'image delta over a minimal image':<44} {tf - bf:>6} {tr - br:>5}"
+        "   (includes the per-bus state below)"
+    )
     print(f"{'per bus: dan_master_t (caller-owned)':<44} {'':>6} {master_ram:>5}")
     print(f"{'per bus: dan_gw_t (caller-owned)':<44} {'':>6} {gw_ram:>5}")
     if a.full:
@@ -131,15 +137,18 @@ def main():
         ff, fr = full.get("gateway client", (0, 0))
         print(f"{'gateway client, whole API (tunnels, CAN, ...)':<44} {ff:>6} {fr:>5}")
     print("biggest libdan symbols (flash):")
-    lib_secs = sorted(((sz, part, name) for (part, name), sz in secs.items() if part in LIB_PARTS),
-                      reverse=True)[:12]
+    lib_secs = sorted(
+        ((sz, part, name) for (part, name), sz in secs.items() if part in LIB_PARTS), reverse=True
+    )[:12]
     for sz, part, name in lib_secs:
         sym = re.sub(r"^\.(text|rodata|data|bss)\.", "", name)
         print(f"  {sz:>5}  {sym:<36} {part}")
     ram_bus = lr + master_ram + gw_ram
     ok = True
-    print(f"budget: flash {lf} / {a.flash_budget} bytes, "
-          f"RAM per bus {ram_bus} / {a.ram_budget} bytes (library static {lr} + state {master_ram + gw_ram})")
+    print(
+        f"budget: flash {lf} / {a.flash_budget} bytes, "
+        f"RAM per bus {ram_bus} / {a.ram_budget} bytes (library static {lr} + state {master_ram + gw_ram})"
+    )
     if lf > a.flash_budget:
         print(f"FAIL: libdan flash {lf} > budget {a.flash_budget}", file=sys.stderr)
         ok = False

@@ -1,4 +1,5 @@
 """python -m danprobe"""
+
 import sys
 
 from danprobe.cli import main

@@ -1,12 +1,13 @@
 """danprobe command line: the subcommands are in danprobe/commands/."""
+
 import argparse
 import os
 import sys
-from typing import List, Optional
+from typing import Optional
 
-from danprobe import __version__, gateway
+from danprobe import __version__, gateway_client
 from danprobe.commands import COMMANDS
-from danprobe.commands.common import EXIT_FAIL, EXIT_USAGE, CliError, Context
+from danprobe.commands.common import EXIT_FAIL, CliError, Context
 from danprobe.master import DanError, OperationTimeout
 from danprobe.port import PortError
 
@@ -19,8 +20,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="danprobe",
         description="DAN v1 bus tool: discover, configure and sniff a DAN wire; drive the "
-                    "CAN-over-DAN gateway (ESCs, nodes, tunnels, raw CAN, SLCAN).",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "CAN-over-DAN gateway (ESCs, nodes, tunnels, raw CAN, SLCAN).",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--version", action="version", version=f"danprobe {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -31,9 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Optional[List[str]] = None) -> int:
-    args = build_parser().parse_args(argv)     # exits 2 on bad arguments
-    gateway.register_names()                   # sniff names and decodes the gateway's codes
+def main(argv: Optional[list[str]] = None) -> int:
+    args = build_parser().parse_args(argv)  # exits 2 on bad arguments
+    gateway_client.register_names()  # sniff names and decodes the gateway's codes
     ctx = Context(args)
     try:
         return args.run(ctx)

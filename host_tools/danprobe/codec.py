@@ -7,11 +7,12 @@ shared vectors in tests/vectors/ pin for both.
 
     'D' | uvarint code | uvarint length | payload | crc8 (over all after 'D')
 """
-from dataclasses import asdict, dataclass
-from typing import List, NamedTuple, Optional, Tuple
 
-SYNC = 0x44                 # 'D'
-MAX_PAYLOAD = 160           # DAN_MAX_PAYLOAD, libdan's default build
+from dataclasses import asdict, dataclass
+from typing import NamedTuple, Optional
+
+SYNC = 0x44  # 'D'
+MAX_PAYLOAD = 160  # DAN_MAX_PAYLOAD, libdan's default build
 UVARINT_MAX_BYTES = 5
 UINT32_MAX = 0xFFFFFFFF
 
@@ -22,7 +23,8 @@ class MalformedError(ValueError):
 
 # ---- crc8_dvb_s2: polynomial 0xD5, init 0, no reflection, no final XOR ----
 
-def crc_table(poly: int, bits: int) -> Tuple[int, ...]:
+
+def crc_table(poly: int, bits: int) -> tuple[int, ...]:
     """Byte table of an MSB-first CRC of `bits` bits (no reflection)."""
     top, mask = 1 << (bits - 1), (1 << bits) - 1
     table = []
@@ -47,6 +49,7 @@ def crc8(data, crc: int = 0) -> int:
 
 # ---- uvarint: 7 bits a byte, low group first, 0x80 = more follows ----
 
+
 def uvarint_size(v: int) -> int:
     n = 1
     while v >= 0x80:
@@ -67,7 +70,7 @@ def uvarint_encode(v: int) -> bytes:
     return bytes(out)
 
 
-def uvarint_decode(data, pos: int = 0, end: Optional[int] = None) -> Tuple[int, int]:
+def uvarint_decode(data, pos: int = 0, end: Optional[int] = None) -> tuple[int, int]:
     """Decodes the uvarint at data[pos:end]. Returns (value, size); size 0
     means the input ends before the uvarint does (truncated). Raises
     MalformedError for an encoding longer than 5 bytes or a value above 32
@@ -92,6 +95,7 @@ MAX_FRAME = 1 + UVARINT_MAX_BYTES + uvarint_size(MAX_PAYLOAD) + MAX_PAYLOAD + 1
 
 # ---- frames ----
 
+
 def frame_size(code: int, length: int) -> int:
     return 1 + uvarint_size(code) + uvarint_size(length) + length + 1
 
@@ -109,18 +113,18 @@ def encode_frame(code: int, payload=b"") -> bytes:
 class Frame(NamedTuple):
     code: int
     payload: bytes
-    start: int      # stream offset of its sync byte (bytes fed to the decoder before it)
-    size: int       # bytes on the wire
+    start: int  # stream offset of its sync byte (bytes fed to the decoder before it)
+    size: int  # bytes on the wire
 
 
 @dataclass
 class DecoderStats:
-    frames: int = 0         # valid frames returned
-    crc_errors: int = 0     # complete candidates whose CRC did not match
-    oversize: int = 0       # candidates declaring a payload > MAX_PAYLOAD
-    bad_varint: int = 0     # code or length uvarint overlong / overflowing
-    garbage: int = 0        # bytes dropped while hunting for a sync byte
-    aborted: int = 0        # partial frames dropped by abort()
+    frames: int = 0  # valid frames returned
+    crc_errors: int = 0  # complete candidates whose CRC did not match
+    oversize: int = 0  # candidates declaring a payload > MAX_PAYLOAD
+    bad_varint: int = 0  # code or length uvarint overlong / overflowing
+    garbage: int = 0  # bytes dropped while hunting for a sync byte
+    aborted: int = 0  # partial frames dropped by abort()
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -202,7 +206,7 @@ class Decoder:
             self.need, self.hdr, self.code = total, 1 + nc + nl, code
         if n < self.need:
             return _WAIT
-        if crc8(memoryview(buf)[1:n - 1]) != buf[n - 1]:
+        if crc8(memoryview(buf)[1 : n - 1]) != buf[n - 1]:
             self._reject("crc_errors")
             return _REJECTED
         # A candidate found inside a rejected one and ending inside it passed
@@ -212,12 +216,11 @@ class Decoder:
             self._reject("crc_errors")
             return _REJECTED
         self.stats.frames += 1
-        frame = Frame(self.code, bytes(buf[self.hdr:n - 1]),
-                      self.consumed - len(buf), n)
+        frame = Frame(self.code, bytes(buf[self.hdr : n - 1]), self.consumed - len(buf), n)
         self.stats.garbage += self._drop_front(n)
         return frame
 
-    def feed(self, data=b"") -> List[Frame]:
+    def feed(self, data=b"") -> list[Frame]:
         """Consumes data (any length, b"" too) and returns the frames
         completed, in order."""
         frames = []
@@ -226,7 +229,7 @@ class Decoder:
         used, n = 0, len(data)
         while True:
             if self.scanned < len(buf):
-                self.scanned += 1           # a pending byte from a rescan
+                self.scanned += 1  # a pending byte from a rescan
             elif used < n:
                 take = 1
                 if not buf:
@@ -241,7 +244,7 @@ class Decoder:
                     used = s
                 elif self.need > len(buf):
                     take = min(self.need - len(buf), n - used)  # payload bytes
-                buf += data[used:used + take]
+                buf += data[used : used + take]
                 self.consumed += take
                 self.scanned = len(buf)
                 used += take
@@ -267,9 +270,9 @@ class Decoder:
             return False
         if nl == 0 or plen > MAX_PAYLOAD or 1 + nc + nl + plen + 1 != n:
             return False
-        return crc8(memoryview(p)[k + 1:len(p) - 1]) == p[-1]
+        return crc8(memoryview(p)[k + 1 : len(p) - 1]) == p[-1]
 
-    def abort(self) -> List[Frame]:
+    def abort(self) -> list[Frame]:
         """The line went idle: drops the partial frame (counted in aborted).
         A whole valid frame ending at the last byte received, started inside
         the dropped bytes, is kept and returned."""
@@ -283,7 +286,7 @@ class Decoder:
         self._clear()
         return []
 
-    def drain(self) -> List[Frame]:
+    def drain(self) -> list[Frame]:
         """abort() until nothing is buffered: what an idle line leaves."""
         frames = []
         while self.busy():

@@ -7,24 +7,33 @@ Unlike libdan's non-blocking engine this one blocks the calling thread for
 the length of an operation; it keeps reading the line whenever it waits, so
 its view of the line (idle time, partial frames) is always current.
 """
+
 import os
 import random
 from collections import deque
 from dataclasses import asdict, dataclass
-from typing import Callable, List, Optional
+from typing import Callable, Optional
 
 from danprobe import payloads
 from danprobe.codec import MAX_FRAME, Decoder, encode_frame
-from danprobe.payloads import (ACK_OK, BASE_BAUD, MASK_BAUDS, MASK_DEFINED, Configure,
-                               ErrorMessage, Identity, PayloadError)
+from danprobe.payloads import (
+    ACK_OK,
+    BASE_BAUD,
+    MASK_BAUDS,
+    MASK_DEFINED,
+    Configure,
+    ErrorMessage,
+    Identity,
+    PayloadError,
+)
 from danprobe.port import now
 from danprobe.registry import CODE_ERROR, PeripheralType
 
 # 9600 first (the spec's start), then the mask bauds from the highest down:
 # where a bus configured by a master that restarted most likely is.
 DISCOVERY_BAUDS = (9600, 115200, 57600, 38400, 19200)
-TURNAROUND_CHARS = 2    # a peripheral replies no sooner than this after our last byte
-GAP_CHARS = 10          # libdan's inter-byte gap: max(10 C, 2 ms)
+TURNAROUND_CHARS = 2  # a peripheral replies no sooner than this after our last byte
+GAP_CHARS = 10  # libdan's inter-byte gap: max(10 C, 2 ms)
 GAP_MIN_S = 0.002
 ECHO_LATE_HOLD_S = 1.0  # after an echo timeout or a collision, a copy of our frame is our echo
 
@@ -36,6 +45,7 @@ def char_s(baud: int) -> float:
 
 
 # ---- errors: libdan's codes (include/dan/common.h), so JSON results match dan-master ----
+
 
 class DanError(Exception):
     code = -10
@@ -55,6 +65,7 @@ class DanTimeout(DanError):
 
 class OperationTimeout(DanError):
     """The whole operation ran past its time limit (--timeout)."""
+
     code, reason = -4, "timeout"
 
 
@@ -98,13 +109,14 @@ class Nack(DanError):
 
 # ---- the link: echo, idle line, frames ----
 
+
 @dataclass
 class LinkStats:
     tx_frames: int = 0
     tx_bytes: int = 0
     rx_bytes: int = 0
-    collisions: int = 0       # echo differed from what we sent
-    echo_timeouts: int = 0    # echo never came back
+    collisions: int = 0  # echo differed from what we sent
+    echo_timeouts: int = 0  # echo never came back
 
 
 class Link:
@@ -112,8 +124,14 @@ class Link:
     arrives until a time, matches our echo, decodes frames into .frames and
     drops a partial frame after an idle gap."""
 
-    def __init__(self, port, baud: int, echo: bool = True, gap_s: Optional[float] = None,
-                 echo_timeout_s: float = 0.0):
+    def __init__(
+        self,
+        port,
+        baud: int,
+        echo: bool = True,
+        gap_s: Optional[float] = None,
+        echo_timeout_s: float = 0.0,
+    ):
         self.port = port
         self.echo = echo
         self.gap_cfg = gap_s
@@ -121,10 +139,10 @@ class Link:
         self.decoder = Decoder()
         self.frames = deque()
         self.stats = LinkStats()
-        self.deadline: Optional[float] = None   # of the current operation
-        self._tx: Optional[bytes] = None        # our frame while its echo is pending
-        self.last_tx = b""                      # the last frame we sent
-        self.echo_late_at: Optional[float] = None   # when our echo last went missing or broke
+        self.deadline: Optional[float] = None  # of the current operation
+        self._tx: Optional[bytes] = None  # our frame while its echo is pending
+        self.last_tx = b""  # the last frame we sent
+        self.echo_late_at: Optional[float] = None  # when our echo last went missing or broke
         self._echo_pos = 0
         self._tx_failed = False
         self._tx_end = 0.0
@@ -150,9 +168,12 @@ class Link:
     def is_late_echo(self, frame, t: float) -> bool:
         """A copy of our last frame shortly after its echo went missing is
         that echo arriving late (slow adapter, stalled host), not a reply."""
-        return (self.echo and self.echo_late_at is not None
-                and t - self.echo_late_at <= ECHO_LATE_HOLD_S
-                and encode_frame(frame.code, frame.payload) == self.last_tx)
+        return (
+            self.echo
+            and self.echo_late_at is not None
+            and t - self.echo_late_at <= ECHO_LATE_HOLD_S
+            and encode_frame(frame.code, frame.payload) == self.last_tx
+        )
 
     def set_baud(self, baud: int):
         self.port.set_baud(baud)
@@ -171,7 +192,7 @@ class Link:
         """When the line will have been idle chars character times, if
         nothing more arrives."""
         if self.decoder.busy():
-            return self.last_rx + self.gap      # the partial frame is dropped then
+            return self.last_rx + self.gap  # the partial frame is dropped then
         return self.last_rx + chars * self.char
 
     def pump(self, until: float = 0.0):
@@ -192,7 +213,7 @@ class Link:
         if data:
             self._rx(data, t)
         if self.decoder.busy() and t >= self.last_rx + self.gap:
-            self.frames.extend(self.decoder.abort())   # the line went quiet mid-frame
+            self.frames.extend(self.decoder.abort())  # the line went quiet mid-frame
 
     def _rx(self, data: bytes, t: float):
         self.stats.rx_bytes += len(data)
@@ -201,8 +222,8 @@ class Link:
         if self._tx is not None and self.echo:
             while i < len(data) and self._echo_pos < len(self._tx):
                 if data[i] != self._tx[self._echo_pos]:
-                    self.stats.collisions += 1      # someone else drove the wire
-                    self.echo_late_at = t           # the rest of our frame may still come
+                    self.stats.collisions += 1  # someone else drove the wire
+                    self.echo_late_at = t  # the rest of our frame may still come
                     self._end_tx(failed=True)
                     break
                 self._echo_pos += 1
@@ -237,7 +258,7 @@ class Link:
             while now() < end:
                 self.pump(end)
             t = now()
-            self.last_rx = max(self.last_rx, t)     # our bytes kept the line busy until now
+            self.last_rx = max(self.last_rx, t)  # our bytes kept the line busy until now
             return t
         while True:
             self.pump(end + self.echo_timeout)
@@ -255,40 +276,41 @@ class Link:
 
 # ---- the master ----
 
+
 @dataclass
 class MasterConfig:
-    resp_latency_s: float = 0.050   # reply start window; libdan's default is 10 ms,
-                                    # our Linux tools use 50 ms (USB adapters, ptys)
-    gap_s: float = 0.020            # inter-byte gap that ends a frame (Linux tools: 20 ms)
-    busy_timeout_s: float = 0.200   # give up waiting for an idle line
-    settle_s: float = 0.002         # pause after a baud switch
-    retries: int = 2                # extra attempts per transaction
-    discovery_attempts: int = 2     # attempts per type per baud when probing
-    lbt_chars: int = 3              # idle characters before talking (at least 2)
-    scan_all_bauds: bool = True     # probe types missing at 9600 at the other bauds
-    max_baud: int = 0               # highest baud the port can do (0: no limit)
-    seed: Optional[int] = None      # backoff jitter seed (default: the process id)
+    resp_latency_s: float = 0.050  # reply start window; libdan's default is 10 ms,
+    # our Linux tools use 50 ms (USB adapters, ptys)
+    gap_s: float = 0.020  # inter-byte gap that ends a frame (Linux tools: 20 ms)
+    busy_timeout_s: float = 0.200  # give up waiting for an idle line
+    settle_s: float = 0.002  # pause after a baud switch
+    retries: int = 2  # extra attempts per transaction
+    discovery_attempts: int = 2  # attempts per type per baud when probing
+    lbt_chars: int = 3  # idle characters before talking (at least 2)
+    scan_all_bauds: bool = True  # probe types missing at 9600 at the other bauds
+    max_baud: int = 0  # highest baud the port can do (0: no limit)
+    seed: Optional[int] = None  # backoff jitter seed (default: the process id)
 
 
 @dataclass
 class MasterStats:
     transactions: int = 0
     ok: int = 0
-    timeouts: int = 0         # attempts that got no reply
+    timeouts: int = 0  # attempts that got no reply
     retries: int = 0
-    remote_errors: int = 0    # error frames received for our request
-    stray: int = 0            # frames that answered nothing we asked
-    lbt_waits: int = 0        # transmissions delayed by a busy line
-    busy_failures: int = 0    # the line never went idle
-    recoveries: int = 0       # configure failed and was recovered
-    bad_replies: int = 0      # replies refused by the reply check (retried)
+    remote_errors: int = 0  # error frames received for our request
+    stray: int = 0  # frames that answered nothing we asked
+    lbt_waits: int = 0  # transmissions delayed by a busy line
+    busy_failures: int = 0  # the line never went idle
+    recoveries: int = 0  # configure failed and was recovered
+    bad_replies: int = 0  # replies refused by the reply check (retried)
 
 
 @dataclass
 class Peer:
     type: PeripheralType
     identity: Optional[Identity] = None
-    baud: int = 0               # the baud it answers at
+    baud: int = 0  # the baud it answers at
     present: bool = False
 
     def as_dict(self) -> dict:
@@ -301,18 +323,24 @@ class Peer:
 class Master:
     """One master on one port. types: the PeripheralType list to probe."""
 
-    def __init__(self, port, types: List[PeripheralType], baud: int = BASE_BAUD,
-                 config: Optional[MasterConfig] = None, echo: bool = True,
-                 progress: Optional[Callable[[str], None]] = None):
+    def __init__(
+        self,
+        port,
+        types: list[PeripheralType],
+        baud: int = BASE_BAUD,
+        config: Optional[MasterConfig] = None,
+        echo: bool = True,
+        progress: Optional[Callable[[str], None]] = None,
+    ):
         self.cfg = config or MasterConfig()
-        self.cfg.lbt_chars = max(self.cfg.lbt_chars, 2)     # our rule: never less than 2
+        self.cfg.lbt_chars = max(self.cfg.lbt_chars, 2)  # our rule: never less than 2
         self.cfg.discovery_attempts = max(self.cfg.discovery_attempts, 1)
         self.link = Link(port, baud, echo, self.cfg.gap_s, self.cfg.resp_latency_s)
         self.peers = [Peer(t) for t in types]
         self.stats = MasterStats()
         self.rng = random.Random(os.getpid() if self.cfg.seed is None else self.cfg.seed)
         self.progress = progress or (lambda msg: None)
-        self.wait_until = 0.0       # not before: backoff, or settling after a baud switch
+        self.wait_until = 0.0  # not before: backoff, or settling after a baud switch
         # An optional check of a reply's payload beyond the frame CRC (the
         # gateway's seal): reply_check(code, payload) -> bool; False makes
         # the attempt fail and the transaction retry (libdan's
@@ -323,7 +351,7 @@ class Master:
     def baud(self) -> int:
         return self.link.baud
 
-    def present(self) -> List[Peer]:
+    def present(self) -> list[Peer]:
         return [p for p in self.peers if p.present]
 
     def set_time_limit(self, seconds: Optional[float]):
@@ -369,8 +397,9 @@ class Master:
             if not counted:
                 self.stats.lbt_waits += 1
                 counted = True
-            self.link.pump(min(self.link.next_idle(self.cfg.lbt_chars),
-                               busy_since + self.cfg.busy_timeout_s))
+            self.link.pump(
+                min(self.link.next_idle(self.cfg.lbt_chars), busy_since + self.cfg.busy_timeout_s)
+            )
 
     def _await_reply(self, code: int, deadline: float) -> bytes:
         """The reply must start by deadline; once bytes arrive we wait while
@@ -380,7 +409,7 @@ class Master:
             while link.frames:
                 f = link.frames.popleft()
                 if link.is_late_echo(f, link.polled):
-                    self.stats.stray += 1       # our own request, echoed late: not its reply
+                    self.stats.stray += 1  # our own request, echoed late: not its reply
                     continue
                 if f.code == code:
                     if self.reply_check is not None and not self.reply_check(code, f.payload):
@@ -394,9 +423,9 @@ class Master:
                         e = None
                     if e is not None and e.code == code:
                         self.stats.remote_errors += 1
-                        raise RemoteError(e)    # understood and refused: no retry
+                        raise RemoteError(e)  # understood and refused: no retry
                 self.stats.stray += 1
-            t = link.polled     # every byte that came before t was handled
+            t = link.polled  # every byte that came before t was handled
             until = deadline
             if t >= deadline:
                 last = deadline + MAX_FRAME * link.char
@@ -422,7 +451,8 @@ class Master:
             try:
                 t_end = self.link.send(frame)
                 reply = self._await_reply(
-                    code, t_end + TURNAROUND_CHARS * self.link.char + self.cfg.resp_latency_s)
+                    code, t_end + TURNAROUND_CHARS * self.link.char + self.cfg.resp_latency_s
+                )
                 self.stats.ok += 1
                 return reply
             except (DanTimeout, Collision, BadReply) as e:
@@ -452,7 +482,7 @@ class Master:
 
     # ---- discovery ----
 
-    def _probe(self, peers: List[Peer], baud: int):
+    def _probe(self, peers: list[Peer], baud: int):
         """IDENTIFY each of peers at baud; the ones answering are present there."""
         self._switch_baud(baud)
         self.progress(f"probing {', '.join(p.type.name for p in peers)} at {baud} baud")
@@ -464,10 +494,11 @@ class Master:
             except (DanError, PayloadError):
                 continue
             p.present, p.baud = True, baud
-            self.progress(f"found {p.type.name} at {baud} baud: {p.identity.manufacturer} "
-                          f"{p.identity.model}")
+            self.progress(
+                f"found {p.type.name} at {baud} baud: {p.identity.manufacturer} {p.identity.model}"
+            )
 
-    def probe(self, baud: int) -> List[Peer]:
+    def probe(self, baud: int) -> list[Peer]:
         """A quick look at one baud (a bus believed to be there): IDENTIFY
         every type at baud only. Returns the peers that answered (maybe
         none) and leaves the bus at baud."""
@@ -476,7 +507,7 @@ class Master:
         self._probe(self.peers, baud)
         return self.present()
 
-    def discover(self) -> List[Peer]:
+    def discover(self) -> list[Peer]:
         """IDENTIFY every type at 9600, then the missing ones at the other
         discovery bauds. Leaves the bus at the baud of the first peer
         found. Raises NotFound if nobody answered."""
@@ -516,8 +547,10 @@ class Master:
         target = baud or self.best_baud()
         for p in found:
             if not payloads.supports(p.identity.baud_mask, target):
-                raise Unsupported(f"{p.type.name} does not support {target} baud "
-                                  f"(it does {', '.join(map(str, p.identity.bauds))})")
+                raise Unsupported(
+                    f"{p.type.name} does not support {target} baud "
+                    f"(it does {', '.join(map(str, p.identity.bauds))})"
+                )
         if not found:
             raise NotFound("no peripheral discovered")
         if not self._port_supports(target):
@@ -536,7 +569,7 @@ class Master:
                     # No answer: a device serving several types moved them all
                     # with its first CONFIGURE. Verification decides.
                     pass
-                p.baud = target     # it switches once its ACK has left
+                p.baud = target  # it switches once its ACK has left
             self._switch_baud(target)
             self.progress(f"verifying at {target} baud")
             for p in found:
@@ -553,8 +586,9 @@ class Master:
         self.stats.recoveries += 1
         self.progress(f"configure failed ({why}); recovering the bus to {BASE_BAUD} baud")
         for p in self.present():
-            candidates = [p.baud] + [b for b in DISCOVERY_BAUDS
-                                     if b != p.baud and self._port_supports(b)]
+            candidates = [p.baud] + [
+                b for b in DISCOVERY_BAUDS if b != p.baud and self._port_supports(b)
+            ]
             for b in candidates:
                 self._switch_baud(b)
                 try:
@@ -566,7 +600,7 @@ class Master:
                 p.baud = b
                 break
             else:
-                p.present = False       # lost
+                p.present = False  # lost
                 continue
             if p.baud != BASE_BAUD:
                 try:
@@ -575,7 +609,7 @@ class Master:
                 except OperationTimeout:
                     raise
                 except DanError:
-                    p.present = False   # cannot be brought to a common baud
+                    p.present = False  # cannot be brought to a common baud
         self._switch_baud(BASE_BAUD)
         for p in self.present():
             try:

@@ -7,9 +7,9 @@ ignored (later versions may append fields); reserved mask bits are kept
 raw. Strings are decoded as UTF-8 with undecodable bytes escaped; unlike
 libdan's fixed 32-byte buffers they are never truncated.
 """
+
 import struct
 from dataclasses import asdict, dataclass
-from typing import List
 
 from danprobe.codec import MalformedError, uvarint_decode, uvarint_encode
 
@@ -20,7 +20,7 @@ BASE_BAUD = 9600
 MASK_BAUDS = (19200, 38400, 57600, 115200)
 MASK_DEFINED = 0x000F
 
-CONFIGURE_BPS = 0   # DAN-PERIPHERAL-CONFIGURATION-REQUEST-TYPE-ENUM-V1
+CONFIGURE_BPS = 0  # DAN-PERIPHERAL-CONFIGURATION-REQUEST-TYPE-ENUM-V1
 
 ACK_OK = 0
 ACK_FAIL = 1
@@ -43,7 +43,7 @@ def mask_bit_of_baud(baud: int) -> int:
     return 1 << MASK_BAUDS.index(baud) if baud in MASK_BAUDS else 0
 
 
-def bauds_of_mask(mask: int) -> List[int]:
+def bauds_of_mask(mask: int) -> list[int]:
     """Every baud a peripheral with this mask supports (9600 always),
     ascending; undefined bits are ignored."""
     return [BASE_BAUD] + [b for i, b in enumerate(MASK_BAUDS) if mask & (1 << i)]
@@ -54,6 +54,7 @@ def supports(mask: int, baud: int) -> bool:
 
 
 # ---- reader / writer ----
+
 
 class Reader:
     """Reads fields from a received payload; any read past its end (or a
@@ -69,9 +70,10 @@ class Reader:
 
     def raw(self, n: int, what: str = "bytes") -> bytes:
         if n > self.remaining():
-            raise PayloadError(f"{what}: needs {n} byte(s) at offset {self.pos}, "
-                               f"{self.remaining()} left")
-        out = self.data[self.pos:self.pos + n]
+            raise PayloadError(
+                f"{what}: needs {n} byte(s) at offset {self.pos}, {self.remaining()} left"
+            )
+        out = self.data[self.pos : self.pos + n]
         self.pos += n
         return out
 
@@ -148,6 +150,7 @@ class Writer:
 
 # ---- DAN-PERIPHERAL-IDENTITY-PAYLOAD-V1 ----
 
+
 @dataclass
 class Identity:
     dan_version: int = VERSION
@@ -155,23 +158,37 @@ class Identity:
     model: str = ""
     hw_version: str = ""
     sw_version: str = ""
-    baud_mask: int = 0          # raw, as on the wire
-    capabilities: int = 0       # raw, as on the wire
+    baud_mask: int = 0  # raw, as on the wire
+    capabilities: int = 0  # raw, as on the wire
 
     def encode(self) -> bytes:
-        return (Writer().u8(self.dan_version).string(self.manufacturer).string(self.model)
-                .string(self.hw_version).string(self.sw_version).u16(self.baud_mask)
-                .u16(self.capabilities).bytes())
+        return (
+            Writer()
+            .u8(self.dan_version)
+            .string(self.manufacturer)
+            .string(self.model)
+            .string(self.hw_version)
+            .string(self.sw_version)
+            .u16(self.baud_mask)
+            .u16(self.capabilities)
+            .bytes()
+        )
 
     @classmethod
     def decode(cls, payload) -> "Identity":
         r = Reader(payload)
-        return cls(r.u8("dan_version"), r.string("manufacturer"), r.string("model"),
-                   r.string("hw_version"), r.string("sw_version"), r.u16("baud_mask"),
-                   r.u16("capabilities"))
+        return cls(
+            r.u8("dan_version"),
+            r.string("manufacturer"),
+            r.string("model"),
+            r.string("hw_version"),
+            r.string("sw_version"),
+            r.u16("baud_mask"),
+            r.u16("capabilities"),
+        )
 
     @property
-    def bauds(self) -> List[int]:
+    def bauds(self) -> list[int]:
         return bauds_of_mask(self.baud_mask)
 
     def as_dict(self) -> dict:
@@ -181,6 +198,7 @@ class Identity:
 
 
 # ---- DAN-PERIPHERAL-CONFIGURE-PAYLOAD-V1 ----
+
 
 @dataclass
 class Configure:
@@ -209,6 +227,7 @@ class Configure:
 
 # ---- DAN-PERIPHERAL-ACK (our rule: one byte, 0 OK or 1 FAIL) ----
 
+
 def encode_ack(value: int) -> bytes:
     if value not in (ACK_OK, ACK_FAIL):
         raise ValueError(f"ACK must be 0 or 1, not {value}")
@@ -224,10 +243,11 @@ def decode_ack(payload) -> int:
 
 # ---- DAN-ERROR-MESSAGE-V1 (payload of code 0) ----
 
+
 @dataclass
 class ErrorMessage:
-    code: int = 0           # the request code that caused the error
-    error: int = 0          # reserved, 0 in v1
+    code: int = 0  # the request code that caused the error
+    error: int = 0  # reserved, 0 in v1
     text: str = ""
 
     def encode(self) -> bytes:

@@ -3,6 +3,7 @@
 POSIX only (select on the port's file descriptor): Linux USB-serial
 adapters and dan-vbus ptys.
 """
+
 import errno
 import os
 import select

@@ -6,6 +6,7 @@ the path at will (reading the master never fails with EIO in between). The
 line is raw (no echo, no line editing, 8 bits); the master side is
 non-blocking. POSIX only.
 """
+
 import errno
 import os
 import select
@@ -43,7 +44,7 @@ class Pty:
         except BlockingIOError:
             return b""
         except OSError as e:
-            if e.errno == errno.EIO:        # no client (not with our slave open; be safe)
+            if e.errno == errno.EIO:  # no client (not with our slave open; be safe)
                 return b""
             raise
 

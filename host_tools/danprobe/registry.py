@@ -9,8 +9,9 @@ their messages with register_message(), e.g. the gateway's:
 
 Until then such a code shows as "can-gw 0x42".
 """
+
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, Tuple
+from typing import Callable, Optional
 
 from danprobe import payloads
 from danprobe.codec import MalformedError
@@ -21,8 +22,8 @@ CODE_ERROR = 0
 
 @dataclass(frozen=True)
 class PeripheralType:
-    name: str           # short name for command lines ("can-gw")
-    first: int          # first code of the block (IDENTIFY)
+    name: str  # short name for command lines ("can-gw")
+    first: int  # first code of the block (IDENTIFY)
     title: str
 
     @property
@@ -69,22 +70,23 @@ Describer = Callable[[bytes], dict]
 @dataclass(frozen=True)
 class Message:
     name: str
-    request: Optional[Describer] = None     # payload sent by the master
-    response: Optional[Describer] = None    # payload sent back
+    request: Optional[Describer] = None  # payload sent by the master
+    response: Optional[Describer] = None  # payload sent back
 
 
-_MESSAGES: Dict[int, Message] = {}
+_MESSAGES: dict[int, Message] = {}
 
 
-def register_message(code: int, name: str, request: Optional[Describer] = None,
-                     response: Optional[Describer] = None):
+def register_message(
+    code: int, name: str, request: Optional[Describer] = None, response: Optional[Describer] = None
+):
     """Names a code (its type prefix is added by code_name()) and, optionally,
     how to show its request and response payloads."""
     _MESSAGES[code] = Message(name, request, response)
 
 
 def code_name(code: int) -> str:
-    """"ERROR", "test-a IDENTIFY", "can-gw 0x42", or "0x50" outside any type."""
+    """ "ERROR", "test-a IDENTIFY", "can-gw 0x42", or "0x50" outside any type."""
     if code == CODE_ERROR:
         return _MESSAGES[CODE_ERROR].name
     t = type_of_code(code)
@@ -118,8 +120,12 @@ def _ack(payload: bytes) -> dict:
 
 def _error(payload: bytes) -> dict:
     e = payloads.ErrorMessage.decode(payload)
-    return {"request_code": e.code, "request": code_name(e.code), "error_code": e.error,
-            "description": e.text}
+    return {
+        "request_code": e.code,
+        "request": code_name(e.code),
+        "error_code": e.error,
+        "description": e.text,
+    }
 
 
 register_message(CODE_ERROR, "ERROR", response=_error)
@@ -130,7 +136,9 @@ for _t in TYPES:
 REQUEST, RESPONSE = "request", "response"
 
 
-def describe(code: int, payload: bytes, role: Optional[str]) -> Tuple[Optional[str], Optional[dict], str]:
+def describe(
+    code: int, payload: bytes, role: Optional[str]
+) -> tuple[Optional[str], Optional[dict], str]:
     """Decodes a payload for display: (role, fields, problem). The guessed
     role's format is tried first, then the other one (a retried request
     looks like a response to a sniffer); fields is None when neither fits

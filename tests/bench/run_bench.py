@@ -22,6 +22,7 @@ Results: OUT/results.json (+ results-YYYYmmdd-HHMMSS.json); the delta against
 the previous results.json is printed. --soak N: the ESC loop for N seconds
 with dan-gatewayd's RSS and counters sampled (also in the JSON).
 """
+
 import argparse
 import datetime
 import json
@@ -29,7 +30,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import statistics
 import subprocess
 import sys
@@ -37,12 +37,17 @@ import tempfile
 import time
 from pathlib import Path
 
-from danprobe.codec import encode_frame      # the host tool's codec (same venv)
-from danprobe.gateway import REQUEST, seal
+from danprobe.codec import encode_frame  # the host tool's codec (same venv)
+from danprobe.gateway_msgs import REQUEST, seal
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "host_tools"))
+import procgroup  # noqa: E402
+
+CAN_FLOOD = ROOT / "tests" / "tools" / "can_flood.py"
+
 BAUD = 115200
-C_US = (10_000_000 + BAUD - 1) // BAUD          # one character, as libdan rounds it
+C_US = (10_000_000 + BAUD - 1) // BAUD  # one character, as libdan rounds it
 PY = sys.executable
 
 
@@ -56,8 +61,7 @@ class Stack:
 
     def start(self, args, name, stdout=subprocess.PIPE):
         log = open(self.tmp / f"{name}.log", "wb")
-        p = subprocess.Popen([str(a) for a in args], stdin=subprocess.DEVNULL, stdout=stdout,
-                             stderr=log, start_new_session=True)
+        p = procgroup.start(args, log, stdout)
         p.name, p.logf = name, log
         self.procs.append(p)
         return p
@@ -65,22 +69,14 @@ class Stack:
     def ready(self, p):
         line = p.stdout.readline().decode()
         if not line.startswith("READY"):
-            raise RuntimeError(f"{p.name} did not start: {line!r}: "
-                               + (self.tmp / f"{p.name}.log").read_text()[-500:])
+            raise RuntimeError(
+                f"{p.name} did not start: {line!r}: "
+                + (self.tmp / f"{p.name}.log").read_text()[-500:]
+            )
         return line.split()[1:]
 
     def stop(self, p, sig=signal.SIGTERM):
-        if p.poll() is None:
-            try:
-                os.killpg(p.pid, sig)
-                p.wait(10)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
-                try:
-                    os.killpg(p.pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
-                p.wait(5)
-        return p.returncode
+        return procgroup.stop(p, sig)
 
     def close(self):
         for p in reversed(self.procs):
@@ -128,27 +124,70 @@ def fcsim(stack, build, port, steps, name="fcsim", timeout=300, stamps=None):
 
 
 def step(lines, name):
-    return [l for l in lines if l.get("step") == name]
+    return [line for line in lines if line.get("step") == name]
 
 
 def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
     """vbus (2 endpoints) + hub (1 + n_esc + extra_can ports) + esc_sim + dan-gatewayd."""
-    vbus = stack.start([build / "bin" / "dan-vbus", "-n", "2", "--link", tmp / "dan",
-                        "--capture", tmp / "bus.cap", "--control", tmp / "vbus.ctl"], "dan-vbus")
+    vbus = stack.start(
+        [
+            build / "bin" / "dan-vbus",
+            "-n",
+            "2",
+            "--link",
+            tmp / "dan",
+            "--capture",
+            tmp / "bus.cap",
+            "--control",
+            tmp / "vbus.ctl",
+        ],
+        "dan-vbus",
+    )
     stack.ready(vbus)
     nports = 1 + n_esc + extra_can
-    hub = stack.start([PY, ROOT / "host_tools" / "slcan_hub.py", "-n", nports, "--link", tmp / "can",
-                       "--log", tmp / "hub.log", "--control", tmp / "hub.ctl"], "slcan_hub")
+    hub = stack.start(
+        [
+            PY,
+            ROOT / "host_tools" / "slcan_hub.py",
+            "-n",
+            nports,
+            "--link",
+            tmp / "can",
+            "--log",
+            tmp / "hub.log",
+            "--control",
+            tmp / "hub.ctl",
+        ],
+        "slcan_hub",
+    )
     stack.ready(hub)
     esc = None
     if n_esc:
-        esc = stack.start([PY, ROOT / "host_tools" / "esc_sim.py",
-                           *sum([["--port", tmp / f"can{k}"] for k in range(1, 1 + n_esc)], []),
-                           "--log", tmp / "esc.log"], "esc_sim")
+        esc = stack.start(
+            [
+                PY,
+                ROOT / "host_tools" / "esc_sim.py",
+                *sum([["--port", tmp / f"can{k}"] for k in range(1, 1 + n_esc)], []),
+                "--log",
+                tmp / "esc.log",
+            ],
+            "esc_sim",
+        )
         stack.ready(esc)
-    gwd = stack.start([build / "bin" / "dan-gatewayd", "--uart", tmp / "dan1",
-                       "--can", f"slcan:{tmp / 'can0'}", "--stats-file", tmp / "gw.stats", *gw_args],
-                      "dan-gatewayd", stdout=subprocess.DEVNULL)
+    gwd = stack.start(
+        [
+            build / "bin" / "dan-gatewayd",
+            "--uart",
+            tmp / "dan1",
+            "--can",
+            f"slcan:{tmp / 'can0'}",
+            "--stats-file",
+            tmp / "gw.stats",
+            *gw_args,
+        ],
+        "dan-gatewayd",
+        stdout=subprocess.DEVNULL,
+    )
     time.sleep(0.5)
     if gwd.poll() is not None:
         raise RuntimeError("dan-gatewayd exited: " + (tmp / "dan-gatewayd.log").read_text()[-500:])
@@ -157,57 +196,53 @@ def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
 
 # ---- rows --------------------------------------------------------------------
 
+
 def bench_esc(build, seconds):
     with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
         tmp = Path(tmp)
         st = Stack(tmp)
         try:
             gw_rig(st, build, tmp)
-            rc, out = fcsim(st, build, tmp / "dan0", ["discover", "configure", "arm", "esc:0,100,200,300@1000@50",
-                                                      f"esc:0,100,200,300@{int(seconds * 1000)}@0", "disarm"])
+            rc, out = fcsim(
+                st,
+                build,
+                tmp / "dan0",
+                [
+                    "discover",
+                    "configure",
+                    "arm",
+                    "esc:0,100,200,300@1000@50",
+                    f"esc:0,100,200,300@{int(seconds * 1000)}@0",
+                    "disarm",
+                ],
+            )
             if rc != 0:
                 raise RuntimeError(f"dan-fcsim failed: {out}")
             run = step(out, "esc")[1]
         finally:
             st.close()
-        cap = [b for b in read_capture(tmp / "bus.cap") if b[2] == BAUD and b[3][:1] == b"D"
-               and frame_code(b[3]) == 0x42]
+        cap = [
+            b
+            for b in read_capture(tmp / "bus.cap")
+            if b[2] == BAUD and b[3][:1] == b"D" and frame_code(b[3]) == 0x42
+        ]
     req = [len(b[3]) for b in cap if b[1] == 0]
     rsp = [len(b[3]) for b in cap if b[1] == 1]
     nbytes = statistics.mean(req) + statistics.mean(rsp)
     bound = BAUD / 10 / nbytes
     bound_gaps = 1e6 / ((nbytes + 2 + 3) * C_US)
-    return {"rate": run["rate"], "exchanges": run["exchanges"], "errors": run["errors"],
-            "telemetry_records": run["telemetry_records"], "req_bytes": statistics.mean(req),
-            "rsp_bytes": statistics.mean(rsp), "bound": bound, "bound_gaps": bound_gaps,
-            "ratio": run["rate"] / bound, "ratio_gaps": run["rate"] / bound_gaps}
-
-
-BLAST = r"""
-import os, sys, time, termios, tty, struct
-path, seconds = sys.argv[1], float(sys.argv[2])
-fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
-tty.setraw(fd)
-os.write(fd, b"C\rS8\rO\r")
-time.sleep(0.2)
-os.set_blocking(fd, False)
-n, end = 0, time.monotonic() + seconds
-print("READY", flush=True)
-while time.monotonic() < end:
-    batch = b"".join(b"T%08X8%016X\r" % (0x1ABC0000 + (k & 0xFF), k) for k in range(n, n + 16))
-    try:
-        os.write(fd, batch)
-        n += 16
-    except BlockingIOError:
-        time.sleep(0.001)
-    try:
-        while os.read(fd, 65536):
-            pass
-    except (BlockingIOError, OSError):
-        pass
-    time.sleep(0.002)
-print(n, flush=True)
-"""
+    return {
+        "rate": run["rate"],
+        "exchanges": run["exchanges"],
+        "errors": run["errors"],
+        "telemetry_records": run["telemetry_records"],
+        "req_bytes": statistics.mean(req),
+        "rsp_bytes": statistics.mean(rsp),
+        "bound": bound,
+        "bound_gaps": bound_gaps,
+        "ratio": run["rate"] / bound,
+        "ratio_gaps": run["rate"] / bound_gaps,
+    }
 
 
 def bench_raw(build, seconds):
@@ -216,24 +251,35 @@ def bench_raw(build, seconds):
         st = Stack(tmp)
         try:
             gw_rig(st, build, tmp, n_esc=0, extra_can=1)
-            rc, out = fcsim(st, build, tmp / "dan0", ["discover", "configure", "filter:00000000/00000000"])
+            rc, out = fcsim(
+                st, build, tmp / "dan0", ["discover", "configure", "filter:00000000/00000000"]
+            )
             if rc != 0:
                 raise RuntimeError(f"dan-fcsim failed: {out}")
-            src = st.start([PY, "-c", BLAST, tmp / "can1", seconds + 30], "blast")
+            src = st.start([PY, CAN_FLOOD, tmp / "can1", seconds + 30], "blast")
             st.ready(src)
             time.sleep(0.5)
             stamps = []
             want = int(seconds * 300)
-            rc, out = fcsim(st, build, tmp / "dan0", ["discover", "sleep:1", f"candump:{want}:{int(seconds * 4000)}"],
-                            name="fcsim2", stamps=stamps)
+            rc, out = fcsim(
+                st,
+                build,
+                tmp / "dan0",
+                ["discover", "sleep:1", f"candump:{want}:{int(seconds * 4000)}"],
+                name="fcsim2",
+                stamps=stamps,
+            )
             st.stop(src)
             dump = step(out, "candump")[0]
             secs = stamps[2] - stamps[1]
             got = len(dump["frames"])
         finally:
             st.close()
-        cap = [b for b in read_capture(tmp / "bus.cap") if b[2] == BAUD and b[3][:1] == b"D"
-               and frame_code(b[3]) == 0x4C and b[0] > 0]
+        cap = [
+            b
+            for b in read_capture(tmp / "bus.cap")
+            if b[2] == BAUD and b[3][:1] == b"D" and frame_code(b[3]) == 0x4C and b[0] > 0
+        ]
     rsp = [b for b in cap if b[1] == 1]
     req = [b for b in cap if b[1] == 0]
     # frames per response: count byte after the two uvarints (seq, dropped)
@@ -241,7 +287,7 @@ def bench_raw(build, seconds):
     for b in rsp:
         body = b[3]
         i = 1 + len(bytes([0x4C]))  # 'D' + 1-byte code
-        i += 1 if body[i] < 0x80 else 2            # length uvarint
+        i += 1 if body[i] < 0x80 else 2  # length uvarint
         for _ in range(2):
             while body[i] & 0x80:
                 i += 1
@@ -250,20 +296,31 @@ def bench_raw(build, seconds):
     full = [(len(r[3]), c) for r, c in zip(rsp, per) if c > 0]
     # the wire bound of the same messages: a full CAN_RECV exchange
     req_b = statistics.mean(len(b[3]) for b in req)
-    rsp_b = max(l for l, _ in full) if full else 0
+    rsp_b = max(n for n, _ in full) if full else 0
     fpm = max(c for _, c in full) if full else 0
     bound = fpm * BAUD / 10 / (req_b + rsp_b) if fpm else 0.0
     bound_gaps = fpm * 1e6 / ((req_b + rsp_b + 5) * C_US) if fpm else 0.0
     rate = got / secs
-    slcan_bytes = 1 + 8 + 1 + 16 + 1                 # T iiiiiiii l dd*8 \r
-    mav_bytes = 12 + 16                             # v2 header 10 + crc 2; CAN_FRAME payload 16
-    return {"rate": rate, "frames": got, "seconds": secs, "dropped": dump.get("dropped"),
-            "frames_per_msg_mean": statistics.mean(per) if per else 0, "frames_per_msg_max": fpm,
-            "req_bytes": req_b, "rsp_bytes_full": rsp_b, "bound": bound, "bound_gaps": bound_gaps,
-            "ratio": rate / bound if bound else 0, "slcan_rate": BAUD / 10 / slcan_bytes,
-            "mavlink_rate": BAUD / 10 / mav_bytes, "vs_slcan": rate / (BAUD / 10 / slcan_bytes),
-            "vs_mavlink": rate / (BAUD / 10 / mav_bytes),
-            "bound_vs_slcan": bound / (BAUD / 10 / slcan_bytes)}
+    slcan_bytes = 1 + 8 + 1 + 16 + 1  # T iiiiiiii l dd*8 \r
+    mav_bytes = 12 + 16  # v2 header 10 + crc 2; CAN_FRAME payload 16
+    return {
+        "rate": rate,
+        "frames": got,
+        "seconds": secs,
+        "dropped": dump.get("dropped"),
+        "frames_per_msg_mean": statistics.mean(per) if per else 0,
+        "frames_per_msg_max": fpm,
+        "req_bytes": req_b,
+        "rsp_bytes_full": rsp_b,
+        "bound": bound,
+        "bound_gaps": bound_gaps,
+        "ratio": rate / bound if bound else 0,
+        "slcan_rate": BAUD / 10 / slcan_bytes,
+        "mavlink_rate": BAUD / 10 / mav_bytes,
+        "vs_slcan": rate / (BAUD / 10 / slcan_bytes),
+        "vs_mavlink": rate / (BAUD / 10 / mav_bytes),
+        "bound_vs_slcan": bound / (BAUD / 10 / slcan_bytes),
+    }
 
 
 def bench_discovery(build, runs=3):
@@ -273,38 +330,83 @@ def bench_discovery(build, runs=3):
             tmp = Path(tmp)
             st = Stack(tmp)
             try:
-                vbus = st.start([build / "bin" / "dan-vbus", "-n", "4", "--link", tmp / "dan",
-                                 "--capture", tmp / "bus.cap"], "dan-vbus")
+                vbus = st.start(
+                    [
+                        build / "bin" / "dan-vbus",
+                        "-n",
+                        "4",
+                        "--link",
+                        tmp / "dan",
+                        "--capture",
+                        tmp / "bus.cap",
+                    ],
+                    "dan-vbus",
+                )
                 st.ready(vbus)
                 for k, t in enumerate(("test-a", "test-b", "can-gw"), 1):
-                    p = st.start([build / "bin" / "dan-testperiph", "--port", tmp / f"dan{k}", "--types", t,
-                                  "--mask", "0x0F"], f"periph{k}")
+                    p = st.start(
+                        [
+                            build / "bin" / "dan-testperiph",
+                            "--port",
+                            tmp / f"dan{k}",
+                            "--types",
+                            t,
+                            "--mask",
+                            "0x0F",
+                        ],
+                        f"periph{k}",
+                    )
                     st.ready(p)
-                m = st.start([build / "bin" / "dan-master", "--port", tmp / "dan0", "--types",
-                              "test-a,test-b,can-gw", "--json", "discover", "configure"], "dan-master")
+                m = st.start(
+                    [
+                        build / "bin" / "dan-master",
+                        "--port",
+                        tmp / "dan0",
+                        "--types",
+                        "test-a,test-b,can-gw",
+                        "--json",
+                        "discover",
+                        "configure",
+                    ],
+                    "dan-master",
+                )
                 out, _ = m.communicate(timeout=120)
-                lines = [json.loads(l) for l in out.decode().splitlines() if l.strip()]
+                lines = [json.loads(line) for line in out.decode().splitlines() if line.strip()]
                 if m.returncode != 0:
                     raise RuntimeError(f"dan-master failed: {lines}")
             finally:
                 st.close()
             cap = read_capture(tmp / "bus.cap")
-        ms = sum(l["ms"] for l in lines)
+        ms = sum(line["ms"] for line in lines)
         wire_s = sum(len(b[3]) * 10 / b[2] for b in cap)
         res.append((ms / 1000, wire_s, len(cap), lines[-1]["baud"]))
     secs = statistics.median(r[0] for r in res)
     wire = statistics.median(r[1] for r in res)
-    return {"seconds": secs, "wire_seconds": wire, "ratio": wire / secs, "bursts": res[0][2],
-            "baud": res[0][3], "runs": [r[0] for r in res]}
+    return {
+        "seconds": secs,
+        "wire_seconds": wire,
+        "ratio": wire / secs,
+        "bursts": res[0][2],
+        "baud": res[0][3],
+        "runs": [r[0] for r in res],
+    }
 
 
 def callgrind(args, toggle):
     with tempfile.NamedTemporaryFile(prefix="cg-", suffix=".out", delete=False) as f:
         outf = f.name
     try:
-        p = subprocess.run(["valgrind", "--tool=callgrind", f"--toggle-collect={toggle}",
-                            f"--callgrind-out-file={outf}", *map(str, args)],
-                           capture_output=True, timeout=600)
+        p = subprocess.run(
+            [
+                "valgrind",
+                "--tool=callgrind",
+                f"--toggle-collect={toggle}",
+                f"--callgrind-out-file={outf}",
+                *map(str, args),
+            ],
+            capture_output=True,
+            timeout=600,
+        )
         if p.returncode != 0:
             raise RuntimeError(p.stderr.decode()[-500:])
         total = int(re.search(r"^totals:\s*(\d+)", Path(outf).read_text(), re.M).group(1))
@@ -318,8 +420,14 @@ def bench_parser(build):
     dec, info = callgrind([b / "bench_parser", "decode", 200], "bench_run_decode")
     crc, _ = callgrind([b / "bench_parser", "crc", 200], "bench_run_crc")
     n = info["bytes"]
-    return {"decode_ipb": dec / n, "crc_ipb": crc / n, "bytes": n, "frames": info["frames"],
-            "mix_bytes": info["mix_bytes"], "ratio": crc / dec}
+    return {
+        "decode_ipb": dec / n,
+        "crc_ipb": crc / n,
+        "bytes": n,
+        "frames": info["frames"],
+        "mix_bytes": info["mix_bytes"],
+        "ratio": crc / dec,
+    }
 
 
 def bench_gateway_instr(build):
@@ -327,15 +435,21 @@ def bench_gateway_instr(build):
     n = 2000
     gw, info = callgrind([b, n], "gwside_*")
     fc, _ = callgrind([b, n], "fcside_*")
-    return {"gw_instr": gw / n, "fc_instr": fc / n, "exchanges": info["exchanges"],
-            "sim_rate": info["exchanges"] / info["virtual_seconds"], "ratio": fc / gw}
+    return {
+        "gw_instr": gw / n,
+        "fc_instr": fc / n,
+        "exchanges": info["exchanges"],
+        "sim_rate": info["exchanges"] / info["virtual_seconds"],
+        "ratio": fc / gw,
+    }
 
 
-PROBE_ESC = bytes.fromhex("04000019800cb004")    # 4 channels 0,100,200,300
+PROBE_ESC = bytes.fromhex("04000019800cb004")  # 4 channels 0,100,200,300
 
 
 def open_raw(path, baud):
     import serial  # pyserial from the venv
+
     return serial.Serial(str(path), baud, timeout=0)
 
 
@@ -375,16 +489,18 @@ def bench_latency(build, samples=60):
             src = slcan_open(tmp / "can2")
             req = encode_frame(0x42, seal(0x42, REQUEST, PROBE_ESC))
             gw_lat, vbus_hop, hub_hop = [], [], []
-            for i in range(samples):
+            for _ in range(samples):
                 # gateway: the request's last byte leaves the wire -> RawCommand read from the hub
                 # (includes the vbus hop to the gateway and the hub hop out: compare with those bare)
                 mon.read(65536)
                 fc.read(65536)
                 ta = time.monotonic()
                 fc.write(req)
-                t0 = ta + len(req) * C_US / 1e6     # the last byte has left the wire
+                t0 = ta + len(req) * C_US / 1e6  # the last byte has left the wire
                 read_until(fc, lambda b: len(b) >= len(req))
-                t1, _ = read_until(mon, lambda b: re.search(rb"T[0-9A-F]{2}04060A[0-9A-F]*\r", b) is not None)
+                t1, _ = read_until(
+                    mon, lambda b: re.search(rb"T[0-9A-F]{2}04060A[0-9A-F]*\r", b) is not None
+                )
                 if t0 and t1:
                     gw_lat.append((t1 - t0) * 1e6)
                 time.sleep(0.03)
@@ -411,8 +527,15 @@ def bench_latency(build, samples=60):
     g = statistics.median(gw_lat)
     v = statistics.median(vbus_hop)
     h = statistics.median(hub_hop)
-    return {"gw_us": g, "gw_p90_us": sorted(gw_lat)[int(0.9 * len(gw_lat))], "vbus_hop_us": v,
-            "hub_hop_us": h, "bare_us": v + h, "ratio": g / (v + h), "samples": len(gw_lat)}
+    return {
+        "gw_us": g,
+        "gw_p90_us": sorted(gw_lat)[int(0.9 * len(gw_lat))],
+        "vbus_hop_us": v,
+        "hub_hop_us": h,
+        "bare_us": v + h,
+        "ratio": g / (v + h),
+        "samples": len(gw_lat),
+    }
 
 
 def rss_kb(pid):
@@ -434,72 +557,144 @@ def soak(build, seconds):
             _, _, _, gwd = gw_rig(st, build, tmp)
             chunk = 10
             n = max(1, int(seconds // chunk))
-            steps = ["discover", "configure", "arm"] + [f"esc:0,300,600,900@{chunk * 1000}@0"] * n + ["disarm", "stats"]
+            steps = (
+                ["discover", "configure", "arm"]
+                + [f"esc:0,300,600,900@{chunk * 1000}@0"] * n
+                + ["disarm", "stats"]
+            )
             p = st.start([build / "bin" / "dan-fcsim", "--port", tmp / "dan0", *steps], "fcsim")
             t0 = time.monotonic()
             while p.poll() is None:
                 samples.append((round(time.monotonic() - t0, 1), rss_kb(gwd.pid)))
                 time.sleep(1.0)
-            lines = [json.loads(l) for l in p.stdout.read().decode().splitlines() if l.strip()]
+            lines = [
+                json.loads(line) for line in p.stdout.read().decode().splitlines() if line.strip()
+            ]
             stats = json.loads((tmp / "gw.stats").read_text())
         finally:
             st.close()
     escs = step(lines, "esc")
     rss = [r for _, r in samples if r]
-    return {"seconds": seconds, "exchanges": sum(e["exchanges"] for e in escs),
-            "errors": sum(e["errors"] for e in escs), "rate": statistics.mean(e["rate"] for e in escs),
-            "rss_start_kb": rss[0] if rss else None, "rss_end_kb": rss[-1] if rss else None,
-            "rss_max_kb": max(rss) if rss else None, "rss_samples": samples, "gateway": stats,
-            "fc_stats": (step(lines, "stats") or [{}])[0]}
+    return {
+        "seconds": seconds,
+        "exchanges": sum(e["exchanges"] for e in escs),
+        "errors": sum(e["errors"] for e in escs),
+        "rate": statistics.mean(e["rate"] for e in escs),
+        "rss_start_kb": rss[0] if rss else None,
+        "rss_end_kb": rss[-1] if rss else None,
+        "rss_max_kb": max(rss) if rss else None,
+        "rss_samples": samples,
+        "gateway": stats,
+        "fc_stats": (step(lines, "stats") or [{}])[0],
+    }
 
 
 # ---- report ------------------------------------------------------------------
+
 
 def table(r):
     rows = []
     e = r.get("esc")
     if e:
-        rows.append(("ESC exchange (4 ESC + telem)", f"{e['rate']:.1f}/s",
-                     f"wire {e['bound']:.0f}/s ({e['req_bytes']:.0f}+{e['rsp_bytes']:.1f} B); +gaps {e['bound_gaps']:.0f}/s",
-                     f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}"))
+        rows.append(
+            (
+                "ESC exchange (4 ESC + telem)",
+                f"{e['rate']:.1f}/s",
+                f"wire {e['bound']:.0f}/s ({e['req_bytes']:.0f}+{e['rsp_bytes']:.1f} B); +gaps {e['bound_gaps']:.0f}/s",
+                f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
+            )
+        )
     w = r.get("raw_can")
     if w:
-        rows.append(("raw CAN frames via CAN_RECV", f"{w['rate']:.0f} fr/s",
-                     f"wire {w['bound']:.0f} fr/s ({w['frames_per_msg_max']}/msg, {w['req_bytes']:.0f}+{w['rsp_bytes_full']} B)",
-                     f"{w['ratio']:.2f}"))
-        rows.append(("  vs SLCAN (27 B/frame)", f"{w['rate']:.0f} fr/s", f"{w['slcan_rate']:.0f} fr/s",
-                     f"{w['vs_slcan']:.2f} (bound {w['bound_vs_slcan']:.2f})"))
-        rows.append(("  vs MAVLink2 CAN_FRAME (28 B)", f"{w['rate']:.0f} fr/s", f"{w['mavlink_rate']:.0f} fr/s",
-                     f"{w['vs_mavlink']:.2f}"))
+        rows.append(
+            (
+                "raw CAN frames via CAN_RECV",
+                f"{w['rate']:.0f} fr/s",
+                f"wire {w['bound']:.0f} fr/s ({w['frames_per_msg_max']}/msg, {w['req_bytes']:.0f}+{w['rsp_bytes_full']} B)",
+                f"{w['ratio']:.2f}",
+            )
+        )
+        rows.append(
+            (
+                "  vs SLCAN (27 B/frame)",
+                f"{w['rate']:.0f} fr/s",
+                f"{w['slcan_rate']:.0f} fr/s",
+                f"{w['vs_slcan']:.2f} (bound {w['bound_vs_slcan']:.2f})",
+            )
+        )
+        rows.append(
+            (
+                "  vs MAVLink2 CAN_FRAME (28 B)",
+                f"{w['rate']:.0f} fr/s",
+                f"{w['mavlink_rate']:.0f} fr/s",
+                f"{w['vs_mavlink']:.2f}",
+            )
+        )
     d = r.get("discovery")
     if d:
-        rows.append(("discover+configure 3 periph", f"{d['seconds'] * 1000:.0f} ms",
-                     f"wire {d['wire_seconds'] * 1000:.0f} ms ({d['bursts']} bursts)", f"{d['ratio']:.3f}"))
+        rows.append(
+            (
+                "discover+configure 3 periph",
+                f"{d['seconds'] * 1000:.0f} ms",
+                f"wire {d['wire_seconds'] * 1000:.0f} ms ({d['bursts']} bursts)",
+                f"{d['ratio']:.3f}",
+            )
+        )
     p = r.get("parser")
     if p:
-        rows.append(("parser (callgrind)", f"{p['decode_ipb']:.1f} instr/B",
-                     f"crc8 alone {p['crc_ipb']:.1f} instr/B", f"{p['ratio']:.2f}"))
+        rows.append(
+            (
+                "parser (callgrind)",
+                f"{p['decode_ipb']:.1f} instr/B",
+                f"crc8 alone {p['crc_ipb']:.1f} instr/B",
+                f"{p['ratio']:.2f}",
+            )
+        )
     g = r.get("gateway")
     if g:
-        rows.append(("gateway per ESC exchange", f"{g['gw_instr']:.0f} instr",
-                     f"FC side {g['fc_instr']:.0f} instr", f"{g['ratio']:.2f}"))
+        rows.append(
+            (
+                "gateway per ESC exchange",
+                f"{g['gw_instr']:.0f} instr",
+                f"FC side {g['fc_instr']:.0f} instr",
+                f"{g['ratio']:.2f}",
+            )
+        )
     lat = r.get("latency")
     if lat:
-        rows.append(("latency req end -> CAN out", f"{lat['gw_us']:.0f} us (p90 {lat['gw_p90_us']:.0f})",
-                     f"bare hops {lat['bare_us']:.0f} us (vbus {lat['vbus_hop_us']:.0f} + hub {lat['hub_hop_us']:.0f})",
-                     f"{lat['ratio']:.2f}"))
+        rows.append(
+            (
+                "latency req end -> CAN out",
+                f"{lat['gw_us']:.0f} us (p90 {lat['gw_p90_us']:.0f})",
+                f"bare hops {lat['bare_us']:.0f} us (vbus {lat['vbus_hop_us']:.0f} + hub {lat['hub_hop_us']:.0f})",
+                f"{lat['ratio']:.2f}",
+            )
+        )
     w0 = max(len(x[0]) for x in rows)
     w1 = max(len(x[1]) for x in rows)
     w2 = max(len(x[2]) for x in rows)
-    out = [f"{'benchmark':<{w0}}  {'measured':<{w1}}  {'against':<{w2}}  ratio",
-           "-" * (w0 + w1 + w2 + 13)]
+    out = [
+        f"{'benchmark':<{w0}}  {'measured':<{w1}}  {'against':<{w2}}  ratio",
+        "-" * (w0 + w1 + w2 + 13),
+    ]
     out += [f"{a:<{w0}}  {b:<{w1}}  {c:<{w2}}  {d}" for a, b, c, d in rows]
     return "\n".join(out)
 
 
-KEYS = [("esc", "rate"), ("esc", "ratio"), ("raw_can", "rate"), ("raw_can", "ratio"),
-        ("discovery", "seconds"), ("discovery", "ratio"), ("parser", "decode_ipb"), ("parser", "crc_ipb"),
-        ("gateway", "gw_instr"), ("gateway", "fc_instr"), ("latency", "gw_us"), ("latency", "ratio")]
+KEYS = [
+    ("esc", "rate"),
+    ("esc", "ratio"),
+    ("raw_can", "rate"),
+    ("raw_can", "ratio"),
+    ("discovery", "seconds"),
+    ("discovery", "ratio"),
+    ("parser", "decode_ipb"),
+    ("parser", "crc_ipb"),
+    ("gateway", "gw_instr"),
+    ("gateway", "fc_instr"),
+    ("latency", "gw_us"),
+    ("latency", "ratio"),
+]
 
 
 def delta(prev, cur):
@@ -513,32 +708,52 @@ def delta(prev, cur):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--build", default="build")
     ap.add_argument("--out", default="build/bench")
     ap.add_argument("--soak", type=float, default=0)
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
-    ap.add_argument("--only", help="comma-separated rows (esc,raw_can,discovery,parser,gateway,latency)")
+    ap.add_argument(
+        "--only", help="comma-separated rows (esc,raw_can,discovery,parser,gateway,latency)"
+    )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
     out = (ROOT / a.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     only = set(a.only.split(",")) if a.only else None
-    res = {"time": datetime.datetime.now().isoformat(timespec="seconds"), "baud": BAUD,
-           "git": subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-                                 capture_output=True, text=True).stdout.strip()}
+    res = {
+        "time": datetime.datetime.now().isoformat(timespec="seconds"),
+        "baud": BAUD,
+        "git": subprocess.run(
+            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+        ).stdout.strip(),
+    }
     if a.soak:
         print(f"soak: the ESC loop for {a.soak:.0f} s ...", flush=True)
         res["soak"] = s = soak(build, a.soak)
-        print(f"soak: {s['exchanges']} exchanges ({s['rate']:.1f}/s), {s['errors']} failed; "
-              f"dan-gatewayd RSS {s['rss_start_kb']} -> {s['rss_end_kb']} kB (max {s['rss_max_kb']}); "
-              f"gateway esc_cmds {s['gateway'].get('esc_cmds')}, crc errors {s['gateway'].get('dan_crc_errors')}, "
-              f"can_tx_dropped {s['gateway'].get('can_tx_dropped')}, failsafes {s['gateway'].get('failsafes')}")
-        print("  RSS samples (s, kB): " + " ".join(f"{t:.0f}:{r}" for t, r in s["rss_samples"][::max(1, len(s['rss_samples']) // 12)]))
+        print(
+            f"soak: {s['exchanges']} exchanges ({s['rate']:.1f}/s), {s['errors']} failed; "
+            f"dan-gatewayd RSS {s['rss_start_kb']} -> {s['rss_end_kb']} kB (max {s['rss_max_kb']}); "
+            f"gateway esc_cmds {s['gateway'].get('esc_cmds')}, crc errors {s['gateway'].get('dan_crc_errors')}, "
+            f"can_tx_dropped {s['gateway'].get('can_tx_dropped')}, failsafes {s['gateway'].get('failsafes')}"
+        )
+        print(
+            "  RSS samples (s, kB): "
+            + " ".join(
+                f"{t:.0f}:{r}" for t, r in s["rss_samples"][:: max(1, len(s["rss_samples"]) // 12)]
+            )
+        )
     else:
-        todo = [("esc", lambda: bench_esc(build, a.seconds)), ("raw_can", lambda: bench_raw(build, a.seconds)),
-                ("discovery", lambda: bench_discovery(build)), ("parser", lambda: bench_parser(build)),
-                ("gateway", lambda: bench_gateway_instr(build)), ("latency", lambda: bench_latency(build))]
+        todo = [
+            ("esc", lambda: bench_esc(build, a.seconds)),
+            ("raw_can", lambda: bench_raw(build, a.seconds)),
+            ("discovery", lambda: bench_discovery(build)),
+            ("parser", lambda: bench_parser(build)),
+            ("gateway", lambda: bench_gateway_instr(build)),
+            ("latency", lambda: bench_latency(build)),
+        ]
         for name, fn in todo:
             if only and name not in only:
                 continue

@@ -1,22 +1,46 @@
 """Helpers to start dan-vbus and DAN programs for the end-to-end tests."""
+
 import json
 import socket
+import subprocess
+import sys
 
-from conftest import BIN, wait_for
+from conftest import BIN
+
+
+def ready(p, what):
+    """The words after READY on p's first line (what: who, for the message)."""
+    line = p.stdout.readline().decode()
+    assert line.startswith("READY"), f"{what} did not start: {line!r}"
+    return line.split()[1:]
 
 
 def start_vbus(procs, tmp, n, *extra):
     """Starts dan-vbus with n endpoints; returns (proc, [endpoint links], control path)."""
     prefix = tmp / "dan"
     ctl = tmp / "vbus.ctl"
-    p = procs.start([BIN / "dan-vbus", "-n", str(n), "--link", prefix, "--control", ctl,
-                     "--capture", tmp / "bus.cap", *extra], name="dan-vbus")
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY"), f"dan-vbus did not start: {line!r}"
+    p = procs.start(
+        [
+            BIN / "dan-vbus",
+            "-n",
+            str(n),
+            "--link",
+            prefix,
+            "--control",
+            ctl,
+            "--capture",
+            tmp / "bus.cap",
+            *extra,
+        ],
+        name="dan-vbus",
+    )
+    ready(p, "dan-vbus")
     return p, [str(prefix) + str(i) for i in range(n)], ctl
 
 
-def vbus_cmd(ctl, cmd):
+def control(ctl, cmd):
+    """One command line to a control socket (dan-vbus's or slcan_hub's: the
+    same line protocol); its one-line answer."""
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
         s.settimeout(10)
         s.connect(str(ctl))
@@ -31,7 +55,7 @@ def vbus_cmd(ctl, cmd):
 
 
 def vbus_stats(ctl):
-    return json.loads(vbus_cmd(ctl, "stats"))
+    return json.loads(control(ctl, "stats"))
 
 
 def read_capture(tmp):
@@ -49,14 +73,36 @@ def read_capture(tmp):
 
 
 def start_periph(procs, port, types, mask="0x0F", *extra):
-    p = procs.start([BIN / "dan-testperiph", "--port", port, "--types", types, "--mask", mask, *extra],
-                    name="dan-testperiph")
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY"), f"dan-testperiph did not start: {line!r}"
+    p = procs.start(
+        [BIN / "dan-testperiph", "--port", port, "--types", types, "--mask", mask, *extra],
+        name="dan-testperiph",
+    )
+    ready(p, "dan-testperiph")
     return p
+
+
+def start_mixed_periphs(procs, eps):
+    """Peripherals of three types on endpoints 1..3: test-a and test-b (every
+    baud) and a can-gw without 57600 (mask 0x0B)."""
+    return [
+        start_periph(procs, eps[1], "test-a"),
+        start_periph(procs, eps[2], "test-b"),
+        start_periph(procs, eps[3], "can-gw", "0x0B"),
+    ]
 
 
 def periph_stats(procs, p):
     """Stops a dan-testperiph and returns its counters."""
     assert procs.stop(p) == 0
     return json.loads(p.stdout.read().decode().strip().splitlines()[-1])
+
+
+def danprobe(*args, timeout=120):
+    """Runs danprobe (this venv's); (exit code, stdout, stderr)."""
+    r = subprocess.run(
+        [sys.executable, "-m", "danprobe", *map(str, args)],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        timeout=timeout,
+    )
+    return r.returncode, r.stdout.decode(), r.stderr.decode()

@@ -4,9 +4,8 @@ Every process a test starts goes through the `spawn` fixture, which puts it
 in its own process group and kills the group at teardown, so no test leaves
 a process behind whatever happens.
 """
-import os
+
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -15,6 +14,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))
+import procgroup  # noqa: E402
 import pydronecan_nodes  # noqa: E402
 
 # Before any pydronecan node exists: their I/O children start with spawn,
@@ -47,9 +47,7 @@ class Procs:
         in the test's tmp dir (shown on failure)."""
         name = name or Path(str(args[0])).name
         log = open(self.tmp / f"{name}.{len(self.procs)}.log", "wb")
-        kw.setdefault("stdout", subprocess.PIPE)
-        p = subprocess.Popen([str(a) for a in args], stdin=subprocess.DEVNULL,
-                             stderr=log, start_new_session=True, **kw)
+        p = procgroup.start(args, log, **kw)
         p.log_path = Path(log.name)
         p.log_file = log
         self.procs.append(p)
@@ -57,17 +55,7 @@ class Procs:
 
     def stop(self, p, sig=signal.SIGTERM, timeout=10.0):
         """Signals a process (group) and waits; returns its exit code."""
-        if p.poll() is None:
-            try:
-                os.killpg(p.pid, sig)
-            except ProcessLookupError:
-                pass
-            try:
-                p.wait(timeout)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(5)
-        return p.returncode
+        return procgroup.stop(p, sig, timeout)
 
     def close(self):
         for p in reversed(self.procs):
@@ -75,6 +63,21 @@ class Procs:
             if p.stdout:
                 p.stdout.close()
             p.log_file.close()
+
+
+def closing_factory(make):
+    """For a fixture that hands out a factory (rig(**kw), bus(n=...)): yields
+    one that remembers what make() returned, then closes those, in order,
+    at teardown. Use as: yield from closing_factory(make)."""
+    made = []
+
+    def factory(*args, **kw):
+        made.append(make(*args, **kw))
+        return made[-1]
+
+    yield factory
+    for x in made:
+        x.close()
 
 
 @pytest.fixture

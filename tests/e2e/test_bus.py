@@ -1,5 +1,6 @@
 """The master and peripheral engines over a virtual half-duplex bus:
 dan-master (libdan master) and dan-testperiph processes on dan-vbus ptys."""
+
 import json
 import os
 import subprocess
@@ -8,8 +9,14 @@ import time
 
 import pytest
 
-from bus_util import (periph_stats, read_capture, start_periph, start_vbus,
-                      vbus_cmd, vbus_stats)
+from bus_util import (
+    control,
+    periph_stats,
+    read_capture,
+    start_mixed_periphs,
+    start_vbus,
+    vbus_stats,
+)
 from conftest import BIN
 
 TYPES = "test-a,test-b,can-gw,vtx"
@@ -19,10 +26,24 @@ def master(port, *steps, types=TYPES, timeout=120, check=True, opts=()):
     """Runs dan-master with --json; returns (exit code, list of step results).
     The reply window is generous (250 ms): a loaded 2-core host can stall a
     process that long, and these tests check behaviour, not speed."""
-    r = subprocess.run([str(BIN / "dan-master"), "--port", port, "--types", types, "--json",
-                        "--latency-ms", "250", *opts, *steps],
-                       stdin=subprocess.DEVNULL, capture_output=True, timeout=timeout)
-    out = [json.loads(l) for l in r.stdout.decode().splitlines() if l.startswith("{")]
+    r = subprocess.run(
+        [
+            str(BIN / "dan-master"),
+            "--port",
+            port,
+            "--types",
+            types,
+            "--json",
+            "--latency-ms",
+            "250",
+            *opts,
+            *steps,
+        ],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        timeout=timeout,
+    )
+    out = [json.loads(line) for line in r.stdout.decode().splitlines() if line.startswith("{")]
     if check:
         assert r.returncode == 0, (r.returncode, out, r.stderr.decode())
     return r.returncode, out
@@ -33,9 +54,7 @@ def bus3(procs, tmp_path):
     """dan-vbus with a master endpoint and three peripherals of different
     types: test-a (all bauds), test-b (all bauds), can-gw (no 57600)."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 5)
-    ps = [start_periph(procs, eps[1], "test-a"),
-          start_periph(procs, eps[2], "test-b"),
-          start_periph(procs, eps[3], "can-gw", "0x0B")]
+    ps = start_mixed_periphs(procs, eps)
     return eps, ctl, ps
 
 
@@ -44,7 +63,7 @@ def test_discovery_identities_and_configure(bus3, procs, tmp_path):
     rc, out = master(eps[0], "discover", "configure", "request:0x62:616263", "stats")
     disc, conf, req, stats = out
     peers = {p["type"]: p for p in disc["peers"]}
-    assert set(peers) == {"test-a", "test-b", "can-gw"}          # no VTX on this bus
+    assert set(peers) == {"test-a", "test-b", "can-gw"}  # no VTX on this bus
     assert peers["test-a"]["manufacturer"] == "DAN Project"
     assert peers["test-b"]["model"] == "test-b"
     assert peers["can-gw"]["baud_mask"] == 0x0B
@@ -67,16 +86,23 @@ def test_discovery_identities_and_configure(bus3, procs, tmp_path):
 
 def test_unknown_code_ignored_and_malformed_answered(bus3, procs):
     eps, ctl, ps = bus3
-    rc, out = master(eps[0], "discover", "request:0x64", "request:0x62", "request:0x61", "request:0x62:0001",
-                     check=False)
+    rc, out = master(
+        eps[0],
+        "discover",
+        "request:0x64",
+        "request:0x62",
+        "request:0x61",
+        "request:0x62:0001",
+        check=False,
+    )
     assert rc == 1
     disc, unknown, malformed, bad_conf, ok = out
-    assert unknown["result"] == -4 and unknown["error"] == "timeout"        # ignored: no reply at all
+    assert unknown["result"] == -4 and unknown["error"] == "timeout"  # ignored: no reply at all
     assert malformed["result"] == -6 and malformed["error"] == "empty payload"
     assert bad_conf["result"] == -6 and "CONFIGURE" in bad_conf["error"]
     assert ok["result"] == 0 and ok["payload"] == "0100"
     s = periph_stats(procs, ps[0])
-    assert s["unknown"] >= 3            # 0x64 and its two retries were heard and ignored
+    assert s["unknown"] >= 3  # 0x64 and its two retries were heard and ignored
     assert s["errors_sent"] == 2
     assert s["replies"] >= 3
 
@@ -127,8 +153,15 @@ def test_collisions_detected_and_recovered(bus3, procs, tmp_path):
     t = threading.Thread(target=jammer, daemon=True)
     t.start()
     try:
-        rc, out = master(eps[0], "discover", "repeat:60:0x62:a1b2c3d4", "request:0x62:0a0b", "stats",
-                         types="test-a,test-b,can-gw", opts=("--retries", "4"))
+        rc, out = master(
+            eps[0],
+            "discover",
+            "repeat:60:0x62:a1b2c3d4",
+            "request:0x62:0a0b",
+            "stats",
+            types="test-a,test-b,can-gw",
+            opts=("--retries", "4"),
+        )
     finally:
         stop.set()
         t.join(5)
@@ -147,30 +180,47 @@ def test_noise_recovered(bus3, procs):
     link is clean."""
     eps, ctl, ps = bus3
     master(eps[0], "discover", "configure")
-    assert vbus_cmd(ctl, "ber 0.002") == "ok"
-    rc, out = master(eps[0], "discover", "repeat:40:0x62:00112233445566778899", "stats",
-                     types="test-a", check=False)
+    assert control(ctl, "ber 0.002") == "ok"
+    rc, out = master(
+        eps[0],
+        "discover",
+        "repeat:40:0x62:00112233445566778899",
+        "stats",
+        types="test-a",
+        check=False,
+    )
     disc, rep, stats = out
     noisy = vbus_stats(ctl)
     assert noisy["noise_flips"] > 0
     # Every exchange the master reported OK returned the right bytes (the
     # repeat step stops at the first failure, which is allowed under noise).
     assert rep["done"] >= 1
-    assert vbus_cmd(ctl, "ber 0") == "ok"
-    rc, out = master(eps[0], "discover", "repeat:30:0x62:00112233445566778899", "request:0x62:cafe",
-                     types="test-a", opts=("--retries", "4"))
+    assert control(ctl, "ber 0") == "ok"
+    rc, out = master(
+        eps[0],
+        "discover",
+        "repeat:30:0x62:00112233445566778899",
+        "request:0x62:cafe",
+        types="test-a",
+        opts=("--retries", "4"),
+    )
     assert out[1]["done"] == 30 and out[2]["payload"] == "feca"
 
 
 def test_bad_arguments_and_missing_port(tmp_path):
-    r = subprocess.run([str(BIN / "dan-master"), "--port", str(tmp_path / "nope"), "discover"],
-                       capture_output=True, stdin=subprocess.DEVNULL, timeout=30)
+    def dan_master(*args):
+        return subprocess.run(
+            [str(BIN / "dan-master"), *args],
+            capture_output=True,
+            stdin=subprocess.DEVNULL,
+            timeout=30,
+        )
+
+    r = dan_master("--port", str(tmp_path / "nope"), "discover")
     assert r.returncode == 2 and b"No such file" in r.stderr
-    r = subprocess.run([str(BIN / "dan-master"), "--port", "/dev/null", "--bogus"],
-                       capture_output=True, stdin=subprocess.DEVNULL, timeout=30)
+    r = dan_master("--port", "/dev/null", "--bogus")
     assert r.returncode == 2 and b"unknown option" in r.stderr
-    r = subprocess.run([str(BIN / "dan-master"), "--port", "/dev/null", "discover"],
-                       capture_output=True, stdin=subprocess.DEVNULL, timeout=30)
+    r = dan_master("--port", "/dev/null", "discover")
     assert r.returncode == 2 and b"not a serial port" in r.stderr
     r = subprocess.run([str(BIN / "dan-master"), "--help"], capture_output=True, timeout=30)
     assert r.returncode == 0 and b"steps:" in r.stdout

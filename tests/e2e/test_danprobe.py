@@ -1,6 +1,7 @@
 """danprobe, the Python host tool: its codec against the shared vectors
 (the same semantics as tests/unit/test_codec.c), then the CLI against
 dan-vbus, dan-testperiph and dan-master."""
+
 import json
 import subprocess
 import sys
@@ -9,13 +10,29 @@ from pathlib import Path
 import pytest
 import serial
 
-from bus_util import start_periph, start_vbus
+from bus_util import danprobe, start_mixed_periphs, start_vbus
 from conftest import BIN, VECTORS, wait_for
 from danprobe import registry
-from danprobe.codec import (MAX_FRAME, MAX_PAYLOAD, Decoder, MalformedError, crc8, encode_frame,
-                            uvarint_decode, uvarint_encode, uvarint_size)
-from danprobe.payloads import (Configure, ErrorMessage, Identity, PayloadError,
-                               UnsupportedRequest, decode_ack, encode_ack)
+from danprobe.codec import (
+    MAX_FRAME,
+    MAX_PAYLOAD,
+    Decoder,
+    MalformedError,
+    crc8,
+    encode_frame,
+    uvarint_decode,
+    uvarint_encode,
+    uvarint_size,
+)
+from danprobe.payloads import (
+    Configure,
+    ErrorMessage,
+    Identity,
+    PayloadError,
+    UnsupportedRequest,
+    decode_ack,
+    encode_ack,
+)
 from danprobe.sniff import Sniffer, read_capture, sniff_capture
 
 TYPES = "test-a,test-b,can-gw,vtx"
@@ -32,6 +49,7 @@ def unhex(s):
 
 
 # ---- codec: the shared vectors ----
+
 
 def test_crc8_vectors():
     assert crc8(b"123456789") == 0xBC
@@ -71,7 +89,7 @@ def decode_all(wire, chunk=0):
     frames = []
     step = chunk or max(len(wire), 1)
     for i in range(0, len(wire), step):
-        frames += d.feed(wire[i:i + step])
+        frames += d.feed(wire[i : i + step])
     frames += d.drain()
     assert not d.busy()
     return [encode_frame(f.code, f.payload) for f in frames], d
@@ -88,9 +106,10 @@ def test_frame_vectors():
             frames = []
             step = chunk or len(wire)
             for i in range(0, len(wire), step):
-                frames += d.feed(wire[i:i + step])
-            assert [(f.code, f.payload, f.start, f.size) for f in frames] == \
-                [(code, payload, 0, len(wire))]
+                frames += d.feed(wire[i : i + step])
+            assert [(f.code, f.payload, f.start, f.size) for f in frames] == [
+                (code, payload, 0, len(wire))
+            ]
             assert not d.busy()
     assert MAX_FRAME == 169
     with pytest.raises(ValueError):
@@ -122,14 +141,25 @@ def test_every_bit_flip_of_the_frame_vectors_rejected():
 
 def test_decoder_counters():
     d = Decoder()
-    for data in (b"xyz", bytes.fromhex("442000B6"), bytes.fromhex("4420FF7F"),
-                 bytes.fromhex("44FFFFFFFF7F"), bytes.fromhex("442000")):
+    for data in (
+        b"xyz",
+        bytes.fromhex("442000B6"),
+        bytes.fromhex("4420FF7F"),
+        bytes.fromhex("44FFFFFFFF7F"),
+        bytes.fromhex("442000"),
+    ):
         assert d.feed(data) == []
         assert d.drain() == []
     assert d.feed(bytes.fromhex("442000B5"))[0].code == 0x20
     s = d.stats
-    assert (s.garbage, s.crc_errors, s.oversize, s.bad_varint, s.aborted, s.frames) == \
-        (3, 1, 1, 1, 1, 1)
+    assert (s.garbage, s.crc_errors, s.oversize, s.bad_varint, s.aborted, s.frames) == (
+        3,
+        1,
+        1,
+        1,
+        1,
+        1,
+    )
 
 
 def test_payload_vectors():
@@ -153,8 +183,12 @@ def test_payload_vectors():
             e = ErrorMessage(int(f[1]), int(f[2]), f[3])
             assert e.encode() == want and ErrorMessage.decode(want) == e
         elif kind.startswith("bad_"):
-            decode = {"identity": Identity.decode, "configure": Configure.decode,
-                      "ack": decode_ack, "error": ErrorMessage.decode}[kind[4:]]
+            decode = {
+                "identity": Identity.decode,
+                "configure": Configure.decode,
+                "ack": decode_ack,
+                "error": ErrorMessage.decode,
+            }[kind[4:]]
             with pytest.raises(PayloadError):
                 decode(unhex(f[1]))
         elif kind == "unsupported_configure":
@@ -185,21 +219,29 @@ def test_sniff_capture_counts_errors(tmp_path):
     bad = bytearray(encode_frame(0x62, b"abc"))
     bad[-1] ^= 0xFF
     cap = tmp_path / "bus.cap"
-    cap.write_text("\n".join([
-        "# dan-vbus capture: <time> <source> <baud> <hex> [collision] [noise] [rx=<hex>]",
-        "# 0=/dev/pts/1 1=/dev/pts/2",
-        f"1.000000 0 9600 {good.hex()}",
-        f"1.020000 1 9600 {ack.hex()}",
-        f"1.500000 0 9600 {bad.hex()}",
-        f"1.700000 0 9600 {good.hex()} collision rx={jammed.hex()}",
-        f"2.000000 1 9600 {good[:4].hex()}",
-        f"3.000000 1 115200 {encode_frame(0, ErrorMessage(0x62, 0, 'no').encode()).hex()}",
-    ]) + "\n")
+    cap.write_text(
+        "\n".join(
+            [
+                "# dan-vbus capture: <time> <source> <baud> <hex> [collision] [noise] [rx=<hex>]",
+                "# 0=/dev/pts/1 1=/dev/pts/2",
+                f"1.000000 0 9600 {good.hex()}",
+                f"1.020000 1 9600 {ack.hex()}",
+                f"1.500000 0 9600 {bad.hex()}",
+                f"1.700000 0 9600 {good.hex()} collision rx={jammed.hex()}",
+                f"2.000000 1 9600 {good[:4].hex()}",
+                f"3.000000 1 115200 {encode_frame(0, ErrorMessage(0x62, 0, 'no').encode()).hex()}",
+            ]
+        )
+        + "\n"
+    )
     sn = Sniffer()
     events = list(sniff_capture(read_capture(cap), sn))
     frames = [e for e in events if e.kind == "frame"]
     assert [(e.name, e.role, e.source) for e in frames] == [
-        ("test-a CONFIGURE", "request", 0), ("test-a CONFIGURE", "response", 1), ("ERROR", "response", 1)]
+        ("test-a CONFIGURE", "request", 0),
+        ("test-a CONFIGURE", "response", 1),
+        ("ERROR", "response", 1),
+    ]
     assert frames[0].fields == {"request_type": 0, "baud": 57600}
     assert frames[1].fields == {"ack": "OK"}
     assert frames[2].fields["request"] == "test-a 0x62" and frames[2].fields["description"] == "no"
@@ -211,11 +253,6 @@ def test_sniff_capture_counts_errors(tmp_path):
 
 # ---- the CLI on a virtual bus ----
 
-def danprobe(*args, timeout=120):
-    r = subprocess.run([sys.executable, "-m", "danprobe", *map(str, args)], stdin=subprocess.DEVNULL,
-                       capture_output=True, timeout=timeout)
-    return r.returncode, r.stdout.decode(), r.stderr.decode()
-
 
 def danprobe_json(*args):
     rc, out, err = danprobe(*args, "--json")
@@ -224,8 +261,12 @@ def danprobe_json(*args):
 
 
 def dan_master(port, *steps, types=TYPES):
-    r = subprocess.run([str(BIN / "dan-master"), "--port", port, "--types", types, "--json", *steps],
-                       stdin=subprocess.DEVNULL, capture_output=True, timeout=120)
+    r = subprocess.run(
+        [str(BIN / "dan-master"), "--port", port, "--types", types, "--json", *steps],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        timeout=120,
+    )
     assert r.returncode == 0, (r.stdout, r.stderr)
     return [json.loads(x) for x in r.stdout.decode().splitlines()]
 
@@ -234,9 +275,7 @@ def dan_master(port, *steps, types=TYPES):
 def bus3(procs, tmp_path):
     """Master endpoint 0, test-a, test-b, can-gw (no 57600) on 1..3, endpoint 4 spare."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 5)
-    for ep, t, mask in ((eps[1], "test-a", "0x0F"), (eps[2], "test-b", "0x0F"),
-                        (eps[3], "can-gw", "0x0B")):
-        start_periph(procs, ep, t, mask)
+    start_mixed_periphs(procs, eps)
     return eps
 
 
@@ -244,14 +283,19 @@ def test_discover_identities(bus3):
     doc = danprobe_json("discover", "--port", bus3[0], "--types", TYPES, "-q")
     assert doc["command"] == "discover" and doc["result"] == 0 and doc["baud"] == 9600
     peers = {p["type"]: p for p in doc["peers"]}
-    assert set(peers) == {"test-a", "test-b", "can-gw"}          # no VTX on this bus
+    assert set(peers) == {"test-a", "test-b", "can-gw"}  # no VTX on this bus
     assert peers["test-a"]["manufacturer"] == "DAN Project" and peers["test-b"]["model"] == "test-b"
-    assert peers["can-gw"]["baud_mask"] == 0x0B and peers["can-gw"]["bauds"] == [9600, 19200, 38400, 115200]
+    assert peers["can-gw"]["baud_mask"] == 0x0B and peers["can-gw"]["bauds"] == [
+        9600,
+        19200,
+        38400,
+        115200,
+    ]
     assert all(p["baud"] == 9600 and p["dan_version"] == 1 for p in peers.values())
     rc, out, err = danprobe("discover", "--port", bus3[0], "--types", "test-a,can-gw")
     assert rc == 0
     assert "test-a" in out and "can-gw" in out and "DAN Project" in out and "test-b" not in out
-    assert "probing" in err                                      # progress on stderr
+    assert "probing" in err  # progress on stderr
 
 
 def test_discover_after_configure_finds_higher_baud(bus3):
@@ -275,7 +319,9 @@ def test_configure_then_sniff_capture(bus3, tmp_path):
     doc = danprobe_json("discover", "--port", bus3[0], "--types", "test-a", "-q")
     assert doc["peers"][0]["baud"] == 115200
     # an unsupported target is refused up front: can-gw has no 57600
-    rc, out, err = danprobe("configure", "--port", bus3[0], "--types", TYPES, "--baud", "57600", "-q")
+    rc, out, err = danprobe(
+        "configure", "--port", bus3[0], "--types", TYPES, "--baud", "57600", "-q"
+    )
     assert rc == 1 and "can-gw does not support 57600" in err
 
     rc, out, err = danprobe("sniff", "--capture", tmp_path / "bus.cap", "--json")
@@ -286,16 +332,24 @@ def test_configure_then_sniff_capture(bus3, tmp_path):
     frames = [e for e in events if e["event"] == "frame"]
     conf_req = [e for e in frames if e["name"].endswith("CONFIGURE") and e["role"] == "request"]
     conf_rsp = [e for e in frames if e["name"].endswith("CONFIGURE") and e["role"] == "response"]
-    assert {e["name"] for e in conf_req} == {"test-a CONFIGURE", "test-b CONFIGURE", "can-gw CONFIGURE"}
-    assert all(e["fields"] == {"request_type": 0, "baud": 115200} and e["source"] == 0
-               and e["baud"] == 9600 for e in conf_req)
+    assert {e["name"] for e in conf_req} == {
+        "test-a CONFIGURE",
+        "test-b CONFIGURE",
+        "can-gw CONFIGURE",
+    }
+    assert all(
+        e["fields"] == {"request_type": 0, "baud": 115200}
+        and e["source"] == 0
+        and e["baud"] == 9600
+        for e in conf_req
+    )
     assert len(conf_rsp) == 3 and all(e["fields"] == {"ack": "OK"} for e in conf_rsp)
     assert {e["source"] for e in conf_rsp} == {1, 2, 3}
     ids = [e for e in frames if e["name"] == "test-b IDENTIFY" and e["role"] == "response"]
     assert ids and ids[0]["fields"]["model"] == "test-b" and ids[0]["source"] == 2
     assert any(e["baud"] == 115200 and e["name"] == "test-a IDENTIFY" for e in frames)
     assert all(e["gap_ms"] is None or e["gap_ms"] >= 0 for e in frames)
-    assert summary["frames_by_name"]["vtx IDENTIFY"] >= 2         # probed, never answered
+    assert summary["frames_by_name"]["vtx IDENTIFY"] >= 2  # probed, never answered
     # the human form, and --count
     rc, out, err = danprobe("sniff", "--capture", tmp_path / "bus.cap", "--count", "2")
     lines = out.splitlines()
@@ -305,8 +359,22 @@ def test_configure_then_sniff_capture(bus3, tmp_path):
 
 def test_live_sniff_while_dan_master_runs(bus3, procs):
     """The sniffer only listens on a spare endpoint while dan-master talks."""
-    sn = procs.start([sys.executable, "-m", "danprobe", "sniff", "--port", bus3[4], "--json",
-                      "--count", "8", "--timeout", "60"], name="danprobe-sniff")
+    sn = procs.start(
+        [
+            sys.executable,
+            "-m",
+            "danprobe",
+            "sniff",
+            "--port",
+            bus3[4],
+            "--json",
+            "--count",
+            "8",
+            "--timeout",
+            "60",
+        ],
+        name="danprobe-sniff",
+    )
     wait_for(lambda: "listening" in sn.log_path.read_text(), timeout=30, what="sniffer ready")
     dan_master(bus3[0], "discover", "request:0x62:616263", types="test-a,test-b,can-gw")
     out, _ = sn.communicate(timeout=60)
@@ -314,10 +382,15 @@ def test_live_sniff_while_dan_master_runs(bus3, procs):
     events = [json.loads(x) for x in out.decode().splitlines()]
     frames = [e for e in events if e["event"] == "frame"]
     assert [(e["name"], e["role"]) for e in frames] == [
-        ("test-a IDENTIFY", "request"), ("test-a IDENTIFY", "response"),
-        ("test-b IDENTIFY", "request"), ("test-b IDENTIFY", "response"),
-        ("can-gw IDENTIFY", "request"), ("can-gw IDENTIFY", "response"),
-        ("test-a 0x62", "request"), ("test-a 0x62", "response")]
+        ("test-a IDENTIFY", "request"),
+        ("test-a IDENTIFY", "response"),
+        ("test-b IDENTIFY", "request"),
+        ("test-b IDENTIFY", "response"),
+        ("can-gw IDENTIFY", "request"),
+        ("can-gw IDENTIFY", "response"),
+        ("test-a 0x62", "request"),
+        ("test-a 0x62", "response"),
+    ]
     assert frames[3]["fields"]["model"] == "test-b" and frames[5]["fields"]["baud_mask"] == 0x0B
     assert frames[6]["payload"] == "616263" and frames[7]["payload"] == "636261"
     assert all(e["source"] is None and e["baud"] == 9600 for e in frames)
@@ -345,17 +418,20 @@ def test_silent_busy_and_missing_ports(procs, tmp_path):
     assert rc == 2 and "nope.cap" in err
 
 
-@pytest.mark.parametrize("args, message", [
-    ([], "required"),
-    (["frobnicate"], "invalid choice"),
-    (["discover"], "--port"),
-    (["discover", "--port", "/dev/null", "--types", "bogus"], "unknown type"),
-    (["configure", "--port", "/dev/null", "--baud", "fast"], "not a number"),
-    (["discover", "--port", "/dev/null", "--timeout", "0"], "must be positive"),
-    (["sniff"], "--port or --capture"),
-    (["sniff", "--port", "/dev/null", "--capture", "x"], "not both"),
-    (["sniff", "--capture", "x", "--count", "0"], "at least 1"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        ([], "required"),
+        (["frobnicate"], "invalid choice"),
+        (["discover"], "--port"),
+        (["discover", "--port", "/dev/null", "--types", "bogus"], "unknown type"),
+        (["configure", "--port", "/dev/null", "--baud", "fast"], "not a number"),
+        (["discover", "--port", "/dev/null", "--timeout", "0"], "must be positive"),
+        (["sniff"], "--port or --capture"),
+        (["sniff", "--port", "/dev/null", "--capture", "x"], "not both"),
+        (["sniff", "--capture", "x", "--count", "0"], "at least 1"),
+    ],
+)
 def test_bad_arguments(args, message):
     rc, out, err = danprobe(*args)
     assert rc == 2 and message in err, (rc, err)
@@ -363,7 +439,7 @@ def test_bad_arguments(args, message):
 
 def test_help():
     script = Path(sys.executable).parent / "danprobe"
-    if script.exists():                                         # the console script (make venv)
+    if script.exists():  # the console script (make venv)
         r = subprocess.run([str(script), "--help"], capture_output=True, timeout=60)
         assert r.returncode == 0 and b"discover" in r.stdout
     for cmd in ("discover", "configure", "sniff"):

@@ -6,11 +6,11 @@ nodes.
 
 Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
+
 import json
 import os
 import re
 import select
-import subprocess
 import sys
 import threading
 import time
@@ -18,19 +18,21 @@ import tty
 
 import pytest
 
-from bus_util import vbus_cmd
-from conftest import BIN, ROOT, VECTORS, wait_for
-from test_gateway import Rig
-from danprobe import gateway as G
+from bus_util import control, danprobe
+from conftest import BIN, ROOT, VECTORS, closing_factory, wait_for
+from danprobe import gateway_can as GC
+from danprobe import gateway_msgs as G
 from danprobe.codec import encode_frame
+from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
+from gw_rig import GW_NODE, Rig, TunnelFarEnd
 
-GW_NODE = 10
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
 
 
 # ---- the codec against the shared vectors ----
+
 
 def unhex(s):
     return b"" if s == "-" else bytes.fromhex(s)
@@ -48,13 +50,18 @@ def frame_of(text):
     idf, dlc, data = text.split("/")
     idf = int(idf, 16)
     rtr = bool(idf & G.CAN_ID_RTR)
-    return G.CanFrame(idf & G.EFF_MASK, b"" if rtr else unhex(data), bool(idf & G.CAN_ID_EXT),
-                      rtr, int(dlc) if rtr else 0)
+    return GC.CanFrame(
+        idf & G.EFF_MASK,
+        b"" if rtr else unhex(data),
+        bool(idf & G.CAN_ID_EXT),
+        rtr,
+        int(dlc) if rtr else 0,
+    )
 
 
 def filter_of(text):
     i, m = (int(x, 16) for x in text.split("/"))
-    return G.Filter(i & G.EFF_MASK, m, bool(i & G.CAN_ID_EXT))
+    return GC.Filter(i & G.EFF_MASK, m, bool(i & G.CAN_ID_EXT))
 
 
 def ints(text):
@@ -64,14 +71,15 @@ def ints(text):
 def vector_object(msg, d, fields):
     """(encoded payload, decode(payload) -> what must equal the fields)."""
     f = dict(fields)
-    i = lambda k: int(f[k])                                      # noqa: E731
-    rep = lambda k: [v for kk, v in fields if kk == k]          # noqa: E731
+    i = lambda k: int(f[k])  # noqa: E731
+    rep = lambda k: [v for kk, v in fields if kk == k]  # noqa: E731
     key = (msg, d)
     if key == ("esc_cmd", "req"):
         return G.encode_esc_cmd(ints(f["values"])), G.decode_esc_cmd, ints(f["values"])
     if key == ("telem", "rsp"):
-        t = G.Telemetry(i("flags"), i("aux"),
-                        [G.TelemRecord(*map(int, r.split("/"))) for r in rep("rec")])
+        t = G.Telemetry(
+            i("flags"), i("aux"), [G.TelemRecord(*map(int, r.split("/"))) for r in rep("rec")]
+        )
         return t.encode(), G.Telemetry.decode, t
     if d == "req" and msg in ("esc_telem", "nodes", "node_info", "arm"):
         k = {"esc_telem": "first", "nodes": "first", "node_info": "node", "arm": "status"}[msg]
@@ -90,12 +98,20 @@ def vector_object(msg, d, fields):
         p = G.NodesPage(i("next"), [G.NodeEntry(*map(int, n.split("/"))) for n in rep("node")])
         return p.encode(), G.NodesPage.decode, p
     if key == ("node_info", "rsp"):
-        n = G.NodeInfo(i("node"), i("state"), *map(int, f["sw"].split("/")), i("vcs"),
-                       *map(int, f["hw"].split("/")), unhex(f["uid"]), unhex(f["name"]))
+        n = G.NodeInfo(
+            i("node"),
+            i("state"),
+            *map(int, f["sw"].split("/")),
+            i("vcs"),
+            *map(int, f["hw"].split("/")),
+            unhex(f["uid"]),
+            unhex(f["name"]),
+        )
         return n.encode(), G.NodeInfo.decode, n
     if key == ("tun_open", "req"):
-        o = G.TunOpen(i("port"), i("mode"), i("protocol"), i("target"), i("serial"), i("options"),
-                      i("baud"))
+        o = G.TunOpen(
+            i("port"), i("mode"), i("protocol"), i("target"), i("serial"), i("options"), i("baud")
+        )
         return o.encode(), G.TunOpen.decode, o
     if key == ("tun_open", "rsp"):
         o = G.TunOpenResult(i("port"), i("result"))
@@ -104,25 +120,27 @@ def vector_object(msg, d, fields):
         x = G.TunXferRequest(i("port"), i("wr"), i("rd"), i("max"), unhex(f["data"]))
         return x.encode(), G.TunXferRequest.decode, x
     if key == ("tun_xfer", "rsp"):
-        x = G.TunXferResponse(i("port"), i("wr"), i("space"), i("rd"), i("dropped"),
-                              unhex(f["data"]))
+        x = G.TunXferResponse(
+            i("port"), i("wr"), i("space"), i("rd"), i("dropped"), unhex(f["data"])
+        )
         return x.encode(), G.TunXferResponse.decode, x
     if key == ("can_send", "req"):
-        s = G.CanSendRequest(i("seq"), [frame_of(v) for v in rep("frame")])
-        return s.encode(), G.CanSendRequest.decode, s
+        s = GC.CanSendRequest(i("seq"), [frame_of(v) for v in rep("frame")])
+        return s.encode(), GC.CanSendRequest.decode, s
     if key == ("can_send", "rsp"):
-        s = G.CanSendResponse(i("seq"), i("accepted"), i("free"))
-        return s.encode(), G.CanSendResponse.decode, s
+        s = GC.CanSendResponse(i("seq"), i("accepted"), i("free"))
+        return s.encode(), GC.CanSendResponse.decode, s
     if key == ("can_recv", "req"):
-        s = G.CanRecvRequest(i("seq"), i("max"))
-        return s.encode(), G.CanRecvRequest.decode, s
+        s = GC.CanRecvRequest(i("seq"), i("max"))
+        return s.encode(), GC.CanRecvRequest.decode, s
     if key == ("can_recv", "rsp"):
-        s = G.CanRecvResponse(i("seq"), i("dropped"), [frame_of(v) for v in rep("frame")])
-        return s.encode(), G.CanRecvResponse.decode, s
+        s = GC.CanRecvResponse(i("seq"), i("dropped"), [frame_of(v) for v in rep("frame")])
+        return s.encode(), GC.CanRecvResponse.decode, s
     if msg == "can_filter":
-        t = G.FilterTable(i("op") if d == "req" else i("result"),
-                          [filter_of(v) for v in rep("filter")])
-        return t.encode(), G.FilterTable.decode, t
+        t = GC.FilterTable(
+            i("op") if d == "req" else i("result"), [filter_of(v) for v in rep("filter")]
+        )
+        return t.encode(), GC.FilterTable.decode, t
     raise AssertionError(f"no codec for {msg} {d}")
 
 
@@ -142,7 +160,7 @@ def test_codec_every_vector():
         assert decode(payload + b"\x00\x7f") == got, line
         kinds.add((msg, d))
         n += 1
-    assert n >= 47 and len(kinds) >= 22        # every message of the header
+    assert n >= 47 and len(kinds) >= 22  # every message of the header
 
 
 def test_codec_details_and_malformed_payloads():
@@ -153,36 +171,47 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 21)["counter_20"] == 0               # later versions append counters
+    assert G.stats_dict([0] * 21)["counter_20"] == 0  # later versions append counters
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
     # cansend syntax
-    assert G.parse_cansend("123#DEADBEEF") == G.CanFrame(0x123, bytes.fromhex("deadbeef"))
-    assert G.parse_cansend("1ABCDE01#01.02.03").ext
-    assert G.parse_cansend("1404#").ext and not G.parse_cansend("7FF#").ext
-    assert G.parse_cansend("7FF#R2").candump() == "7FF#R2" and G.parse_cansend("7FF#R").dlc == 0
-    assert G.CanFrame(0x1404060A, bytes.fromhex("0001900c800b01c0"), True).candump() == \
-        "1404060A#0001900C800B01C0"
-    for bad in ("123", "800#00", "123#0", "123#001122334455667788", "20000000#", "12G#00",
-                "123#R9", "#00"):
+    assert GC.parse_cansend("123#DEADBEEF") == GC.CanFrame(0x123, bytes.fromhex("deadbeef"))
+    assert GC.parse_cansend("1ABCDE01#01.02.03").ext
+    assert GC.parse_cansend("1404#").ext and not GC.parse_cansend("7FF#").ext
+    assert GC.parse_cansend("7FF#R2").candump() == "7FF#R2" and GC.parse_cansend("7FF#R").dlc == 0
+    assert (
+        GC.CanFrame(0x1404060A, bytes.fromhex("0001900c800b01c0"), True).candump()
+        == "1404060A#0001900C800B01C0"
+    )
+    for bad in (
+        "123",
+        "800#00",
+        "123#0",
+        "123#001122334455667788",
+        "20000000#",
+        "12G#00",
+        "123#R9",
+        "#00",
+    ):
         with pytest.raises(ValueError):
-            G.parse_cansend(bad)
+            GC.parse_cansend(bad)
     for bad in ([], [0] * 21, [8192], [-8193]):
         with pytest.raises(ValueError):
             G.encode_esc_cmd(bad)
     with pytest.raises(ValueError):
         G.ConfigRequest(G.CFG_ESC_TIMEOUT, 49).encode()
     malformed = [
-        (G.decode_esc_cmd, "00"), (G.decode_esc_cmd, "15" + "00" * 40),   # n 0, n 21
-        (G.decode_esc_cmd, "04000019800cb0"),                             # truncated
-        (G.Telemetry.decode, "0504010314011140"),                         # record cut short
-        (G.ConfigRequest.decode, "0131"),                                 # timeout 49
-        (G.ConfigRequest.decode, "0233"),                                 # rate 51
-        (G.TunXferResponse.decode, "0000000000" + "8101" + "00" * 129),   # 129 data bytes
-        (G.CanSendRequest.decode, "070c"),                                # 12 frames
-        (G.CanRecvResponse.decode, "0000012301000009"),                   # dlc 9
-        (G.CanRecvResponse.decode, "000001000800000100"),                 # 11-bit id 0x800
-        (G.FilterTable.decode, "0001000000200000ff00"),                   # reserved id bit
-        (G.NodesPage.decode, "0001140000"),                               # entry cut short
+        (G.decode_esc_cmd, "00"),
+        (G.decode_esc_cmd, "15" + "00" * 40),  # n 0, n 21
+        (G.decode_esc_cmd, "04000019800cb0"),  # truncated
+        (G.Telemetry.decode, "0504010314011140"),  # record cut short
+        (G.ConfigRequest.decode, "0131"),  # timeout 49
+        (G.ConfigRequest.decode, "0233"),  # rate 51
+        (G.TunXferResponse.decode, "0000000000" + "8101" + "00" * 129),  # 129 data bytes
+        (GC.CanSendRequest.decode, "070c"),  # 12 frames
+        (GC.CanRecvResponse.decode, "0000012301000009"),  # dlc 9
+        (GC.CanRecvResponse.decode, "000001000800000100"),  # 11-bit id 0x800
+        (GC.FilterTable.decode, "0001000000200000ff00"),  # reserved id bit
+        (G.NodesPage.decode, "0001140000"),  # entry cut short
     ]
     for decode, hexs in malformed:
         with pytest.raises(PayloadError):
@@ -190,6 +219,7 @@ def test_codec_details_and_malformed_payloads():
 
 
 # ---- the client's retry rules, against a scripted master ----
+
 
 class ScriptedMaster:
     """Answers each request with the next scripted reply (an inner payload,
@@ -222,9 +252,9 @@ def test_seal_vectors():
         assert G.seal(code, direction, inner) == sealed, line
         assert G.unseal(code, direction, sealed) == inner, line
         assert encode_frame(code, sealed) == bytes.fromhex(frame), line
-        with pytest.raises(PayloadError):                        # the other direction
+        with pytest.raises(PayloadError):  # the other direction
             G.unseal(code, 1 - direction, sealed)
-        with pytest.raises(PayloadError):                        # another code
+        with pytest.raises(PayloadError):  # another code
             G.unseal(code + 1, direction, sealed)
         assert G.reply_check(code, sealed) == (direction == G.RESPONSE)
         n += 1
@@ -236,35 +266,37 @@ def test_seal_vectors():
 
 def test_client_can_send_sequence_numbers():
     def ok(code, payload):
-        req = G.CanSendRequest.decode(payload)
-        return G.CanSendResponse(req.seq, len(req.frames), 100).encode()
+        req = GC.CanSendRequest.decode(payload)
+        return GC.CanSendResponse(req.seq, len(req.frames), 100).encode()
 
     m = ScriptedMaster(ok, ok, DanTimeout("lost"), ok, ok)
-    gw = G.GatewayClient(m, seed=7)
-    f = [G.CanFrame(0x123, b"\x01")]
+    gw = GatewayClient(m, seed=7)
+    f = [GC.CanFrame(0x123, b"\x01")]
     assert gw.can_send(f) == 1
-    sync, first = (G.CanSendRequest.decode(p) for _, p in m.sent)
+    sync, first = (GC.CanSendRequest.decode(p) for _, p in m.sent)
     assert sync.frames == [] and first.seq == (sync.seq + 1) & 0xFF and first.frames == f
     with pytest.raises(DanTimeout):
         gw.can_send(f + f)
     assert gw.can_send_failed
-    assert gw.can_send_again() == 2                         # the same request, the same seq
+    assert gw.can_send_again() == 2  # the same request, the same seq
     assert m.sent[3] == m.sent[2] and not gw.can_send_failed
     gw.can_send(f)
-    assert G.CanSendRequest.decode(m.sent[4][1]).seq == (first.seq + 2) & 0xFF
+    assert GC.CanSendRequest.decode(m.sent[4][1]).seq == (first.seq + 2) & 0xFF
     assert all(code == G.CODE_CAN_SEND for code, _ in m.sent)
 
 
 def test_client_tunnel_offsets_and_can_recv_ack():
     rsp = G.TunXferResponse
-    m = ScriptedMaster(G.TunOpenResult(1, 0).encode(),
-                       rsp(1, 100, 900, 0, 0, b"abc").encode(),      # took 100 of 128, 3 bytes in
-                       DanTimeout("lost"),
-                       rsp(1, 128, 900, 3, 0, b"").encode(),
-                       rsp(1, 128, 900, 10, 7, b"xy").encode(),      # 7 bytes dropped there
-                       rsp(1, 500, 0, 0, 0, b"").encode(),           # took more than we sent
-                       G.TunOpenResult(2, 1).encode())
-    gw = G.GatewayClient(m)
+    m = ScriptedMaster(
+        G.TunOpenResult(1, 0).encode(),
+        rsp(1, 100, 900, 0, 0, b"abc").encode(),  # took 100 of 128, 3 bytes in
+        DanTimeout("lost"),
+        rsp(1, 128, 900, 3, 0, b"").encode(),
+        rsp(1, 128, 900, 10, 7, b"xy").encode(),  # 7 bytes dropped there
+        rsp(1, 500, 0, 0, 0, b"").encode(),  # took more than we sent
+        G.TunOpenResult(2, 1).encode(),
+    )
+    gw = GatewayClient(m)
     gw.tunnel_open(G.TunOpen(1, G.TUN_TARGETTED, 255, 30, 2, 1, 115200))
     data = bytes(range(200))
     assert gw.tunnel_xfer(1, data) == b"abc"
@@ -272,47 +304,44 @@ def test_client_tunnel_offsets_and_can_recv_ack():
     assert (t.accepted, t.wr_offset, t.rd_offset) == (100, 100, 3)
     with pytest.raises(DanTimeout):
         gw.tunnel_xfer(1, data[100:])
-    assert (t.wr_offset, t.rd_offset) == (100, 3)                     # nothing moved
+    assert (t.wr_offset, t.rd_offset) == (100, 3)  # nothing moved
     again = G.TunXferRequest.decode(m.sent[-1][1])
     assert (again.wr_offset, again.rd_offset, again.data) == (100, 3, data[100:228])
     assert gw.tunnel_xfer(1, data[100:]) == b"" and t.accepted == 28
-    assert m.sent[-1] == m.sent[-2]                      # retried with the same offsets
+    assert m.sent[-1] == m.sent[-2]  # retried with the same offsets
     assert gw.tunnel_xfer(1, b"") == b"xy" and (t.rd_lost, t.rd_offset, t.rd_dropped) == (7, 12, 7)
     with pytest.raises(Malformed):
         gw.tunnel_xfer(1, b"z")
     with pytest.raises(Nack):
         gw.tunnel_open(G.TunOpen(2, G.TUN_BROADCAST, 2, 7))
 
-    fr = [G.CanFrame(0x1AB, b"\x01\x02"), G.CanFrame(0x155, b"")]
-    m = ScriptedMaster(G.CanRecvResponse(500, 0, fr).encode(),
-                       G.CanRecvResponse(502, 0, fr[:1]).encode(),
-                       DanTimeout("lost"),
-                       G.CanRecvResponse(503, 0, []).encode(),
-                       G.CanRecvResponse(510, 4, fr).encode(),
-                       G.CanRecvResponse(400, 4, []).encode(),
-                       RemoteError(ErrorMessage(G.CODE_CAN_RECV, 0, "no")))
-    gw = G.GatewayClient(m)
-    assert gw.can_recv() == fr and gw.can_rx_next == 502 and gw.can_rx_lost == 0   # joined late
-    assert gw.can_recv() == fr[:1] and G.CanRecvRequest.decode(m.sent[1][1]).next_seq == 502
+    fr = [GC.CanFrame(0x1AB, b"\x01\x02"), GC.CanFrame(0x155, b"")]
+    m = ScriptedMaster(
+        GC.CanRecvResponse(500, 0, fr).encode(),
+        GC.CanRecvResponse(502, 0, fr[:1]).encode(),
+        DanTimeout("lost"),
+        GC.CanRecvResponse(503, 0, []).encode(),
+        GC.CanRecvResponse(510, 4, fr).encode(),
+        GC.CanRecvResponse(400, 4, []).encode(),
+        RemoteError(ErrorMessage(G.CODE_CAN_RECV, 0, "no")),
+    )
+    gw = GatewayClient(m)
+    assert gw.can_recv() == fr and gw.can_rx_next == 502 and gw.can_rx_lost == 0  # joined late
+    assert gw.can_recv() == fr[:1] and GC.CanRecvRequest.decode(m.sent[1][1]).next_seq == 502
     with pytest.raises(DanTimeout):
         gw.can_recv()
-    assert G.CanRecvRequest.decode(m.sent[2][1]).next_seq == 503
-    assert gw.can_recv() == [] and G.CanRecvRequest.decode(m.sent[3][1]).next_seq == 503
+    assert GC.CanRecvRequest.decode(m.sent[2][1]).next_seq == 503
+    assert gw.can_recv() == [] and GC.CanRecvRequest.decode(m.sent[3][1]).next_seq == 503
     assert gw.can_recv() == fr
     assert (gw.can_rx_lost, gw.can_rx_next, gw.can_rx_dropped) == (7, 512, 4)
-    assert gw.can_recv() == [] and gw.can_rx_resyncs == 1           # the gateway restarted
-    assert gw.can_rx_next == 400 and gw.can_rx_lost == 7             # followed, not counted lost
+    assert gw.can_recv() == [] and gw.can_rx_resyncs == 1  # the gateway restarted
+    assert gw.can_rx_next == 400 and gw.can_rx_lost == 7  # followed, not counted lost
     with pytest.raises(RemoteError):
         gw.can_recv()
-    assert gw.decode_errors == 0                                     # a restart is not an error
+    assert gw.decode_errors == 0  # a restart is not an error
 
 
 # ---- the real stack ----
-
-def danprobe(*args, timeout=120):
-    r = subprocess.run([sys.executable, "-m", "danprobe", *map(str, args)],
-                       stdin=subprocess.DEVNULL, capture_output=True, timeout=timeout)
-    return r.returncode, r.stdout.decode(), r.stderr.decode()
 
 
 def danprobe_json(*args):
@@ -328,7 +357,7 @@ def ready(p, what):
 
 
 def hub_stats(ctl):
-    return json.loads(vbus_cmd(ctl, "stats"))          # the hub's control socket speaks alike
+    return json.loads(control(ctl, "stats"))
 
 
 class Stack(Rig):
@@ -342,26 +371,29 @@ class Stack(Rig):
             if not (BIN / b).exists():
                 pytest.fail(f"{b} not built: run make test (it builds everything)")
         import dronecan  # noqa: F401
+
         self.procs, self.tmp = procs, tmp
         self.dan = str(tmp / "dan0")
-        self.vbus = procs.start([BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan",
-                                 "--capture", tmp / "bus.cap"])
-        ready(self.vbus, "dan-vbus")
         self.ctl = tmp / "hub.ctl"
         self.hub_log = tmp / "hub.log"
-        self.hub = procs.start(["python3", ROOT / "host_tools" / "slcan_hub.py", "-n", str(ncan),
-                                "--link", tmp / "can", "--log", self.hub_log,
-                                "--control", self.ctl], name="slcan_hub")
-        ready(self.hub, "slcan_hub")
-        self.gwd = procs.start([BIN / "dan-gatewayd", "--uart", tmp / "dan1",
-                                "--can", f"slcan:{tmp / 'can0'}"], stdout=None)
+        self.start_wires(
+            ncan,
+            vbus_extra=("--capture", tmp / "bus.cap"),
+            hub_extra=("--log", self.hub_log, "--control", self.ctl),
+        )
+        self.gwd = procs.start(
+            [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can", f"slcan:{tmp / 'can0'}"],
+            stdout=None,
+        )
         self.esc_log = tmp / "esc.log"
         if escs:
             ports = sum((["--port", tmp / f"can{1 + i}"] for i in range(escs)), [])
-            self.esc = procs.start([sys.executable, ROOT / "host_tools" / "esc_sim.py", *ports,
-                                    "--log", self.esc_log], name="esc_sim")
+            self.esc = procs.start(
+                [sys.executable, ROOT / "host_tools" / "esc_sim.py", *ports, "--log", self.esc_log],
+                name="esc_sim",
+            )
             ready(self.esc, "esc_sim")
-        self.free = escs + 1            # first hub port for the test
+        self.free = escs + 1  # first hub port for the test
         self.nodes, self.threads = [], []
         self.stop = threading.Event()
 
@@ -369,14 +401,19 @@ class Stack(Rig):
         return str(self.tmp / f"can{k}")
 
     def wait_gateway_sees(self, n):
-        wait_for(lambda: danprobe_json("stats", "--port", self.dan, "-q")["stats"]["nodes"] >= n,
-                 60, 0.5, what=f"{n} node(s) in the gateway's table")
+        wait_for(
+            lambda: danprobe_json("stats", "--port", self.dan, "-q")["stats"]["nodes"] >= n,
+            60,
+            0.5,
+            what=f"{n} node(s) in the gateway's table",
+        )
 
     def esc_events(self, event):
         if not self.esc_log.exists():
             return []
-        return [e for e in map(json.loads, self.esc_log.read_text().splitlines())
-                if e["event"] == event]
+        return [
+            e for e in map(json.loads, self.esc_log.read_text().splitlines()) if e["event"] == event
+        ]
 
     def hub_frames(self, port):
         """(id, data hex) of every frame the hub port's client sent."""
@@ -390,8 +427,9 @@ class Stack(Rig):
 
     def start_danprobe(self, *args, name="danprobe"):
         """A long-running danprobe command (--json); returns (proc, ready event)."""
-        p = self.procs.start([sys.executable, "-m", "danprobe", *map(str, args), "--json"],
-                             name=name)
+        p = self.procs.start(
+            [sys.executable, "-m", "danprobe", *map(str, args), "--json"], name=name
+        )
         line = p.stdout.readline().decode()
         assert line, f"{name} ended: {p.log_path.read_text()}"
         ev = json.loads(line)
@@ -413,59 +451,73 @@ class Stack(Rig):
 @pytest.fixture
 def stack(procs, tmp_path):
     """stack(escs=N): a Stack, its pydronecan nodes closed at teardown."""
-    made = []
-    yield lambda **kw: made.append(Stack(procs, tmp_path, **kw)) or made[-1]
-    for s in made:
-        s.close()
+    yield from closing_factory(lambda **kw: Stack(procs, tmp_path, **kw))
 
 
 def test_esc_values_telemetry_arm_stats_nodes(stack):
     s = stack()
     s.wait_gateway_sees(4)
     # fixed values at 115200: exactly these values reach every ESC
-    rc, out, err = danprobe("esc", "--port", s.dan, "--configure", "--values", "0,100,200,300",
-                            "--duration", "2.5")
+    rc, out, err = danprobe(
+        "esc", "--port", s.dan, "--configure", "--values", "0,100,200,300", "--duration", "2.5"
+    )
     assert rc == 0, err
     assert "gateway at 115200 baud" in err
     summary = out.splitlines()
-    head = next(i for i, l in enumerate(summary) if l.startswith("esc:"))
+    head = next(i for i, line in enumerate(summary) if line.startswith("esc:"))
     exchanges = int(re.match(r"esc: (\d+) exchanges", summary[head]).group(1))
     assert exchanges > 20
-    live = [l for l in summary[:head] if "cmd 0,100,200,300" in l]
-    assert live, out                                             # one line a second
-    table = summary[head + 1:]
+    live = [line for line in summary[:head] if "cmd 0,100,200,300" in line]
+    assert live, out  # one line a second
+    table = summary[head + 1 :]
     assert table[0].split()[:3] == ["esc", "node", "rpm"] and len(table) == 5
     rpm = {int(r.split()[0]): int(r.split()[2]) for r in table[1:]}
     nodes = {int(r.split()[0]): int(r.split()[1]) for r in table[1:]}
     assert nodes == {0: 20, 1: 21, 2: 22, 3: 23}
     assert rpm[0] == 0
-    for i, v in ((1, 100), (2, 200), (3, 300)):                  # esc_sim: cmd / 8191 * 12000
+    for i, v in ((1, 100), (2, 200), (3, 300)):  # esc_sim: cmd / 8191 * 12000
         assert abs(rpm[i] - v / 8191 * 12000) <= 0.2 * v / 8191 * 12000 + 5, (i, rpm)
     cmds = [tuple(e["cmd"]) for e in s.esc_events("cmd") if e["src"] == GW_NODE]
-    assert set(cmds) <= {(0, 100, 200, 300), (0, 0, 0, 0)}, set(cmds)   # ours, then zero at the end
+    assert set(cmds) <= {(0, 100, 200, 300), (0, 0, 0, 0)}, set(cmds)  # ours, then zero at the end
     per_esc = [e for e in s.esc_events("cmd") if e["esc"] == 0 and e["cmd"] == [0, 100, 200, 300]]
     assert 0.9 * exchanges <= len(per_esc)
-    assert cmds[-1] == (0, 0, 0, 0)                              # motors stopped at the end
+    assert cmds[-1] == (0, 0, 0, 0)  # motors stopped at the end
 
     # telemetry (paged) of all four, JSON
     doc = danprobe_json("telemetry", "--port", s.dan, "--baud", "115200", "-q")
     assert [e["index"] for e in doc["esc"]] == [0, 1, 2, 3] and doc["baud"] == 115200
-    assert all(e["status"] and 16 < e["voltage"] < 17 and e["temperature"] > 290
-               for e in doc["esc"])
+    assert all(
+        e["status"] and 16 < e["voltage"] < 17 and e["temperature"] > 290 for e in doc["esc"]
+    )
 
     # a ramp with a plot; JSON lines per exchange
     png = s.tmp / "ramp.png"
-    rc, out, err = danprobe("esc", "--port", s.dan, "--bus-baud", "115200", "--ramp", "0:25%",
-                            "--rate", "40", "--duration", "2", "--plot", png, "--json", "-q")
+    rc, out, err = danprobe(
+        "esc",
+        "--port",
+        s.dan,
+        "--bus-baud",
+        "115200",
+        "--ramp",
+        "0:25%",
+        "--rate",
+        "40",
+        "--duration",
+        "2",
+        "--plot",
+        png,
+        "--json",
+        "-q",
+    )
     assert rc == 0, err
     lines = [json.loads(x) for x in out.splitlines()]
-    ex = [l for l in lines if l.get("event") == "exchange"]
+    ex = [line for line in lines if line.get("event") == "exchange"]
     end = lines[-1]
     assert end["event"] == "summary" and end["plot"] == str(png) and end["exchanges"] == len(ex)
-    sent = [l["values"][0] for l in ex]
+    sent = [line["values"][0] for line in ex]
     assert sent == sorted(sent) and sent[0] < 200 and 1800 < sent[-1] <= 2048
     assert len(ex[0]["values"]) == 4
-    assert sum(1 for l in ex if l["telemetry"]) > 0.9 * len(ex)
+    assert sum(1 for line in ex if line["telemetry"]) > 0.9 * len(ex)
     assert end["esc"][0]["rpm"] > 1000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
 
@@ -473,17 +525,23 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
     n_before = len(s.esc_events("arming"))
     doc = danprobe_json("arm", "--port", s.dan, "--baud", "115200", "-q")
     assert doc["armed"] and doc["status"] == 255
-    wait_for(lambda: any(e["status"] == 255 for e in s.esc_events("arming")[n_before:]), 20,
-             what="ArmingStatus 255 at the ESCs")
+    wait_for(
+        lambda: any(e["status"] == 255 for e in s.esc_events("arming")[n_before:]),
+        20,
+        what="ArmingStatus 255 at the ESCs",
+    )
     rc, out, err = danprobe("disarm", "--port", s.dan, "--baud", "115200", "-q")
     assert rc == 0 and "gateway disarmed" in out, err
     n = len(s.esc_events("arming"))
-    wait_for(lambda: {e["esc"] for e in s.esc_events("arming")[n:] if e["status"] == 0}
-             == {0, 1, 2, 3}, 20, what="ArmingStatus 0 at every ESC")
+    wait_for(
+        lambda: {e["esc"] for e in s.esc_events("arming")[n:] if e["status"] == 0} == {0, 1, 2, 3},
+        20,
+        what="ArmingStatus 0 at every ESC",
+    )
 
     # stats, named as in the document
     doc = danprobe_json("stats", "--port", s.dan, "--baud", "115200", "-q")
-    assert list(doc["stats"])[:len(G.STAT_NAMES)] == list(G.STAT_NAMES)
+    assert list(doc["stats"])[: len(G.STAT_NAMES)] == list(G.STAT_NAMES)
     assert doc["stats"]["esc_cmds"] >= exchanges + len(ex) and doc["stats"]["nodes"] == 4
     assert doc["stats"]["dan_crc_errors"] == 0 and doc["config"]["node_id"] == GW_NODE
     rc, out, err = danprobe("stats", "--port", s.dan, "--baud", "115200", "-q")
@@ -497,21 +555,24 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
         assert n["name"] == "org.dan.esc_sim" and n["sw"] == [1, 0] and n["hw"] == [1, 0]
         assert n["health_name"] == "OK" and n["mode_name"] == "OPERATIONAL"
         assert n["unique_id"] == bytes([0xE5, nid - 20] + [nid] * 14).hex()
-    rc, out, err = danprobe("nodes", "--port", s.dan, "--baud", "115200", "--watch",
-                            "--duration", "2.5", "--json", "-q")
+    rc, out, err = danprobe(
+        "nodes", "--port", s.dan, "--baud", "115200", "--watch", "--duration", "2.5", "--json", "-q"
+    )
     docs = [json.loads(x) for x in out.splitlines()]
     assert rc == 0 and docs[-1]["event"] == "summary" and docs[-1]["refreshes"] >= 2
     assert all(len(d["nodes"]) == 4 for d in docs if d.get("event") == "nodes")
-    rc, out, err = danprobe("nodes", "--port", s.dan, "--baud", "115200", "--watch",
-                            "--duration", "1.5")
+    rc, out, err = danprobe(
+        "nodes", "--port", s.dan, "--baud", "115200", "--watch", "--duration", "1.5"
+    )
     assert rc == 0 and out.count("org.dan.esc_sim") >= 4 and out.startswith("--- ")
 
 
 def test_can_dump_filter_and_send(stack):
     s = stack(escs=2)
     # ESC status (DTID 1034): 29-bit id bits 8..23 = 0x040A; candump log format
-    rc, out, err = danprobe("can", "dump", "--port", s.dan, "--filter", "40A00:FFFF80:ext",
-                            "--count", "12")
+    rc, out, err = danprobe(
+        "can", "dump", "--port", s.dan, "--filter", "40A00:FFFF80:ext", "--count", "12"
+    )
     assert rc == 0, err
     lines = out.splitlines()
     assert len(lines) == 12
@@ -520,24 +581,59 @@ def test_can_dump_filter_and_send(stack):
         assert m, line
         ident = int(m.group(2), 16)
         assert len(m.group(2)) == 8 and ident & 0xFFFF80 == 0x040A00 and ident & 0x7F in (20, 21)
-    assert float(CANDUMP.match(lines[0]).group(1)) > 1.6e9                 # wall-clock time
+    assert float(CANDUMP.match(lines[0]).group(1)) > 1.6e9  # wall-clock time
     # the filter is restored afterwards (the default: nothing passes)
-    doc = danprobe_json("can", "dump", "--port", s.dan, "--baud", "9600", "--filter", "155:7FF",
-                        "--duration", "1", "-q")
+    doc = danprobe_json(
+        "can",
+        "dump",
+        "--port",
+        s.dan,
+        "--baud",
+        "9600",
+        "--filter",
+        "155:7FF",
+        "--duration",
+        "1",
+        "-q",
+    )
     assert doc["frames"] == 0 and doc["result"] == 0
 
     # can send: dan-cantool on the hub receives the frames
-    rec = s.procs.start([BIN / "dan-cantool", "--can", f"slcan:{s.can(s.free)}", "recv",
-                         "--count", "0", "--timeout-ms", "8000"], name="dan-cantool")
+    rec = s.procs.start(
+        [
+            BIN / "dan-cantool",
+            "--can",
+            f"slcan:{s.can(s.free)}",
+            "recv",
+            "--count",
+            "0",
+            "--timeout-ms",
+            "8000",
+        ],
+        name="dan-cantool",
+    )
     wait_for(lambda: hub_stats(s.ctl)["ports"][s.free]["open"], 20, what="dan-cantool open")
-    doc = danprobe_json("can", "send", "--port", s.dan, "-q", "123#DEADBEEF",
-                        "1ABCDE01#01.02.03.04.05.06.07.08", "7FF#R2", "0#")
-    assert doc["sent"] == 4 and doc["frames"] == ["123#DEADBEEF", "1ABCDE01#0102030405060708",
-                                                  "7FF#R2", "000#"]
+    doc = danprobe_json(
+        "can",
+        "send",
+        "--port",
+        s.dan,
+        "-q",
+        "123#DEADBEEF",
+        "1ABCDE01#01.02.03.04.05.06.07.08",
+        "7FF#R2",
+        "0#",
+    )
+    assert doc["sent"] == 4 and doc["frames"] == [
+        "123#DEADBEEF",
+        "1ABCDE01#0102030405060708",
+        "7FF#R2",
+        "000#",
+    ]
     o, _ = rec.communicate(timeout=60)
-    got = [l.split()[-1] for l in o.decode().splitlines()]
+    got = [line.split()[-1] for line in o.decode().splitlines()]
     for f in ("123#DEADBEEF", "1ABCDE01#0102030405060708", "7FF#R2", "000#"):
-        assert got.count(f) == 1, (f, got)                          # once: no duplicate on retries
+        assert got.count(f) == 1, (f, got)  # once: no duplicate on retries
     # sent twice by two runs: a new run's sequence number is never taken for a retry
     danprobe_json("can", "send", "--port", s.dan, "-q", "321#01")
     danprobe_json("can", "send", "--port", s.dan, "-q", "321#01")
@@ -560,7 +656,7 @@ def pump_pty(fd, data, want, timeout=90):
         r, wr, _ = select.select([fd], w, [], 0.1)
         if wr:
             try:
-                pos += os.write(fd, data[pos:pos + 256])
+                pos += os.write(fd, data[pos : pos + 256])
             except BlockingIOError:
                 pass
         if r:
@@ -573,45 +669,40 @@ def pump_pty(fd, data, want, timeout=90):
 
 def test_tunnel_targetted_and_broadcast(stack):
     import dronecan
+
     U = dronecan.uavcan
     s = stack(escs=0)
-    far = s.node(s.free, 30, "org.test.far_end")
-    got = bytearray()
-    outq = bytearray()
-    lock = threading.Lock()
+    far_end = TunnelFarEnd(s.node(s.free, 30, "org.test.far_end"), 30, 2)
+    far, got = far_end.node, far_end.got
     bcast = bytearray()
-
-    def on_targetted(e):
-        m = e.message
-        if m.target_node != 30 or e.transfer.source_node_id != GW_NODE or m.serial_id != 2:
-            return
-        with lock:
-            got.extend(bytes(m.buffer))
-            outq.extend(bytes(b ^ 0x5A for b in m.buffer))      # the far end answers transformed
 
     def on_broadcast(e):
         m = e.message
         if m.channel_id == 7 and m.protocol.protocol == 2 and e.transfer.source_node_id == GW_NODE:
-            with lock:
+            with far_end.lock:
                 bcast.extend(bytes(m.buffer))
 
-    far.add_handler(U.tunnel.Targetted, on_targetted)
     far.add_handler(U.tunnel.Broadcast, on_broadcast)
-
-    def pump():
-        with lock:
-            chunk = bytes(outq[:120])
-            del outq[:120]
-        if chunk:
-            far.broadcast(U.tunnel.Targetted(
-                protocol=U.tunnel.Protocol(protocol=255), target_node=GW_NODE, serial_id=2,
-                options=0, baudrate=0, buffer=list(chunk)))
-    s.spin(far, pump, 0.005)
+    s.spin(far, far_end.pump, 0.005)
 
     link = s.tmp / "tun"
-    p, ev = s.start_danprobe("tunnel", "--port", s.dan, "--configure", "--target", "30",
-                             "--serial-id", "2", "--serial-baud", "115200", "--lock",
-                             "--link", link, "-q", name="danprobe-tunnel")
+    p, ev = s.start_danprobe(
+        "tunnel",
+        "--port",
+        s.dan,
+        "--configure",
+        "--target",
+        "30",
+        "--serial-id",
+        "2",
+        "--serial-baud",
+        "115200",
+        "--lock",
+        "--link",
+        link,
+        "-q",
+        name="danprobe-tunnel",
+    )
     assert ev["pty"].startswith("/dev/") and os.path.realpath(link) == ev["pty"]
     assert ev["tunnel"]["mode"] == G.TUN_TARGETTED and ev["tunnel"]["options"] == 1
     data = os.urandom(4096)
@@ -622,16 +713,28 @@ def test_tunnel_targetted_and_broadcast(stack):
         os.close(fd)
     assert written == len(data)
     wait_for(lambda: len(got) >= len(data), 30, what="tunnel bytes at the far end")
-    assert bytes(got) == data                                    # byte-exact, in order, once
+    assert bytes(got) == data  # byte-exact, in order, once
     assert back == bytes(b ^ 0x5A for b in data)
     summary = s.finish(p)
     assert summary["to_tunnel"] == len(data) and summary["from_tunnel"] == len(data)
     assert summary["rd_lost"] == 0 and not link.exists()
 
     # Broadcast: protocol 2, channel 7, both ways
-    p, ev = s.start_danprobe("tunnel", "--port", s.dan, "--baud", "115200", "--protocol", "2",
-                             "--channel", "7", "--tunnel-port", "1", "-q",
-                             name="danprobe-tunnel-bcast")
+    p, ev = s.start_danprobe(
+        "tunnel",
+        "--port",
+        s.dan,
+        "--baud",
+        "115200",
+        "--protocol",
+        "2",
+        "--channel",
+        "7",
+        "--tunnel-port",
+        "1",
+        "-q",
+        name="danprobe-tunnel-bcast",
+    )
     fd = pty_open(ev["pty"])
     try:
         msg = bytes(range(256)) * 2
@@ -639,8 +742,11 @@ def test_tunnel_targetted_and_broadcast(stack):
         wait_for(lambda: len(bcast) >= len(msg), 30, what="broadcast tunnel bytes")
         assert bytes(bcast) == msg
         reply = b"broadcast reply " * 3
-        far.broadcast(U.tunnel.Broadcast(protocol=U.tunnel.Protocol(protocol=2), channel_id=7,
-                                         buffer=list(reply)))
+        far.broadcast(
+            U.tunnel.Broadcast(
+                protocol=U.tunnel.Protocol(protocol=2), channel_id=7, buffer=list(reply)
+            )
+        )
         back, _ = pump_pty(fd, b"", len(reply), timeout=30)
         assert back == reply
     finally:
@@ -651,38 +757,54 @@ def test_tunnel_targetted_and_broadcast(stack):
 
 def test_slcan_pty_for_pydronecan(stack):
     import dronecan
+
     U = dronecan.uavcan
     s = stack(escs=1)
-    link = s.tmp / "can_danprobe"                          # Rig.node("_danprobe", ...) opens it
-    p, ev = s.start_danprobe("slcan", "--port", s.dan, "--configure", "--link", link, "-q",
-                             name="danprobe-slcan")
+    link = s.tmp / "can_danprobe"  # Rig.node("_danprobe", ...) opens it
+    p, ev = s.start_danprobe(
+        "slcan", "--port", s.dan, "--configure", "--link", link, "-q", name="danprobe-slcan"
+    )
     assert os.path.realpath(link) == ev["pty"]
     # a listener on the hub, as any other node on the bus
     listener = s.node(s.free, 41, "org.test.listener")
     logs = []
-    listener.add_handler(U.protocol.debug.LogMessage,
-                         lambda e: logs.append((e.transfer.source_node_id, e.message.text.decode()))
-                         if e.transfer.source_node_id == 40 else None)
+    listener.add_handler(
+        U.protocol.debug.LogMessage,
+        lambda e: (
+            logs.append((e.transfer.source_node_id, e.message.text.decode()))
+            if e.transfer.source_node_id == 40
+            else None
+        ),
+    )
     s.spin(listener)
     # pydronecan through danprobe's pty (its driver waits for the ACKs of S8 and O)
     node = s.node("_danprobe", 40, "org.test.via_danprobe")
     seen = set()
     node.add_handler(U.protocol.NodeStatus, lambda e: seen.add(e.transfer.source_node_id))
     s.spin(node)
-    wait_for(lambda: {20, 41} <= seen, 30,
-             what="NodeStatus of esc_sim and the listener through the SLCAN pty")
-    text = "hello through the DAN wire"                         # a multi-frame transfer
+    wait_for(
+        lambda: {20, 41} <= seen,
+        30,
+        what="NodeStatus of esc_sim and the listener through the SLCAN pty",
+    )
+    text = "hello through the DAN wire"  # a multi-frame transfer
     node.broadcast(U.protocol.debug.LogMessage(source="danprobe", text=text))
     wait_for(lambda: (40, text) in logs, 30, what="LogMessage at the listener")
     # the node's own NodeStatus left through the gateway's port of the hub
-    wait_for(lambda: any(i & 0xFFFF7F == 0x015528 for i, _ in s.hub_frames(0)), 20,
-             what="NodeStatus of node 40 on the bus")
+    wait_for(
+        lambda: any(i & 0xFFFF7F == 0x015528 for i, _ in s.hub_frames(0)),
+        20,
+        what="NodeStatus of node 40 on the bus",
+    )
     node_info = []
-    node.request(U.protocol.GetNodeInfo.Request(), 20,
-                 lambda e: node_info.append(e.response.name.decode() if e else None))
+    node.request(
+        U.protocol.GetNodeInfo.Request(),
+        20,
+        lambda e: node_info.append(e.response.name.decode() if e else None),
+    )
     wait_for(lambda: node_info, 20, what="GetNodeInfo answer from esc_sim")
     assert node_info == ["org.dan.esc_sim"]
-    s.close()                                                    # pydronecan sends C on close
+    s.close()  # pydronecan sends C on close
     summary = s.finish(p)
     assert summary["to_can"] > 3 and summary["from_can"] > 10 and summary["lost"] == 0
 
@@ -701,7 +823,7 @@ def test_slcan_protocol_answers(stack):
         assert cmd(b"") == b"\r"
         assert cmd(b"V", 6) == b"V1013\r" and cmd(b"N", 6) == b"NDAN1\r"
         assert cmd(b"S6") == b"\x07" and cmd(b"S8") == b"\r"
-        assert cmd(b"t12300") == b"\x07"                         # channel closed
+        assert cmd(b"t12300") == b"\x07"  # channel closed
         assert cmd(b"Z0") == b"\r" and cmd(b"F", 4) == b"F00\r" and cmd(b"X") == b"\x07"
         assert cmd(b"O") == b"\r" and cmd(b"O") == b"\x07" and cmd(b"S8") == b"\x07"
         assert cmd(b"t1232ABCD", 2) == b"z\r" and cmd(b"T1ABCDE013010203", 2) == b"Z\r"
@@ -709,8 +831,11 @@ def test_slcan_protocol_answers(stack):
         assert cmd(b"C") == b"\r"
     finally:
         os.close(fd)
-    wait_for(lambda: {(0x123, "ABCD"), (0x1ABCDE01, "010203"), (0x7FF, "R2")}
-             <= set(s.hub_frames(0)), 20, what="the frames on the bus")
+    wait_for(
+        lambda: {(0x123, "ABCD"), (0x1ABCDE01, "010203"), (0x7FF, "R2")} <= set(s.hub_frames(0)),
+        20,
+        what="the frames on the bus",
+    )
     s.finish(p)
 
 

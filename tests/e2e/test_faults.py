@@ -6,33 +6,24 @@ detected, and wrong values delivered at the ESCs (esc_sim's log compared
 with what the FC sent), which must be 0. Deadlines are generous; nothing
 asserts a speed.
 """
+
 import json
 import os
 import random
-import signal
 import sys
 import threading
 import time
 
-import pytest
-
-from bus_util import vbus_cmd, vbus_stats
-from conftest import BIN, ROOT, wait_for
-
 import dronecan  # noqa: F401 (installed by make)
+import pytest
 import serial
 
+from bus_util import control, ready, vbus_stats
+from conftest import BIN, ROOT, wait_for
+
 ASAN_BIN = ROOT / "build" / "asan" / "bin"
+CAN_FLOOD = ROOT / "tests" / "tools" / "can_flood.py"
 ZERO = [0, 0, 0, 0]
-
-
-def ready(p, what):
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY"), f"{what} did not start: {line!r}"
-
-
-def ctl(path, cmd):
-    return vbus_cmd(path, cmd)  # same line protocol for the hub's control socket
 
 
 class Rig:
@@ -44,18 +35,50 @@ class Rig:
             if not (BIN / b).exists():
                 pytest.fail(f"{b} not built: run make test (it builds everything)")
         self.procs, self.tmp = procs, tmp
-        self.vbus = procs.start([BIN / "dan-vbus", "-n", "3", "--link", tmp / "dan", "--control",
-                                 tmp / "vbus.ctl", "--capture", tmp / "bus.cap", "--seed", "7"],
-                                name="dan-vbus")
+        self.vbus = procs.start(
+            [
+                BIN / "dan-vbus",
+                "-n",
+                "3",
+                "--link",
+                tmp / "dan",
+                "--control",
+                tmp / "vbus.ctl",
+                "--capture",
+                tmp / "bus.cap",
+                "--seed",
+                "7",
+            ],
+            name="dan-vbus",
+        )
         ready(self.vbus, "dan-vbus")
-        self.hub = procs.start(["python3", ROOT / "host_tools" / "slcan_hub.py", "-n", "6", "--link",
-                                tmp / "can", "--control", tmp / "hub.ctl", "--log", tmp / "can.log"],
-                               name="slcan_hub")
+        self.hub = procs.start(
+            [
+                "python3",
+                ROOT / "host_tools" / "slcan_hub.py",
+                "-n",
+                "6",
+                "--link",
+                tmp / "can",
+                "--control",
+                tmp / "hub.ctl",
+                "--log",
+                tmp / "can.log",
+            ],
+            name="slcan_hub",
+        )
         ready(self.hub, "slcan_hub")
         self.esc_log = tmp / "esc.log"
-        self.esc = procs.start([sys.executable, ROOT / "host_tools" / "esc_sim.py",
-                                *sum([["--port", str(tmp / f"can{k}")] for k in range(1, 5)], []),
-                                "--log", self.esc_log], name="esc_sim")
+        self.esc = procs.start(
+            [
+                sys.executable,
+                ROOT / "host_tools" / "esc_sim.py",
+                *sum([["--port", str(tmp / f"can{k}")] for k in range(1, 5)], []),
+                "--log",
+                self.esc_log,
+            ],
+            name="esc_sim",
+        )
         ready(self.esc, "esc_sim")
         self.sent = {tuple(ZERO)}
         self.gw_bin = gw_bin or BIN / "dan-gatewayd"
@@ -67,11 +90,27 @@ class Rig:
         env = None
         if self.gw_env:
             env = dict(os.environ, **self.gw_env)
-        self.gwd = self.procs.start([self.gw_bin, "--uart", self.tmp / "dan1", "--can",
-                                     f"slcan:{self.tmp / 'can0'}", "--stats-file", self.tmp / "gw.stats",
-                                     "--verbose", *extra], name="dan-gatewayd", stdout=None, env=env)
-        wait_for(lambda: (self.tmp / "gw.stats").exists() or self.gwd.poll() is not None, 10,
-                 what="dan-gatewayd stats file")
+        self.gwd = self.procs.start(
+            [
+                self.gw_bin,
+                "--uart",
+                self.tmp / "dan1",
+                "--can",
+                f"slcan:{self.tmp / 'can0'}",
+                "--stats-file",
+                self.tmp / "gw.stats",
+                "--verbose",
+                *extra,
+            ],
+            name="dan-gatewayd",
+            stdout=None,
+            env=env,
+        )
+        wait_for(
+            lambda: (self.tmp / "gw.stats").exists() or self.gwd.poll() is not None,
+            10,
+            what="dan-gatewayd stats file",
+        )
         assert self.gwd.poll() is None, self.gwd.log_path.read_text()
 
     def fcsim(self, *steps, on_line=None, timeout=120, opts=()):
@@ -79,8 +118,9 @@ class Rig:
         for s in steps:
             if s.startswith("esc:"):
                 self.sent.add(tuple(int(v) for v in s[4:].split("@")[0].split(",")))
-        p = self.procs.start([BIN / "dan-fcsim", "--port", self.tmp / "dan0", *opts, *steps],
-                             name="dan-fcsim")
+        p = self.procs.start(
+            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", *opts, *steps], name="dan-fcsim"
+        )
         out = []
         end = time.monotonic() + timeout
         for raw in p.stdout:
@@ -119,13 +159,31 @@ def rig(procs, tmp_path):
     return lambda **kw: Rig(procs, tmp_path, **kw)
 
 
+def in_thread_after(step, action, unless=lambda: False):
+    """An fcsim on_line callback: when `step` reports, action() runs in a
+    thread while the FC goes on."""
+
+    def on_line(line):
+        if line["step"] == step and not unless():
+            threading.Thread(target=action, daemon=True).start()
+
+    return on_line
+
+
 def steps_of(out, name):
-    return [l for l in out if l.get("step") == name]
+    return [line for line in out if line.get("step") == name]
 
 
 def report(what, tried, failed, wrong, extra=""):
-    print(f"\n{what}: tried {tried}, failures detected {failed}, wrong values delivered {wrong}"
-          + (f"; {extra}" if extra else ""))
+    print(
+        f"\n{what}: tried {tried}, failures detected {failed}, wrong values delivered {wrong}"
+        + (f"; {extra}" if extra else "")
+    )
+
+
+def report_esc(what, e, wrong, extra=""):
+    """report() of an fcsim esc step e: tried = exchanges + errors."""
+    report(what, e["exchanges"] + e["errors"], e["errors"], wrong, extra)
 
 
 def test_noise_levels_and_recovery(rig):
@@ -137,31 +195,44 @@ def test_noise_levels_and_recovery(rig):
         vals = f"{100 + k},{200 + k},{300 + k},{400 + k}"
         state = {}
 
-        def on_line(line, ber=ber):
+        def on_line(line, ber=ber, state=state):
             if line["step"] == "discover":
-                assert vbus_cmd(r.tmp / "vbus.ctl", f"ber {ber}") == "ok"
+                assert control(r.tmp / "vbus.ctl", f"ber {ber}") == "ok"
             elif line["step"] == "esc":
-                assert vbus_cmd(r.tmp / "vbus.ctl", "ber 0") == "ok"
+                assert control(r.tmp / "vbus.ctl", "ber 0") == "ok"
                 state["esc"] = line
+
         before = vbus_stats(r.tmp / "vbus.ctl")
         rc, out = r.fcsim("discover", "sleep:100", f"esc:{vals}@2500@100", "stats", on_line=on_line)
         after = vbus_stats(r.tmp / "vbus.ctl")
         e = state["esc"]
         st = steps_of(out, "stats")
         retries = st[0]["master_retries"] if st else None
-        rows.append((ber, e["exchanges"] + e["errors"], e["errors"], retries,
-                     after["noise_bytes"] - before["noise_bytes"]))
+        rows.append(
+            (
+                ber,
+                e["exchanges"] + e["errors"],
+                e["errors"],
+                retries,
+                after["noise_bytes"] - before["noise_bytes"],
+            )
+        )
     wrong = r.wrong_values()
     for ber, tried, failed, retries, nb in rows:
-        report(f"BER {ber}", tried, failed, len(wrong),
-               f"master retries {retries}, corrupted bytes on the wire {nb}")
+        report(
+            f"BER {ber}",
+            tried,
+            failed,
+            len(wrong),
+            f"master retries {retries}, corrupted bytes on the wire {nb}",
+        )
     assert not wrong, wrong[:5]
     assert rows[-1][4] > 0, "no noise was injected"
     # the link recovers once the noise stops
     t0 = time.monotonic()
     rc, out = r.fcsim("discover", "esc:7,8,9,10@1500@100")
     e = steps_of(out, "esc")[0]
-    report("after noise", e["exchanges"] + e["errors"], e["errors"], len(r.wrong_values()))
+    report_esc("after noise", e, len(r.wrong_values()))
     assert rc == 0 and e["errors"] == 0, out
     assert any(ev["cmd"] == [7, 8, 9, 10] for ev in r.esc_events(since=t0))
 
@@ -197,6 +268,7 @@ def test_collisions_with_a_jammer(rig):
         # jam the ESC exchanges, not the new FC process's discovery
         if line["step"] == "discover" and not t.is_alive():
             t.start()
+
     try:
         rc, out = r.fcsim("discover", "esc:11,22,33,44@3000@100", "stats", on_line=on_line)
     finally:
@@ -210,9 +282,13 @@ def test_collisions_with_a_jammer(rig):
     e = esc[0]
     wrong = r.wrong_values()
     coll = after["collisions"] - before["collisions"]
-    report("jammer", e["exchanges"] + e["errors"], e["errors"], len(wrong),
-           f"jam bursts {count[0]}, collisions {coll}, distinct wrong commands "
-           f"{len({tuple(w['cmd']) for w in wrong})}")
+    report_esc(
+        "jammer",
+        e,
+        len(wrong),
+        f"jam bursts {count[0]}, collisions {coll}, distinct wrong commands "
+        f"{len({tuple(w['cmd']) for w in wrong})}",
+    )
     assert not wrong, wrong[:5]
     assert count[0] > 0 and e["exchanges"] > 0
     # once the jammer stops, every exchange works
@@ -228,27 +304,34 @@ def test_gateway_restart_back_at_9600(rig):
     r = rig()
     restarted = {}
 
-    def on_line(line):
-        if line["step"] == "configure" and "t" not in restarted:
-            def later():
-                time.sleep(1.0)
-                assert r.procs.stop(r.gwd) == 0
-                r.start_gw()
-                restarted["t"] = time.monotonic()
-            threading.Thread(target=later, daemon=True).start()
-    rc, out = r.fcsim("discover", "configure", "esc:55,66,77,88@5000@100", on_line=on_line,
-                      opts=("--recover", "5"))
+    def restart():
+        time.sleep(1.0)
+        assert r.procs.stop(r.gwd) == 0
+        r.start_gw()
+        restarted["t"] = time.monotonic()
+
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "esc:55,66,77,88@5000@100",
+        on_line=in_thread_after("configure", restart, unless=lambda: "t" in restarted),
+        opts=("--recover", "5"),
+    )
     e = steps_of(out, "esc")[0]
     wrong = r.wrong_values()
     assert "t" in restarted
     after = [ev for ev in r.esc_events(since=restarted["t"]) if ev["cmd"] == [55, 66, 77, 88]]
-    report("gateway restart", e["exchanges"] + e["errors"], e["errors"], len(wrong),
-           f"recovered {e['recoveries']} time(s), bus back at {e['baud']} baud; "
-           f"{len(after)} commands at the ESCs after the restart")
-    assert e["errors"] > 0                  # the FC noticed
-    assert e["recoveries"] >= 1             # and found the gateway again by itself
-    assert e["baud"] == 115200              # configured again
-    assert len(after) > 0                   # commands reach the ESCs again
+    report_esc(
+        "gateway restart",
+        e,
+        len(wrong),
+        f"recovered {e['recoveries']} time(s), bus back at {e['baud']} baud; "
+        f"{len(after)} commands at the ESCs after the restart",
+    )
+    assert e["errors"] > 0  # the FC noticed
+    assert e["recoveries"] >= 1  # and found the gateway again by itself
+    assert e["baud"] == 115200  # configured again
+    assert len(after) > 0  # commands reach the ESCs again
     assert not wrong, wrong[:5]
 
 
@@ -258,8 +341,12 @@ def test_master_restart_finds_configured_gateway(rig):
     assert rc == 0, out
     rc, out = r.fcsim("discover", "esc:2,2,2,2@1000@100")
     e = steps_of(out, "esc")[0]
-    report("master restart", e["exchanges"] + e["errors"], e["errors"], len(r.wrong_values()),
-           f"found at {steps_of(out, 'discover')[0]['baud']} baud")
+    report_esc(
+        "master restart",
+        e,
+        len(r.wrong_values()),
+        f"found at {steps_of(out, 'discover')[0]['baud']} baud",
+    )
     assert rc == 0, out
     assert steps_of(out, "discover")[0]["baud"] == 115200
     assert not r.wrong_values()
@@ -269,59 +356,37 @@ def test_can_adapter_unplugged_and_back(rig):
     r = rig()
     marks = {}
 
-    def on_line(line):
-        if line["step"] == "configure":
-            def later():
-                time.sleep(0.8)
-                assert ctl(r.tmp / "hub.ctl", "detach 0") == "ok"
-                marks["detach"] = time.monotonic()
-                time.sleep(1.5)
-                assert ctl(r.tmp / "hub.ctl", "attach 0") == "ok"
-                marks["attach"] = time.monotonic()
-            threading.Thread(target=later, daemon=True).start()
+    def unplug_and_back():
+        time.sleep(0.8)
+        assert control(r.tmp / "hub.ctl", "detach 0") == "ok"
+        marks["detach"] = time.monotonic()
+        time.sleep(1.5)
+        assert control(r.tmp / "hub.ctl", "attach 0") == "ok"
+        marks["attach"] = time.monotonic()
+
+    on_line = in_thread_after("configure", unplug_and_back)
     rc, out = r.fcsim("discover", "configure", "esc:12,13,14,15@6000@100", "stats", on_line=on_line)
     e = steps_of(out, "esc")[0]
     log = r.gwd.log_path.read_text()
     assert "adapter lost" in log and "reopened" in log, log[-2000:]
     after = r.esc_events(since=marks["attach"] + 1.2)  # reopen retries every second
     wrong = r.wrong_values()
-    report("CAN adapter detach/attach", e["exchanges"] + e["errors"], e["errors"], len(wrong),
-           f"commands at the ESCs after re-attach: {len(after)}, "
-           f"can_tx_dropped {steps_of(out, 'stats')[0]['can_tx_dropped']}")
+    report_esc(
+        "CAN adapter detach/attach",
+        e,
+        len(wrong),
+        f"commands at the ESCs after re-attach: {len(after)}, "
+        f"can_tx_dropped {steps_of(out, 'stats')[0]['can_tx_dropped']}",
+    )
     assert any(ev["cmd"] == [12, 13, 14, 15] for ev in after), "ESC commands did not flow again"
     assert not wrong, wrong[:5]
-
-
-BLAST = r"""
-import os, sys, time, tty
-fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
-tty.setraw(fd)
-os.write(fd, b"C\rS8\rO\r")
-time.sleep(0.2)
-os.set_blocking(fd, False)
-print("READY", flush=True)
-n, end = 0, time.monotonic() + float(sys.argv[2])
-while time.monotonic() < end:
-    try:
-        os.write(fd, b"".join(b"T%08X8%016X\r" % (0x1ABC0000 + (k & 0xFF), k) for k in range(n, n + 16)))
-        n += 16
-    except BlockingIOError:
-        pass
-    try:
-        while os.read(fd, 65536):
-            pass
-    except (BlockingIOError, OSError):
-        pass
-    time.sleep(0.002)
-print(n, flush=True)
-"""
 
 
 def test_can_flood_while_esc_commands_flow(rig):
     r = rig()
     rc, out = r.fcsim("discover", "configure", "filter:00000000/00000000")
     assert rc == 0, out
-    src = r.procs.start(["python3", "-c", BLAST, r.tmp / "can5", "8"], name="blast")
+    src = r.procs.start(["python3", CAN_FLOOD, r.tmp / "can5", "8"], name="blast")
     ready(src, "frame source")
     t0 = time.monotonic()
     rc, out = r.fcsim("discover", "esc:21,22,23,24@4000@100", "stats")
@@ -330,13 +395,19 @@ def test_can_flood_while_esc_commands_flow(rig):
     sent = int(src.stdout.read().decode().split()[-1])
     e = steps_of(out, "esc")[0]
     st = steps_of(out, "stats")[0]
-    during = [ev for ev in r.esc_events(since=t0) if ev["t"] <= t1 and ev["cmd"] == [21, 22, 23, 24]]
+    during = [
+        ev for ev in r.esc_events(since=t0) if ev["t"] <= t1 and ev["cmd"] == [21, 22, 23, 24]
+    ]
     wrong = r.wrong_values()
-    report("CAN flood", e["exchanges"] + e["errors"], e["errors"], len(wrong),
-           f"flood frames {sent}, gateway can_rx {st['can_rx']}, raw_dropped {st['raw_dropped']}, "
-           f"ESC commands at ESC 0 during the flood {sum(1 for ev in during if ev['esc'] == 0)}")
+    report_esc(
+        "CAN flood",
+        e,
+        len(wrong),
+        f"flood frames {sent}, gateway can_rx {st['can_rx']}, raw_dropped {st['raw_dropped']}, "
+        f"ESC commands at ESC 0 during the flood {sum(1 for ev in during if ev['esc'] == 0)}",
+    )
     assert rc == 0, out
-    assert st["raw_dropped"] > 0          # nobody drains the raw ring: counted, not fatal
+    assert st["raw_dropped"] > 0  # nobody drains the raw ring: counted, not fatal
     # the ESC sims (pydronecan) also receive the whole flood and fall behind,
     # so only some commands are seen during it; what matters is that they flow
     assert [ev for ev in during if ev["esc"] == 0], "no ESC command arrived during the flood"
@@ -347,23 +418,37 @@ def test_sigterm_during_esc_commands(rig):
     r = rig()
     killed = {}
 
-    def on_line(line):
-        if line["step"] == "arm":
-            def later():
-                time.sleep(1.0)
-                killed["t"] = time.monotonic()
-                killed["rc"] = r.procs.stop(r.gwd)
-            threading.Thread(target=later, daemon=True).start()
-    rc, out = r.fcsim("discover", "configure", "arm", "esc:800,900,1000,1100@2500@100", on_line=on_line)
+    def kill_gateway():
+        time.sleep(1.0)
+        killed["t"] = time.monotonic()
+        killed["rc"] = r.procs.stop(r.gwd)
+
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "arm",
+        "esc:800,900,1000,1100@2500@100",
+        on_line=in_thread_after("arm", kill_gateway),
+    )
     e = steps_of(out, "esc")[0]
     assert killed.get("rc") == 0
-    zero = wait_for(lambda: [ev for ev in r.esc_events(since=killed["t"]) if ev["cmd"] == ZERO], 10,
-                    what="zero throttle at the ESCs")
-    disarm = wait_for(lambda: [ev for ev in r.esc_events("arming", since=killed["t"]) if ev["status"] == 0],
-                      10, what="DISARMED at the ESCs")
+    zero = wait_for(
+        lambda: [ev for ev in r.esc_events(since=killed["t"]) if ev["cmd"] == ZERO],
+        10,
+        what="zero throttle at the ESCs",
+    )
+    disarm = wait_for(
+        lambda: [ev for ev in r.esc_events("arming", since=killed["t"]) if ev["status"] == 0],
+        10,
+        what="DISARMED at the ESCs",
+    )
     wrong = r.wrong_values()
-    report("SIGTERM", e["exchanges"] + e["errors"], e["errors"], len(wrong),
-           f"zero commands at ESCs {len(zero)}, DISARMED {len(disarm)}")
+    report_esc(
+        "SIGTERM",
+        e,
+        len(wrong),
+        f"zero commands at ESCs {len(zero)}, DISARMED {len(disarm)}",
+    )
     assert {ev["esc"] for ev in zero} == {0, 1, 2, 3}
     assert not wrong, wrong[:5]
 
@@ -372,16 +457,34 @@ def test_no_leak_asan_gateway(rig):
     """dan-gatewayd built with ASan (LeakSanitizer at exit) through ESC,
     tunnel and raw CAN, then SIGTERM: exit 0 and no leak or error report."""
     if not (ASAN_BIN / "dan-gatewayd").exists():
-        pytest.fail("build/asan/bin/dan-gatewayd not built: make test builds it (BUILD=build/asan SAN=1)")
-    r = rig(gw_bin=ASAN_BIN / "dan-gatewayd",
-            gw_env={"ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0:exitcode=23",
-                    "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1"})
+        pytest.fail(
+            "build/asan/bin/dan-gatewayd not built: make test builds it (BUILD=build/asan SAN=1)"
+        )
+    r = rig(
+        gw_bin=ASAN_BIN / "dan-gatewayd",
+        gw_env={
+            "ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0:exitcode=23",
+            "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1",
+        },
+    )
     data = r.tmp / "tun.bin"
     data.write_bytes(os.urandom(2000))
-    rc, out = r.fcsim("discover", "configure", "arm", "esc:1,2,3,4@1500@100", "telemetry", "nodes",
-                      "tunnel:0:targetted:30:2:115200", f"xfer:0:{data}:{r.tmp / 'back.bin'}:0:5000",
-                      "filter:00000000/00000000", "cansend:123#DEADBEEF,1ABCDE01#0102030405060708",
-                      "candump:1:3000", "config:timeout=400", "stats", "disarm")
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "arm",
+        "esc:1,2,3,4@1500@100",
+        "telemetry",
+        "nodes",
+        "tunnel:0:targetted:30:2:115200",
+        f"xfer:0:{data}:{r.tmp / 'back.bin'}:0:5000",
+        "filter:00000000/00000000",
+        "cansend:123#DEADBEEF,1ABCDE01#0102030405060708",
+        "candump:1:3000",
+        "config:timeout=400",
+        "stats",
+        "disarm",
+    )
     assert rc == 0, out
     code = r.procs.stop(r.gwd)
     err = r.gwd.log_path.read_text()

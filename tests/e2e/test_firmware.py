@@ -7,6 +7,7 @@ path), so the firmware's baud-divisor writes reach the pty's termios and
 dan-vbus paces the wire at the firmware's baud. The firmware reports over
 semihosting (QEMU writes it to stderr) and ends QEMU with its exit code.
 """
+
 import json
 import os
 import shutil
@@ -14,14 +15,20 @@ import subprocess
 
 import pytest
 
-from bus_util import periph_stats, read_capture, start_periph, start_vbus, vbus_stats
-from conftest import ROOT
-
 import pydronecan_nodes
+from bus_util import (
+    periph_stats,
+    read_capture,
+    start_mixed_periphs,
+    start_periph,
+    start_vbus,
+    vbus_stats,
+)
+from conftest import ROOT
 
 FW_ELF = os.environ.get("DAN_FW_ELF", str(ROOT / "build" / "fw" / "fc_firmware.elf"))
 QEMU = shutil.which("qemu-system-arm")
-RUN_TIMEOUT = 180   # seconds: QEMU on a loaded 2-core machine
+RUN_TIMEOUT = 180  # seconds: QEMU on a loaded 2-core machine
 
 
 @pytest.fixture(autouse=True)
@@ -32,11 +39,23 @@ def need_firmware():
 
 def run_firmware(procs, tmp_path, endpoint, append=None):
     """Boots the firmware on a vbus endpoint; returns (exit code, JSON lines)."""
-    pty = os.path.realpath(endpoint)          # /dev/pts/N: QEMU's tty backend
+    pty = os.path.realpath(endpoint)  # /dev/pts/N: QEMU's tty backend
     assert pty.startswith("/dev/pts/")
-    args = [QEMU, "-M", "mps2-an386", "-display", "none", "-monitor", "none",
-            "-semihosting-config", "enable=on,target=native",
-            "-kernel", FW_ELF, "-serial", pty]
+    args = [
+        QEMU,
+        "-M",
+        "mps2-an386",
+        "-display",
+        "none",
+        "-monitor",
+        "none",
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-kernel",
+        FW_ELF,
+        "-serial",
+        pty,
+    ]
     if append:
         args += ["-append", append]
     with open(tmp_path / "qemu.stdout", "wb") as out:
@@ -47,11 +66,11 @@ def run_firmware(procs, tmp_path, endpoint, append=None):
             procs.stop(p)
             pytest.fail(f"firmware did not finish in {RUN_TIMEOUT}s:\n{p.log_path.read_text()}")
     p.log_file.flush()
-    text = p.log_path.read_text()             # semihosting console (stderr)
+    text = p.log_path.read_text()  # semihosting console (stderr)
     lines = []
-    for l in text.splitlines():
-        if l.startswith("{"):
-            lines.append(json.loads(l))
+    for line in text.splitlines():
+        if line.startswith("{"):
+            lines.append(json.loads(line))
     assert lines, f"no output from the firmware:\n{text}"
     return rc, {d["step"]: d for d in lines if "step" in d}, text
 
@@ -61,9 +80,7 @@ def fc_bus(procs, tmp_path):
     """dan-vbus: endpoint 0 for the firmware, then test-a, test-b and a
     can-gw without 57600 (mask 0x0B)."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 4)
-    ps = [start_periph(procs, eps[1], "test-a"),
-          start_periph(procs, eps[2], "test-b"),
-          start_periph(procs, eps[3], "can-gw", "0x0B")]
+    ps = start_mixed_periphs(procs, eps)
     return eps, ctl, ps
 
 
@@ -83,7 +100,7 @@ def test_firmware_discovers_configures_and_transacts(fc_bus, procs, tmp_path):
 
     conf = steps["configure"]
     assert conf["result"] == 0 and conf["baud"] == 115200
-    assert conf["uart_baud"] == 115207        # 25 MHz / 217: the divisor it wrote
+    assert conf["uart_baud"] == 115207  # 25 MHz / 217: the divisor it wrote
 
     txn = steps["transactions"]
     assert txn["ok"] == txn["count"] == 40 and txn["bad"] == 0 and txn["baud"] == 115200
@@ -102,7 +119,9 @@ def test_firmware_discovers_configures_and_transacts(fc_bus, procs, tmp_path):
     # The host saw the baud change: the firmware's divisor write reached the
     # pty's termios, so dan-vbus put its bytes on the wire at 115200.
     bursts = read_capture(tmp_path)
-    configures = [b for b in bursts if b[1] == 0 and len(b[3]) > 1 and b[3][1] in (0x41, 0x61, 0x71)]
+    configures = [
+        b for b in bursts if b[1] == 0 and len(b[3]) > 1 and b[3][1] in (0x41, 0x61, 0x71)
+    ]
     assert len(configures) == 3 and all(b[2] == 9600 for b in configures)
     after = [b for b in bursts if b[1] == 0 and b[0] > configures[-1][0] + 0.005]
     assert len(after) >= 40 and all(b[2] == 115200 for b in after)
@@ -131,16 +150,20 @@ def test_firmware_gateway_required_fails_without_gateway(fc_bus, procs, tmp_path
     assert steps["boot"]["gw_mode"] == "require"
     assert steps["transactions"]["bad"] == 0
     gw = steps["gateway"]
-    assert gw.get("skipped") or (gw["result"] == -4 and gw["at"] == "arm" and gw["required"] is True)
+    assert gw.get("skipped") or (
+        gw["result"] == -4 and gw["at"] == "arm" and gw["required"] is True
+    )
 
 
 def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
     """The gateway phase against the real gateway: dan-gatewayd on the bus,
     an SLCAN hub as the CAN bus and a pydronecan ESC node that publishes
     esc.Status for ESC 0..3 and records what reaches CAN."""
-    import dronecan
     import threading
     import time
+
+    import dronecan
+
     from conftest import BIN
 
     U = dronecan.uavcan
@@ -148,11 +171,16 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
         if not (BIN / b).exists():
             pytest.fail(f"{b} not built: run make test (it builds everything)")
     vbus, eps, ctl = start_vbus(procs, tmp_path, 3)
-    hub = procs.start(["python3", ROOT / "host_tools" / "slcan_hub.py", "-n", "2",
-                       "--link", tmp_path / "can"], name="slcan_hub")
+    hub = procs.start(
+        ["python3", ROOT / "host_tools" / "slcan_hub.py", "-n", "2", "--link", tmp_path / "can"],
+        name="slcan_hub",
+    )
     assert hub.stdout.readline().decode().startswith("READY")
-    procs.start([BIN / "dan-gatewayd", "--uart", eps[1], "--can", f"slcan:{tmp_path / 'can0'}"],
-                name="dan-gatewayd", stdout=subprocess.DEVNULL)
+    procs.start(
+        [BIN / "dan-gatewayd", "--uart", eps[1], "--can", f"slcan:{tmp_path / 'can0'}"],
+        name="dan-gatewayd",
+        stdout=subprocess.DEVNULL,
+    )
     start_periph(procs, eps[2], "test-a,test-b")
 
     esc = pydronecan_nodes.make_node(tmp_path / "can1", 20)
@@ -166,18 +194,26 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
         while not stop.is_set():
             try:
                 esc.spin(0.01)
-            except Exception:   # a malformed frame must not end the thread
+            except Exception:  # a malformed frame must not end the thread
                 pass
             if time.monotonic() - last >= 0.05:
                 last = time.monotonic()
                 for idx in range(4):
-                    esc.broadcast(U.equipment.esc.Status(voltage=16.0, current=1.5 + idx, temperature=300.0,
-                                                         rpm=1000 * (idx + 1), power_rating_pct=idx,
-                                                         esc_index=idx))
+                    esc.broadcast(
+                        U.equipment.esc.Status(
+                            voltage=16.0,
+                            current=1.5 + idx,
+                            temperature=300.0,
+                            rpm=1000 * (idx + 1),
+                            power_rating_pct=idx,
+                            esc_index=idx,
+                        )
+                    )
+
     t = threading.Thread(target=spin, daemon=True)
     t.start()
     try:
-        time.sleep(0.5)   # the gateway sees the ESC node before the FC boots
+        time.sleep(0.5)  # the gateway sees the ESC node before the FC boots
         rc, steps, text = run_firmware(procs, tmp_path, eps[0], append="gw=require")
     finally:
         stop.set()
@@ -195,4 +231,4 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
     # the ramp reached CAN: four channels, up to 2000 and back to 0
     fours = [c for c in raw if len(c) == 4]
     assert [2000] * 4 in fours and max(c[0] for c in fours) == 2000
-    assert 255 in arming and arming[-1] == 0     # armed, then disarmed
+    assert 255 in arming and arming[-1] == 0  # armed, then disarmed

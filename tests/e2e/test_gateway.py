@@ -4,22 +4,19 @@ the CAN bus and pydronecan nodes as the independent DroneCAN peers.
 
 Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
-import json
+
 import os
-import sys
 import struct
-import threading
+import sys
 import time
 
+import dronecan
 import pytest
 
-from conftest import BIN, ROOT, wait_for
+from conftest import BIN, ROOT, closing_factory, wait_for
+from gw_rig import GW_NODE, Rig, TunnelFarEnd
 
-import dronecan
-import pydronecan_nodes
 U = dronecan.uavcan
-
-GW_NODE = 10
 
 
 def f16(x):
@@ -27,117 +24,68 @@ def f16(x):
     return struct.unpack("<e", struct.pack("<e", x))[0]
 
 
-def ready_line(p, what):
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY"), f"{what} did not start: {line!r}"
-    return line.split()[1:]
-
-
-class Rig:
-    def __init__(self, procs, tmp, ncan=3, gw_args=()):
-        for b in ("dan-vbus", "dan-gatewayd", "dan-fcsim", "dan-cantool"):
-            if not (BIN / b).exists():
-                pytest.fail(f"{b} not built: run make test (it builds everything)")
-        self.procs, self.tmp = procs, tmp
-        self.vbus = procs.start([BIN / "dan-vbus", "-n", "2", "--link", tmp / "dan"])
-        ready_line(self.vbus, "dan-vbus")
-        self.hub = procs.start(["python3", ROOT / "host_tools" / "slcan_hub.py", "-n", str(ncan),
-                                "--link", tmp / "can"], name="slcan_hub")
-        ready_line(self.hub, "slcan_hub")
-        # Generous reply windows (here and in fcsim): a loaded 2-core host
-        # can stall a process that long; these tests check behaviour, not speed.
-        self.gwd = procs.start([BIN / "dan-gatewayd", "--uart", tmp / "dan1",
-                                "--can", f"slcan:{tmp / 'can0'}", "--verbose",
-                                "--reply-window-ms", "200", *gw_args],
-                               stdout=None)
-        self.nodes = []
-        self.stop = threading.Event()
-        self.threads = []
-
-    def node(self, k, node_id, name):
-        info = U.protocol.GetNodeInfo.Response()
-        info.name = name
-        info.software_version.major = 2
-        info.software_version.minor = 7
-        info.hardware_version.major = 1
-        n = pydronecan_nodes.make_node(self.tmp / f"can{k}", node_id, node_info=info)
-        self.nodes.append(n)
-        return n
-
-    def spin(self, node, periodic=None, period=0.05):
-        def loop():
-            last = 0.0
-            while not self.stop.is_set():
-                try:
-                    node.spin(0.01)
-                except Exception:  # a malformed frame must not kill the thread
-                    pass
-                if periodic and time.monotonic() - last >= period:
-                    last = time.monotonic()
-                    periodic()
-        t = threading.Thread(target=loop, daemon=True)
-        t.start()
-        self.threads.append(t)
-
-    def fcsim(self, *steps, timeout=120):
-        p = self.procs.start([BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *steps])
-        out, _ = p.communicate(timeout=timeout)
-        lines = [json.loads(l) for l in out.decode().splitlines() if l.strip()]
-        return p.returncode, lines
-
-    def close(self):
-        self.stop.set()
-        for t in self.threads:
-            t.join(5)
-        for n in self.nodes:
-            n.close()
-
-
 @pytest.fixture
 def rig(procs, tmp_path):
-    made = []
-
-    def make(**kw):
-        r = Rig(procs, tmp_path, **kw)
-        made.append(r)
-        return r
-    yield make
-    for r in made:
-        r.close()
+    yield from closing_factory(lambda **kw: Rig(procs, tmp_path, **kw))
 
 
 def step(lines, name):
-    return [l for l in lines if l["step"] == name]
+    return [line for line in lines if line["step"] == name]
 
 
 def test_esc_telemetry_arming_nodes_failsafe(rig):
     r = rig(gw_args=["--esc-timeout-ms", "300"])
     esc = r.node(1, 20, "org.test.esc_a")
     raw, arming = [], []
-    esc.add_handler(U.equipment.esc.RawCommand,
-                    lambda e: raw.append((time.monotonic(), list(e.message.cmd))))
-    esc.add_handler(U.equipment.safety.ArmingStatus,
-                    lambda e: arming.append((time.monotonic(), e.message.status)))
+    esc.add_handler(
+        U.equipment.esc.RawCommand, lambda e: raw.append((time.monotonic(), list(e.message.cmd)))
+    )
+    esc.add_handler(
+        U.equipment.safety.ArmingStatus,
+        lambda e: arming.append((time.monotonic(), e.message.status)),
+    )
     gw_status, gw_info = [], []
-    esc.add_handler(U.protocol.NodeStatus,
-                    lambda e: gw_status.append(e.message.health)
-                    if e.transfer.source_node_id == GW_NODE else None)
-    tele = {0: (12.5, 1.25, 300.0, 1000), 1: (16.8, -3.14159, 310.15, -2000),
-            2: (25.2, 123.456, 320.0, 131071), 3: (11.1, 0.1, 299.0, 0)}
+    esc.add_handler(
+        U.protocol.NodeStatus,
+        lambda e: (
+            gw_status.append(e.message.health) if e.transfer.source_node_id == GW_NODE else None
+        ),
+    )
+    tele = {
+        0: (12.5, 1.25, 300.0, 1000),
+        1: (16.8, -3.14159, 310.15, -2000),
+        2: (25.2, 123.456, 320.0, 131071),
+        3: (11.1, 0.1, 299.0, 0),
+    }
 
     def publish():
         for idx, (v, c, t, rpm) in tele.items():
-            esc.broadcast(U.equipment.esc.Status(error_count=idx + 7, voltage=v, current=c,
-                                                 temperature=t, rpm=rpm,
-                                                 power_rating_pct=10 + idx, esc_index=idx))
+            esc.broadcast(
+                U.equipment.esc.Status(
+                    error_count=idx + 7,
+                    voltage=v,
+                    current=c,
+                    temperature=t,
+                    rpm=rpm,
+                    power_rating_pct=10 + idx,
+                    esc_index=idx,
+                )
+            )
+
     r.spin(esc, publish, 0.1)
 
-    rc, out = r.fcsim("discover", "configure", "arm",
-                      "esc:0,100,-8192,8191@1500@50",
-                      "esc:1,2,3,4,5,6,7,-8@1000@50",
-                      "esc:0,100,200,300@3000@0",
-                      "telemetry", "nodes", "stats")
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "arm",
+        "esc:0,100,-8192,8191@1500@50",
+        "esc:1,2,3,4,5,6,7,-8@1000@50",
+        "esc:0,100,200,300@3000@0",
+        "telemetry",
+        "nodes",
+        "stats",
+    )
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     assert step(out, "configure")[0]["baud"] == 115200
     # exact values on the bus, 4 and 8 channels
     cmds = [c for _, c in raw]
@@ -157,19 +105,24 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
     fast = step(out, "esc")[2]
     assert fast["telemetry_records"] > 0.9 * fast["exchanges"]
     # the rate at 115200 (printed for the report; no bound asserted)
-    req = 12                        # 'D' code len 8-byte payload crc
-    rsp = 4 + 3 + 17                # frame overhead, header, one record
+    req = 12  # 'D' code len 8-byte payload crc
+    rsp = 4 + 3 + 17  # frame overhead, header, one record
     bound = 115200 / 10 / (req + rsp)
-    print(f"\nESC exchange rate at 115200: {fast['rate']:.1f}/s "
-          f"(wire-time bound {bound:.0f}/s for {req}+{rsp} bytes)")
+    print(
+        f"\nESC exchange rate at 115200: {fast['rate']:.1f}/s "
+        f"(wire-time bound {bound:.0f}/s for {req}+{rsp} bytes)"
+    )
     # node table lists the pydronecan node with its name
     nodes = {n["id"]: n for n in step(out, "nodes")[0]["nodes"]}
     assert nodes[20]["name"] == "org.test.esc_a"
     assert nodes[20]["sw"] == [2, 7]
     # pydronecan sees the gateway: NodeStatus OK (a master polls) and GetNodeInfo
     wait_for(lambda: 0 in gw_status, 5, what="gateway NodeStatus health OK")
-    esc.request(U.protocol.GetNodeInfo.Request(), GW_NODE,
-                lambda e: gw_info.append(e.response if e else None))
+    esc.request(
+        U.protocol.GetNodeInfo.Request(),
+        GW_NODE,
+        lambda e: gw_info.append(e.response if e else None),
+    )
     wait_for(lambda: gw_info, 10, what="GetNodeInfo response")
     assert gw_info[0] is not None
     assert gw_info[0].name.decode() == "org.dan.can_gateway"
@@ -179,8 +132,11 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
     rc, out = r.fcsim("discover", "esc:500,500,500,500@500@50", "stop")
     assert rc == 0
     t_stop = time.monotonic()
-    wait_for(lambda: any(c == [0, 0, 0, 0] for _, c in raw[t_stop_len:]), 10,
-             what="zero throttle after failsafe")
+    wait_for(
+        lambda: any(c == [0, 0, 0, 0] for _, c in raw[t_stop_len:]),
+        10,
+        what="zero throttle after failsafe",
+    )
     wait_for(lambda: any(s == 0 and t > t_stop for t, s in arming), 10, what="DISARMED")
     rc, out = r.fcsim("discover", "stats")
     assert step(out, "stats")[0]["failsafes"] >= 1
@@ -193,40 +149,23 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
 
 def test_tunnel_64k_both_ways(rig):
     r = rig()
-    far = r.node(1, 30, "org.test.far_end")
-    got = bytearray()
-    lock = threading.Lock()
-    outq = bytearray()
-
-    def on_targetted(e):
-        m = e.message
-        if m.target_node != 30 or e.transfer.source_node_id != GW_NODE or m.serial_id != 2:
-            return
-        data = bytes(m.buffer)
-        with lock:
-            got.extend(data)
-            outq.extend(bytes(b ^ 0x5A for b in data))  # the far end answers a transformed stream
-
-    far.add_handler(U.tunnel.Targetted, on_targetted)
-
-    def pump():
-        with lock:
-            chunk = bytes(outq[:120])
-            del outq[:120]
-        if chunk:
-            far.broadcast(U.tunnel.Targetted(
-                protocol=U.tunnel.Protocol(protocol=255), target_node=GW_NODE, serial_id=2,
-                options=0, baudrate=0, buffer=list(chunk)))
-    r.spin(far, pump, 0.002)
+    far = TunnelFarEnd(r.node(1, 30, "org.test.far_end"), 30, 2)
+    r.spin(far.node, far.pump, 0.002)
 
     data = os.urandom(64 * 1024)
     src = r.tmp / "in.bin"
     dst = r.tmp / "out.bin"
     src.write_bytes(data)
-    rc, out = r.fcsim("discover", "configure", "tunnel:0:targetted:30:2:115200",
-                      f"xfer:0:{src}:{dst}:{len(data)}:150000", "stats", timeout=170)
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
-    assert bytes(got) == data
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "tunnel:0:targetted:30:2:115200",
+        f"xfer:0:{src}:{dst}:{len(data)}:150000",
+        "stats",
+        timeout=170,
+    )
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
+    assert bytes(far.got) == data
     assert dst.read_bytes() == bytes(b ^ 0x5A for b in data)
     x = step(out, "xfer")[0]
     print(f"\n64 KiB each way through the tunnel in {x['seconds']:.1f} s")
@@ -236,23 +175,34 @@ def test_tunnel_broadcast(rig):
     r = rig()
     far = r.node(1, 31, "org.test.bcast")
     got = bytearray()
-    far.add_handler(U.tunnel.Broadcast, lambda e: got.extend(bytes(e.message.buffer))
-                    if e.message.channel_id == 7 and e.message.protocol.protocol == 2 else None)
+    far.add_handler(
+        U.tunnel.Broadcast,
+        lambda e: (
+            got.extend(bytes(e.message.buffer))
+            if e.message.channel_id == 7 and e.message.protocol.protocol == 2
+            else None
+        ),
+    )
     sent = []
 
     def pump():
         if got and len(sent) < 20:  # once the FC's port is open and talking
             b = bytes([len(sent)] * 60)
             sent.append(b)
-            far.broadcast(U.tunnel.Broadcast(protocol=U.tunnel.Protocol(protocol=2),
-                                             channel_id=7, buffer=list(b)))
+            far.broadcast(
+                U.tunnel.Broadcast(
+                    protocol=U.tunnel.Protocol(protocol=2), channel_id=7, buffer=list(b)
+                )
+            )
+
     r.spin(far, pump, 0.02)
     data = os.urandom(4000)
     src, dst = r.tmp / "b_in.bin", r.tmp / "b_out.bin"
     src.write_bytes(data)
-    rc, out = r.fcsim("discover", "configure", "tunnel:0:broadcast:2:7",
-                      f"xfer:0:{src}:{dst}:1200:30000")
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    rc, out = r.fcsim(
+        "discover", "configure", "tunnel:0:broadcast:2:7", f"xfer:0:{src}:{dst}:1200:30000"
+    )
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     wait_for(lambda: len(got) >= len(data), 20, what="broadcast tunnel data")
     assert bytes(got) == data
     assert dst.read_bytes()[:1200] == b"".join(sent)[:1200]
@@ -262,22 +212,38 @@ def test_raw_frames_filtered(rig):
     r = rig()
     can2 = str(r.tmp / "can1")
     # pass 11-bit 0x100..0x1FF only
-    rec = r.procs.start([BIN / "dan-cantool", "--can", f"slcan:{can2}", "recv", "--count", "0",
-                         "--timeout-ms", "6000"])
+    rec = r.procs.start(
+        [
+            BIN / "dan-cantool",
+            "--can",
+            f"slcan:{can2}",
+            "recv",
+            "--count",
+            "0",
+            "--timeout-ms",
+            "6000",
+        ]
+    )
     time.sleep(0.5)
-    rc, out = r.fcsim("discover", "configure", "filter:100/700",
-                      "cansend:123#DEADBEEF,1ABCDE01#0102030405060708", "sleep:200")
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "filter:100/700",
+        "cansend:123#DEADBEEF,1ABCDE01#0102030405060708",
+        "sleep:200",
+    )
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     o, _ = rec.communicate(timeout=40)
     lines = o.decode().split()
     assert "123#DEADBEEF" in o.decode()
     assert "1ABCDE01#0102030405060708" in o.decode()
     # the other direction: one frame passes the filter, one does not
-    snd = r.procs.start([BIN / "dan-cantool", "--can", f"slcan:{can2}", "send",
-                         "1AB#0102", "2AB#0304", "155#"])
+    snd = r.procs.start(
+        [BIN / "dan-cantool", "--can", f"slcan:{can2}", "send", "1AB#0102", "2AB#0304", "155#"]
+    )
     assert snd.wait(20) == 0
     rc, out = r.fcsim("discover", "candump:2:10000")
-    assert rc == 0, [l for l in out if not l.get("ok", True)] or out
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     assert step(out, "candump")[0]["frames"] == ["1AB#0102", "155#"]
     del lines
 
@@ -287,14 +253,26 @@ def test_uart_lost_failsafe_and_exit(procs, tmp_path):
     the hangup (a tty at VMIN=0 then reads 0 bytes forever), sends the
     failsafe and exits 1 instead of spinning (found by review)."""
     import pty
+
     m, s = pty.openpty()
     path = os.ttyname(s)
     os.close(s)
-    hub = procs.start([sys.executable, ROOT / "host_tools" / "slcan_hub.py", "-n", "1", "--link",
-                       tmp_path / "can"], name="slcan_hub")
+    hub = procs.start(
+        [
+            sys.executable,
+            ROOT / "host_tools" / "slcan_hub.py",
+            "-n",
+            "1",
+            "--link",
+            tmp_path / "can",
+        ],
+        name="slcan_hub",
+    )
     assert hub.stdout.readline().startswith(b"READY")
-    gw = procs.start([BIN / "dan-gatewayd", "--uart", path, "--can", f"slcan:{tmp_path}/can0"],
-                     name="dan-gatewayd")
+    gw = procs.start(
+        [BIN / "dan-gatewayd", "--uart", path, "--can", f"slcan:{tmp_path}/can0"],
+        name="dan-gatewayd",
+    )
     wait_for(lambda: b"DroneCAN node" in gw.log_path.read_bytes(), 20, what="gateway start")
     os.close(m)
     assert gw.wait(20) == 1

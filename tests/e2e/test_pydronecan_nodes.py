@@ -11,11 +11,11 @@ stream's lock at its first log line (with `fork`: 0 of 10 nodes started,
 py-spy on the child: StreamHandler.flush); a spawned child inherits no
 lock. With pydronecan_nodes.make_node every node starts.
 """
+
 import sys
 
-from conftest import ROOT
-
 import pydronecan_nodes
+from conftest import ROOT
 
 sys.path.insert(0, str(ROOT / "tests" / "tools"))
 from node_start_repro import BusyLogger  # noqa: E402
@@ -24,8 +24,17 @@ NODES = 10
 
 
 def test_many_nodes_start_while_other_threads_hold_locks(procs, tmp_path):
-    p = procs.start([sys.executable, ROOT / "host_tools" / "slcan_hub.py", "-n", "2",
-                     "--link", tmp_path / "can"], name="slcan_hub")
+    p = procs.start(
+        [
+            sys.executable,
+            ROOT / "host_tools" / "slcan_hub.py",
+            "-n",
+            "2",
+            "--link",
+            tmp_path / "can",
+        ],
+        name="slcan_hub",
+    )
     assert p.stdout.readline().decode().startswith("READY")
     first = pydronecan_nodes.make_node(tmp_path / "can0", 20)  # its log proxy thread runs
     busy = BusyLogger()

@@ -2,25 +2,24 @@
 CAN bus of emulated Lawicel adapters on ptys), the gateway's C SLCAN backend
 through tests/tools/dan-cantool, and pydronecan as the independent DroneCAN
 peer."""
+
 import json
 import os
 import pty
 import re
 import select
 import signal
-import socket
 import sys
-import termios
 import threading
 import time
 import tty
 
+import dronecan
 import pytest
 
-from conftest import BIN, ROOT, wait_for
-
-import dronecan
 import pydronecan_nodes
+from bus_util import control
+from conftest import BIN, ROOT, wait_for
 
 HUB = ROOT / "host_tools" / "slcan_hub.py"
 CANTOOL = BIN / "dan-cantool"
@@ -50,9 +49,21 @@ class Hub:
         self.prefix = str(tmp_path / "slcan")
         self.control = str(tmp_path / "hub.ctl")
         self.log = tmp_path / "bus.log"
-        self.proc = procs.start([sys.executable, HUB, "-n", n, "--link", self.prefix,
-                                 "--control", self.control, "--log", self.log],
-                                name="slcan_hub")
+        self.proc = procs.start(
+            [
+                sys.executable,
+                HUB,
+                "-n",
+                n,
+                "--link",
+                self.prefix,
+                "--control",
+                self.control,
+                "--log",
+                self.log,
+            ],
+            name="slcan_hub",
+        )
         line = read_line(self.proc.stdout, 15)
         assert line.startswith("READY "), line
         self.ptys = line.split()[1:]
@@ -62,17 +73,7 @@ class Hub:
             assert os.readlink(link) == pts
 
     def ctl(self, cmd):
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            s.settimeout(10)
-            s.connect(self.control)
-            s.sendall((cmd + "\n").encode())
-            buf = b""
-            while not buf.endswith(b"\n"):
-                b = s.recv(65536)
-                if not b:
-                    break
-                buf += b
-            return buf.decode().strip()
+        return control(self.control, cmd)
 
     def stats(self):
         return json.loads(self.ctl("stats"))["ports"]
@@ -99,8 +100,14 @@ def spin_until(nodes, pred, timeout=15.0, what="condition"):
 
 def cantool(args, timeout=20):
     import subprocess
-    return subprocess.run([str(CANTOOL)] + [str(a) for a in args], stdin=subprocess.DEVNULL,
-                          capture_output=True, text=True, timeout=timeout)
+
+    return subprocess.run(
+        [str(CANTOOL)] + [str(a) for a in args],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def parse_candump(text):
@@ -134,6 +141,7 @@ def exchange(fd, data, expect_end=(b"\r", b"\a"), timeout=5.0):
 
 # ---------------------------------------------------------------------------
 
+
 def test_dronecan_nodes_both_ways(hub):
     """Two pydronecan nodes on ports 0 and 1 see each other's broadcasts."""
     a = make_node(hub.links[0], 20)
@@ -149,11 +157,22 @@ def test_dronecan_nodes_both_ways(hub):
             def on_a(e):
                 if e.transfer.source_node_id == 21:
                     got_a.append(e.message.vendor_specific_status_code)
+
             b.add_handler(dronecan.uavcan.protocol.NodeStatus, on_b)
             a.add_handler(dronecan.uavcan.protocol.NodeStatus, on_a)
-            a.broadcast(dronecan.uavcan.protocol.NodeStatus(uptime_sec=5, vendor_specific_status_code=0xBEEF))
-            b.broadcast(dronecan.uavcan.protocol.NodeStatus(uptime_sec=6, vendor_specific_status_code=0xCAFE))
-            spin_until([a, b], lambda: 0xBEEF in got_b and 0xCAFE in got_a, what="NodeStatus both ways")
+            a.broadcast(
+                dronecan.uavcan.protocol.NodeStatus(
+                    uptime_sec=5, vendor_specific_status_code=0xBEEF
+                )
+            )
+            b.broadcast(
+                dronecan.uavcan.protocol.NodeStatus(
+                    uptime_sec=6, vendor_specific_status_code=0xCAFE
+                )
+            )
+            spin_until(
+                [a, b], lambda: 0xBEEF in got_b and 0xCAFE in got_a, what="NodeStatus both ways"
+            )
         finally:
             b.close()
     finally:
@@ -172,8 +191,15 @@ def test_cantool_send_reaches_dronecan(hub):
 
         def on_status(e):
             if e.transfer.source_node_id == 10:
-                got.append((e.message.uptime_sec, e.message.vendor_specific_status_code,
-                            e.message.health, e.message.mode))
+                got.append(
+                    (
+                        e.message.uptime_sec,
+                        e.message.vendor_specific_status_code,
+                        e.message.health,
+                        e.message.mode,
+                    )
+                )
+
         node.add_handler(dronecan.uavcan.protocol.NodeStatus, on_status)
         r = cantool(["--can", "slcan:" + hub.links[2], "send", "1401550A#01000000003412c0"])
         assert r.returncode == 0, r.stderr
@@ -189,27 +215,41 @@ def test_dronecan_broadcast_exact_frames_to_cantool(hub, procs):
     """pydronecan broadcasts a multi-frame LogMessage and a NodeStatus;
     dan-cantool recv prints exactly the frames pydronecan sent, in order."""
     from dronecan import transport
+
     log_msg = dronecan.uavcan.protocol.debug.LogMessage(
         level=dronecan.uavcan.protocol.debug.LogLevel(value=2),
-        source="slcan", text="hello over the SLCAN hub")
+        source="slcan",
+        text="hello over the SLCAN hub",
+    )
     status = dronecan.uavcan.protocol.NodeStatus(uptime_sec=77, vendor_specific_status_code=0x4242)
     n_frames = 0
     for msg in (log_msg, status):
-        t = transport.Transfer(payload=msg, source_node_id=20, transfer_id=0,
-                               service_not_message=False)
+        t = transport.Transfer(
+            payload=msg, source_node_id=20, transfer_id=0, service_not_message=False
+        )
         n_frames += len(t.to_frames())
-    assert n_frames >= 4      # the LogMessage really is multi-frame
+    assert n_frames >= 4  # the LogMessage really is multi-frame
 
-    rx = procs.start([CANTOOL, "--can", "slcan:" + hub.links[2], "recv",
-                      "--count", n_frames, "--timeout-ms", 20000], name="cantool-recv")
+    rx = procs.start(
+        [
+            CANTOOL,
+            "--can",
+            "slcan:" + hub.links[2],
+            "recv",
+            "--count",
+            n_frames,
+            "--timeout-ms",
+            20000,
+        ],
+        name="cantool-recv",
+    )
     wait_for(lambda: hub.stats()[2]["open"], timeout=10, what="port 2 opened by dan-cantool")
 
     # No periodic NodeStatus: only the two broadcasts below go on the bus.
     node = make_node(hub.links[0], 20, node_status_interval=3600)
     sent = []
     try:
-        node.can_driver.add_io_hook(
-            lambda d, f: sent.append(f) if d == "tx" else None)
+        node.can_driver.add_io_hook(lambda d, f: sent.append(f) if d == "tx" else None)
         node.broadcast(log_msg)
         node.broadcast(status)
         assert len(sent) == n_frames
@@ -229,13 +269,22 @@ def test_malformed_lines_get_bel(hub):
         assert exchange(fd, b"C\r") == b"\r"
         assert exchange(fd, b"V\r") == b"V1013\r"
         assert exchange(fd, b"N\r") == b"NA123\r"
-        assert exchange(fd, b"t1230\r") == b"\a"          # not open yet
+        assert exchange(fd, b"t1230\r") == b"\a"  # not open yet
         assert exchange(fd, b"S8\r") == b"\r"
         assert exchange(fd, b"O\r") == b"\r"
-        assert exchange(fd, b"O\r") == b"\a"              # already open
+        assert exchange(fd, b"O\r") == b"\a"  # already open
         assert exchange(fd, b"F\r") == b"F00\r"
-        bad = [b"t12\r", b"tXYZ0\r", b"t8000\r", b"t1239" + b"00" * 9 + b"\r",
-               b"t12330102\r", b"T2000000000\r", b"Q\r", b"x" * 200 + b"\r", b"Z7\r"]
+        bad = [
+            b"t12\r",
+            b"tXYZ0\r",
+            b"t8000\r",
+            b"t1239" + b"00" * 9 + b"\r",
+            b"t12330102\r",
+            b"T2000000000\r",
+            b"Q\r",
+            b"x" * 200 + b"\r",
+            b"Z7\r",
+        ]
         for line in bad:
             assert exchange(fd, line) == b"\a", line
         assert exchange(fd, b"t1230\r") == b"z\r"
@@ -270,7 +319,7 @@ def test_cantool_errors_exit_2(tmp_path):
     assert r.returncode == 2 and "bad frame" in r.stderr
     r = cantool(["--can", "slcan:/dev/null", "recv"])
     assert r.returncode == 2 and "not a serial port" in r.stderr
-    r = cantool(["--can", "socketcan:dancan0", "recv"])   # AF_CAN may be missing
+    r = cantool(["--can", "socketcan:dancan0", "recv"])  # AF_CAN may be missing
     assert r.returncode == 2 and "socketcan:dancan0" in r.stderr
     # A tty where no adapter answers: a clear "no answer" within ~1 s.
     master, slave = pty.openpty()
@@ -307,21 +356,49 @@ def test_cantool_parser_against_fake_adapter():
                 line, buf = buf.split(b"\r", 1)
                 seen.append(line)
                 if line == b"O":
-                    os.write(master, b"\r" + b"z\rZ\r\a" + b"garbage!\r" + b"t" * 80 + b"\r"
-                             + b"t1230\r" + b"t12321122ABCD\r" + b"T1ABCDEF08" + b"00" * 8 + b"\r"
-                             + b"r7FF3\r" + b"R0000000100FFF\r\n" + b"t12391122\r")
+                    os.write(
+                        master,
+                        b"\r"
+                        + b"z\rZ\r\a"
+                        + b"garbage!\r"
+                        + b"t" * 80
+                        + b"\r"
+                        + b"t1230\r"
+                        + b"t12321122ABCD\r"
+                        + b"T1ABCDEF08"
+                        + b"00" * 8
+                        + b"\r"
+                        + b"r7FF3\r"
+                        + b"R0000000100FFF\r\n"
+                        + b"t12391122\r",
+                    )
                 else:
                     os.write(master, b"\r")
+
     th = threading.Thread(target=adapter, daemon=True)
     th.start()
     try:
-        r = cantool(["--can", "slcan:" + path, "--ifname", "slcan0", "recv",
-                     "--count", 5, "--timeout-ms", 10000])
+        r = cantool(
+            [
+                "--can",
+                "slcan:" + path,
+                "--ifname",
+                "slcan0",
+                "recv",
+                "--count",
+                5,
+                "--timeout-ms",
+                10000,
+            ]
+        )
         assert r.returncode == 0, r.stderr
         assert parse_candump(r.stdout) == [
-            ("slcan0", "123", ""), ("slcan0", "123", "1122"),
+            ("slcan0", "123", ""),
+            ("slcan0", "123", "1122"),
             ("slcan0", "1ABCDEF0", "0000000000000000"),
-            ("slcan0", "7FF", "R3"), ("slcan0", "00000001", "R")]
+            ("slcan0", "7FF", "R3"),
+            ("slcan0", "00000001", "R"),
+        ]
         assert seen[:3] == [b"C", b"S8", b"O"]
         wait_for(lambda: seen[-1:] == [b"C"], timeout=5, what="C on close")
     finally:
@@ -338,11 +415,13 @@ def test_client_close_and_reopen(hub):
         assert r.returncode == 0, r.stderr
     node = make_node(hub.links[1], 21)
     node.close()
-    node = make_node(hub.links[1], 21)      # same pty, reopened
+    node = make_node(hub.links[1], 21)  # same pty, reopened
     try:
         got = []
-        node.add_handler(dronecan.uavcan.protocol.NodeStatus,
-                         lambda e: got.append(e.message.uptime_sec) if e.transfer.source_node_id == 10 else None)
+        node.add_handler(
+            dronecan.uavcan.protocol.NodeStatus,
+            lambda e: got.append(e.message.uptime_sec) if e.transfer.source_node_id == 10 else None,
+        )
         r = cantool(["--can", "slcan:" + hub.links[2], "send", "1401550A#09000000000000c0"])
         assert r.returncode == 0, r.stderr
         spin_until([node], lambda: 9 in got, what="NodeStatus after reopen")
@@ -354,8 +433,10 @@ def test_client_close_and_reopen(hub):
 def test_detach_attach(hub, procs):
     """detach K hangs the pty up (the C backend reports an I/O error) and
     removes the link; attach K brings a new pty behind the same link."""
-    rx = procs.start([CANTOOL, "--can", "slcan:" + hub.links[3], "recv",
-                      "--count", 1, "--timeout-ms", 20000], name="cantool-recv")
+    rx = procs.start(
+        [CANTOOL, "--can", "slcan:" + hub.links[3], "recv", "--count", 1, "--timeout-ms", 20000],
+        name="cantool-recv",
+    )
     wait_for(lambda: hub.stats()[3]["open"], timeout=10, what="port 3 open")
     assert hub.ctl("detach 3") == "ok"
     assert rx.wait(10) == 1
@@ -389,6 +470,7 @@ def test_hub_sigterm_and_quit(procs, tmp_path):
 
 def test_hub_help():
     import subprocess
+
     r = subprocess.run([sys.executable, HUB, "--help"], capture_output=True, text=True, timeout=20)
     assert r.returncode == 0
     assert "--control" in r.stdout and "detach K" in r.stdout

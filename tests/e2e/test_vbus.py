@@ -4,6 +4,7 @@ Endpoints are opened with pyserial. Timing assertions are lower bounds only
 (a loaded machine can make things slower, never faster); deadlines are
 generous. DAN_VBUS=path runs the tests against another build (e.g. ASan).
 """
+
 import json
 import os
 import re
@@ -17,12 +18,13 @@ from pathlib import Path
 import pytest
 import serial
 
-from conftest import BIN, wait_for
+from conftest import BIN, closing_factory, wait_for
 
 VBUS = Path(os.environ.get("DAN_VBUS", BIN / "dan-vbus"))
 TIMEOUT = 10.0
 CAPTURE_RE = re.compile(
-    r"^(\d+\.\d{6}) (\d+) (\d+) ([0-9a-f]*)((?: collision)?)((?: noise)?)(?: rx=([0-9a-f]*))?$")
+    r"^(\d+\.\d{6}) (\d+) (\d+) ([0-9a-f]*)((?: collision)?)((?: noise)?)(?: rx=([0-9a-f]*))?$"
+)
 
 
 def read_line(p, timeout=TIMEOUT):
@@ -38,8 +40,10 @@ def read_line(p, timeout=TIMEOUT):
         if r:
             c = os.read(fd, 1)
             if not c:
-                raise AssertionError(f"{p.args[0]} closed stdout (exit {p.wait(5)}), got {buf!r}; "
-                                     f"log: {p.log_path.read_text()}")
+                raise AssertionError(
+                    f"{p.args[0]} closed stdout (exit {p.wait(5)}), got {buf!r}; "
+                    f"log: {p.log_path.read_text()}"
+                )
             buf += c
     return buf.decode()
 
@@ -52,9 +56,21 @@ class Bus:
         self.prefix = str(tmp / f"{name}-ep")
         self.ctl_path = str(tmp / f"{name}.sock")
         self.cap_path = tmp / f"{name}.cap"
-        self.p = procs.start([VBUS, "-n", n, "--link", self.prefix,
-                              "--control", self.ctl_path,
-                              "--capture", self.cap_path, *extra], name=name)
+        self.p = procs.start(
+            [
+                VBUS,
+                "-n",
+                n,
+                "--link",
+                self.prefix,
+                "--control",
+                self.ctl_path,
+                "--capture",
+                self.cap_path,
+                *extra,
+            ],
+            name=name,
+        )
         line = read_line(self.p)
         words = line.split()
         assert words[0] == "READY", line
@@ -94,8 +110,16 @@ class Bus:
             assert m, f"bad capture line {line!r}"
             flags = set((m.group(5) + m.group(6)).split())
             rx = bytes.fromhex(m.group(7)) if m.group(7) is not None else None
-            out.append((float(m.group(1)), int(m.group(2)), int(m.group(3)),
-                        bytes.fromhex(m.group(4)), flags, rx))
+            out.append(
+                (
+                    float(m.group(1)),
+                    int(m.group(2)),
+                    int(m.group(3)),
+                    bytes.fromhex(m.group(4)),
+                    flags,
+                    rx,
+                )
+            )
         return out
 
     def close(self):
@@ -110,15 +134,10 @@ class Bus:
 
 @pytest.fixture
 def bus(procs, tmp_path):
-    made = []
-
     def make(n=2, extra=(), name="vbus"):
-        b = Bus(procs, tmp_path, n, [str(x) for x in extra], name)
-        made.append(b)
-        return b
-    yield make
-    for b in made:
-        b.close()
+        return Bus(procs, tmp_path, n, [str(x) for x in extra], name)
+
+    yield from closing_factory(make)
 
 
 def read_exact(port, n):
@@ -129,26 +148,40 @@ def read_exact(port, n):
 
 # ---- command line ------------------------------------------------------------
 
+
 def test_help_exits_0():
     r = subprocess.run([str(VBUS), "--help"], capture_output=True, text=True, timeout=TIMEOUT)
     assert r.returncode == 0
-    for word in ("--link", "--ber", "--seed", "--capture", "--control", "READY",
-                 "collision", "rx=", "stats", "Example"):
+    for word in (
+        "--link",
+        "--ber",
+        "--seed",
+        "--capture",
+        "--control",
+        "READY",
+        "collision",
+        "rx=",
+        "stats",
+        "Example",
+    ):
         assert word in r.stdout
 
 
-@pytest.mark.parametrize("args,msg", [
-    (["-n", "1"], "2 to 16"),
-    (["-n", "17"], "2 to 16"),
-    (["-n", "two"], "2 to 16"),
-    (["--ber", "1.5"], "--ber"),
-    (["--ber", "x"], "--ber"),
-    (["--seed", "-3"], "--seed"),
-    (["--ber"], "needs a value"),
-    (["--frobnicate"], "unknown option"),
-    (["stray"], "unexpected argument"),
-    (["--control", "/tmp/" + "s" * 200], "too long"),
-])
+@pytest.mark.parametrize(
+    "args,msg",
+    [
+        (["-n", "1"], "2 to 16"),
+        (["-n", "17"], "2 to 16"),
+        (["-n", "two"], "2 to 16"),
+        (["--ber", "1.5"], "--ber"),
+        (["--ber", "x"], "--ber"),
+        (["--seed", "-3"], "--seed"),
+        (["--ber"], "needs a value"),
+        (["--frobnicate"], "unknown option"),
+        (["stray"], "unexpected argument"),
+        (["--control", "/tmp/" + "s" * 200], "too long"),
+    ],
+)
 def test_bad_arguments_exit_2(args, msg):
     r = subprocess.run([str(VBUS), *args], capture_output=True, text=True, timeout=TIMEOUT)
     assert r.returncode == 2, r.stderr
@@ -160,8 +193,9 @@ def test_bad_arguments_exit_2(args, msg):
 def test_refuses_to_overwrite_non_symlink(tmp_path):
     victim = tmp_path / "ep0"
     victim.write_text("precious")
-    r = subprocess.run([str(VBUS), "--link", str(tmp_path / "ep")],
-                       capture_output=True, text=True, timeout=TIMEOUT)
+    r = subprocess.run(
+        [str(VBUS), "--link", str(tmp_path / "ep")], capture_output=True, text=True, timeout=TIMEOUT
+    )
     assert r.returncode == 1
     assert "refusing" in r.stderr and "ep0" in r.stderr
     assert victim.read_text() == "precious"
@@ -169,6 +203,7 @@ def test_refuses_to_overwrite_non_symlink(tmp_path):
 
 
 # ---- setup and teardown --------------------------------------------------------
+
 
 def test_ready_line_and_links(bus, tmp_path):
     stale = tmp_path / "vbus-ep1"
@@ -210,13 +245,14 @@ def test_control_quit(bus):
 
 # ---- the wire ------------------------------------------------------------------
 
+
 def test_echo_and_delivery_to_all(bus):
     b = bus(n=3)
     ports = [b.open(i, 115200) for i in range(3)]
     for w in range(3):
         msg = bytes([w]) + bytes(range(256)) + b"end"
         ports[w].write(msg)
-        for p in ports:   # the writer gets its echo, everyone else the bytes
+        for p in ports:  # the writer gets its echo, everyone else the bytes
             assert read_exact(p, len(msg)) == msg
     st = b.stats()
     n = 260
@@ -226,40 +262,41 @@ def test_echo_and_delivery_to_all(bus):
     assert st["collisions"] == 0 and st["wire_bytes"] == 3 * n
 
 
-def test_pacing_9600(bus):
-    b = bus()
-    a, r = b.open(0, 9600), b.open(1, 9600)
-    msg = os.urandom(200)
+def paced_transfer(b, baud, n, at_least):
+    """n random bytes from endpoint 0 to 1 at baud: they take at least
+    at_least seconds to arrive, and come back as the echo. Returns them."""
+    a, r = b.open(0, baud), b.open(1, baud)
+    msg = os.urandom(n)
     t0 = time.monotonic()
     a.write(msg)
-    assert read_exact(r, 200) == msg
+    assert read_exact(r, n) == msg
     elapsed = time.monotonic() - t0
-    assert elapsed >= 0.2, f"200 bytes at 9600 baud arrived in {elapsed:.3f}s"  # 208 ms on the wire
-    assert read_exact(a, 200) == msg
+    assert elapsed >= at_least, f"{n} bytes at {baud} baud arrived in {elapsed:.3f}s"
+    assert read_exact(a, n) == msg
+    return msg
+
+
+def test_pacing_9600(bus):
+    paced_transfer(bus(), 9600, 200, 0.2)  # 208 ms on the wire
 
 
 def test_nonstandard_baud_250000(bus):
     b = bus()
-    a, r = b.open(0, 250000), b.open(1, 250000)
-    msg = os.urandom(5000)
-    t0 = time.monotonic()
-    a.write(msg)
-    assert read_exact(r, len(msg)) == msg
-    elapsed = time.monotonic() - t0
-    assert elapsed >= 0.195, f"5000 bytes at 250000 baud arrived in {elapsed:.3f}s"  # 200 ms
-    assert read_exact(a, len(msg)) == msg
+    msg = paced_transfer(b, 250000, 5000, 0.195)  # 200 ms
     assert [ep["baud"] for ep in b.stats()["endpoints"]] == [250000, 250000]
-    lines = wait_for(lambda: sum(len(l[3]) for l in b.capture()) == len(msg) and b.capture(),
-                     what="capture lines for all 5000 bytes")
+    lines = wait_for(
+        lambda: sum(len(line[3]) for line in b.capture()) == len(msg) and b.capture(),
+        what="capture lines for all 5000 bytes",
+    )
     assert {(src, baud) for _, src, baud, *_ in lines} == {(0, 250000)}
-    assert b"".join(l[3] for l in lines) == msg    # bursts over 4096 bytes are split
+    assert b"".join(line[3] for line in lines) == msg  # bursts over 4096 bytes are split
 
 
 def test_baud_mismatch_corrupts(bus):
     b = bus(n=3)
     a = b.open(0, 9600)
     off = b.open(1, 19200)
-    near = b.open(2, 9800)          # 2.1 % off: within the 3 % tolerance
+    near = b.open(2, 9800)  # 2.1 % off: within the 3 % tolerance
     msg = bytes(range(100))
     a.write(msg)
     assert read_exact(a, 100) == msg
@@ -277,9 +314,9 @@ def test_baud_mismatch_corrupts(bus):
 def test_collision_corrupts_and_is_counted(bus):
     b = bus(n=3)
     a, c, listener = b.open(0, 9600), b.open(1, 9600), b.open(2, 9600)
-    long_msg = b"A" * 1000          # about 1.04 s on the wire
+    long_msg = b"A" * 1000  # about 1.04 s on the wire
     a.write(long_msg)
-    c.write(b"C" * 10)              # lands while A is still transmitting
+    c.write(b"C" * 10)  # lands while A is still transmitting
     total = len(long_msg) + 10
     seen_a = read_exact(a, total)
     seen_c = read_exact(c, total)
@@ -292,12 +329,13 @@ def test_collision_corrupts_and_is_counted(bus):
     assert st["collided_bytes"] >= 20
 
     def collided():
-        lines = [l for l in b.capture() if "collision" in l[4]]
-        return {l[1] for l in lines} == {0, 1} and lines
+        lines = [line for line in b.capture() if "collision" in line[4]]
+        return {line[1] for line in lines} == {0, 1} and lines
+
     lines = wait_for(collided, what="collision lines from both writers in the capture")
-    for _, src, _, tx, flags, rx in lines:
+    for _, src, _, tx, _flags, rx in lines:
         assert rx is not None and len(rx) == len(tx)
-        if src == 1:                # every byte of the short burst overlapped
+        if src == 1:  # every byte of the short burst overlapped
             assert tx == b"C" * 10 and all(x != y for x, y in zip(tx, rx))
         else:
             assert tx == long_msg and sum(x != y for x, y in zip(tx, rx)) >= 10
@@ -321,7 +359,7 @@ def test_noise_ber_and_reproducibility(bus):
         a.write(msg)
         assert read_exact(r, len(msg)) == msg
         assert read_exact(a, len(msg)) == msg
-        lines = wait_for(lambda: len(b.capture()) >= 2 and b.capture(), what="capture")
+        lines = wait_for(lambda b=b: len(b.capture()) >= 2 and b.capture(), what="capture")
         assert "noise" in lines[0][4] and lines[0][5] == got
         assert lines[1][4] == set() and lines[1][5] is None and lines[1][3] == msg
         b.close()
@@ -336,14 +374,14 @@ def test_capture_lines_match_traffic(bus):
         port, other = (a, c) if src == 0 else (c, a)
         port.write(data)
         assert read_exact(port, len(data)) == data
-        assert read_exact(other, len(data)) != data     # baud mismatch: garbage
-        time.sleep(0.02)            # silence >> 1.5 characters: a new burst
+        assert read_exact(other, len(data)) != data  # baud mismatch: garbage
+        time.sleep(0.02)  # silence >> 1.5 characters: a new burst
     lines = wait_for(lambda: len(b.capture()) >= 3 and b.capture(), what="3 capture lines")
     assert len(lines) == 3
     assert [(src, baud, tx) for _, src, baud, tx, _, _ in lines] == sent
-    times = [l[0] for l in lines]
+    times = [line[0] for line in lines]
     assert times == sorted(times) and times[0] >= 0
-    assert all(l[4] == set() and l[5] is None for l in lines)
+    assert all(line[4] == set() and line[5] is None for line in lines)
     header = b.cap_path.read_text().splitlines()[0]
     assert header.startswith("#")
 
@@ -351,9 +389,9 @@ def test_capture_lines_match_traffic(bus):
 def test_reader_that_never_reads_does_not_block(bus):
     b = bus(n=3)
     a = b.open(0, 3000000)
-    b.open(2, 3000000)              # opened, never read
+    b.open(2, 3000000)  # opened, never read
     ok = True
-    for _ in range(20):             # 40 kB: more than a pty holds
+    for _ in range(20):  # 40 kB: more than a pty holds
         chunk = os.urandom(2000)
         a.write(chunk)
         ok &= read_exact(a, len(chunk)) == chunk
@@ -375,6 +413,7 @@ def test_close_and_reopen_endpoint(bus):
     def cpu_ticks():
         fields = Path(f"/proc/{b.p.pid}/stat").read_text().rsplit(")", 1)[1].split()
         return int(fields[11]) + int(fields[12])
+
     t0 = cpu_ticks()
     time.sleep(1.0)
     assert cpu_ticks() - t0 < 30, "the vbus must sleep while nobody has an endpoint open"

@@ -5,6 +5,7 @@ the content, so rerunning changes nothing. Input layouts: tests/fuzz/targets.c.
 
     python3 tests/fuzz/gen_corpus.py [OUTDIR]
 """
+
 import hashlib
 import struct
 import sys
@@ -13,12 +14,32 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 VEC = ROOT / "tests" / "vectors"
 
-GW_CODES = {"esc_cmd": 0x42, "esc_telem": 0x43, "telem": 0x42, "arm": 0x44, "config": 0x45,
-            "stats": 0x46, "nodes": 0x47, "node_info": 0x48, "tun_open": 0x49, "tun_xfer": 0x4A,
-            "can_send": 0x4B, "can_recv": 0x4C, "can_filter": 0x4D}
-DSDL_SEL = {"node_status": 0, "get_node_info_rsp": 1, "get_node_info_req": 1, "raw_command": 2,
-            "esc_status": 3, "esc_status_extended": 4, "arming_status": 5,
-            "tunnel_targetted": 6, "tunnel_broadcast": 7}
+GW_CODES = {
+    "esc_cmd": 0x42,
+    "esc_telem": 0x43,
+    "telem": 0x42,
+    "arm": 0x44,
+    "config": 0x45,
+    "stats": 0x46,
+    "nodes": 0x47,
+    "node_info": 0x48,
+    "tun_open": 0x49,
+    "tun_xfer": 0x4A,
+    "can_send": 0x4B,
+    "can_recv": 0x4C,
+    "can_filter": 0x4D,
+}
+DSDL_SEL = {
+    "node_status": 0,
+    "get_node_info_rsp": 1,
+    "get_node_info_req": 1,
+    "raw_command": 2,
+    "esc_status": 3,
+    "esc_status_extended": 4,
+    "arming_status": 5,
+    "tunnel_targetted": 6,
+    "tunnel_broadcast": 7,
+}
 
 
 def lines(name):
@@ -57,8 +78,17 @@ def main():
         add("frame", b"\x10\x00" + stream)
         add("frame", b"\x02\x55" + stream)
     # common payloads
-    sel = {"identity": 0, "bad_identity": 0, "configure": 1, "bad_configure": 1,
-           "unsupported_configure": 1, "ack": 2, "bad_ack": 2, "error": 3, "bad_error": 3}
+    sel = {
+        "identity": 0,
+        "bad_identity": 0,
+        "configure": 1,
+        "bad_configure": 1,
+        "unsupported_configure": 1,
+        "ack": 2,
+        "bad_ack": 2,
+        "error": 3,
+        "bad_error": 3,
+    }
     for line in lines("payloads.txt"):
         f = line.split("\t")
         hx = f[-1].strip()
@@ -77,14 +107,17 @@ def main():
         else:
             add("gw_client", bytes([code - 0x42, 0]) + payload)
     # a session: identify, configure, the requests, CAN traffic, time passing
-    dc = [can_frames(l.split(" : ")[1]) for l in lines("dronecan.txt")]
+    dc = [can_frames(line.split(" : ")[1]) for line in lines("dronecan.txt")]
     can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
     # DroneCAN reassembly: each vector's frames, and all of them interleaved
     for fr in dc:
         add("dronecan_rx", b"\x0a" + b"".join(can_record(i, e, d) for (i, e, d) in fr))
-    add("dronecan_rx", b"\x0a" + b"".join(can_record(i, e, d, 0x10) for fr in dc for (i, e, d) in fr))
+    add(
+        "dronecan_rx",
+        b"\x0a" + b"".join(can_record(i, e, d, 0x10) for fr in dc for (i, e, d) in fr),
+    )
     # DSDL payloads (transfer CRC and tail bytes removed)
     for line in lines("dronecan.txt"):
         name = line.split()[0]
@@ -95,10 +128,25 @@ def main():
         add("dsdl", bytes([DSDL_SEL[name]]) + payload)
     # SLCAN lines
     for fr in dc[:6]:
-        for (i, e, d) in fr:
-            add("slcan", (f"T{i:08X}" if e else f"t{i:03X}").encode() + f"{len(d)}".encode() + d.hex().encode())
-    for s in (b"t1230", b"t12381122334455667788", b"r7FF2", b"R1FFFFFFF8", b"T0000000100ABCD",
-              b"z", b"Z", b"", b"t1AB2010203ff", b"x"):
+        for i, e, d in fr:
+            add(
+                "slcan",
+                (f"T{i:08X}" if e else f"t{i:03X}").encode()
+                + f"{len(d)}".encode()
+                + d.hex().encode(),
+            )
+    for s in (
+        b"t1230",
+        b"t12381122334455667788",
+        b"r7FF2",
+        b"R1FFFFFFF8",
+        b"T0000000100ABCD",
+        b"z",
+        b"Z",
+        b"",
+        b"t1AB2010203ff",
+        b"x",
+    ):
         add("slcan", s)
 
     for target, items in sorted(seeds.items()):

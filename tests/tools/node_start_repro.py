@@ -12,6 +12,7 @@ are made on a second hub port and closed. Prints one JSON line: started,
 failed, seconds per node. With --py-spy, the first stuck child's stacks
 are printed to stderr. --method default is the helper's (spawn).
 """
+
 import argparse
 import json
 import logging
@@ -49,8 +50,10 @@ class BusyLogger:
         self.root.setLevel(logging.INFO)
         self.stop = threading.Event()
         self.lines = 0
-        self.threads = [threading.Thread(target=self._write, daemon=True),
-                        threading.Thread(target=self._drain, daemon=True)]
+        self.threads = [
+            threading.Thread(target=self._write, daemon=True),
+            threading.Thread(target=self._drain, daemon=True),
+        ]
         for t in self.threads:
             t.start()
         end = time.monotonic() + 10
@@ -84,9 +87,18 @@ class BusyLogger:
 
 
 def start_hub(tmp):
-    p = subprocess.Popen([sys.executable, str(ROOT / "host_tools" / "slcan_hub.py"), "-n", "2",
-                          "--link", str(Path(tmp) / "can")], stdout=subprocess.PIPE,
-                         stdin=subprocess.DEVNULL)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            str(ROOT / "host_tools" / "slcan_hub.py"),
+            "-n",
+            "2",
+            "--link",
+            str(Path(tmp) / "can"),
+        ],
+        stdout=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+    )
     line = p.stdout.readline().decode()
     if not line.startswith("READY"):
         raise RuntimeError(f"slcan_hub did not start: {line!r}")
@@ -94,8 +106,9 @@ def start_hub(tmp):
 
 
 def py_spy_children(py_spy):
-    kids = subprocess.run(["pgrep", "-P", str(os.getpid())], capture_output=True,
-                          text=True).stdout.split()
+    kids = subprocess.run(
+        ["pgrep", "-P", str(os.getpid())], capture_output=True, text=True
+    ).stdout.split()
     for k in kids:
         out = subprocess.run([py_spy, "dump", "--pid", k], capture_output=True, text=True)
         print(f"--- py-spy dump of child {k}\n{out.stdout}{out.stderr}", file=sys.stderr)
@@ -105,8 +118,12 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--nodes", type=int, default=50)
     ap.add_argument("--method", choices=("default", "spawn", "fork"), default="default")
-    ap.add_argument("--init-timeout", type=float, default=4.0,
-                    help="pydronecan's wait for a child's start (its default: 10 s)")
+    ap.add_argument(
+        "--init-timeout",
+        type=float,
+        default=4.0,
+        help="pydronecan's wait for a child's start (its default: 10 s)",
+    )
     ap.add_argument("--py-spy", metavar="PATH", help="dump the first stuck child with py-spy")
     args = ap.parse_args()
     if args.nodes < 1:
@@ -116,12 +133,14 @@ def main():
     else:
         multiprocessing.set_start_method(args.method, force=True)
     import dronecan.driver.slcan as slcan
+
     slcan.IO_PROCESS_INIT_TIMEOUT = args.init_timeout
 
     def make(port, node_id):
         return dronecan.make_node("slcan:" + str(port), node_id=node_id, bitrate=1000000)
 
     import dronecan
+
     with tempfile.TemporaryDirectory() as tmp:
         hub, links = start_hub(tmp)
         started = failed = 0
@@ -145,8 +164,17 @@ def main():
             hub.terminate()
             hub.wait(10)
         per = (time.monotonic() - t0) / args.nodes
-        print(json.dumps({"method": multiprocessing.get_start_method(), "nodes": args.nodes,
-                          "started": started, "failed": failed, "s_per_node": round(per, 3)}))
+        print(
+            json.dumps(
+                {
+                    "method": multiprocessing.get_start_method(),
+                    "nodes": args.nodes,
+                    "started": started,
+                    "failed": failed,
+                    "s_per_node": round(per, 3),
+                }
+            )
+        )
     return 0 if failed == 0 else 1
 
 

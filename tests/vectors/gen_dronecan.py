@@ -11,6 +11,7 @@ integer lists (possibly empty), hex byte strings for byte arrays (possibly
 empty). CAN IDs and data are hex. Frames are what pydronecan's
 Transfer.to_frames() emits for classic CAN.
 """
+
 import sys
 
 import dronecan
@@ -20,10 +21,15 @@ U = dronecan.uavcan
 
 
 def frames_of(payload, src, prio, tid, kind="msg", dst=None):
-    t = Transfer(transfer_id=tid, source_node_id=src, dest_node_id=dst,
-                 payload=payload, transfer_priority=prio,
-                 service_not_message=(kind != "msg"),
-                 request_not_response=(kind == "req"))
+    t = Transfer(
+        transfer_id=tid,
+        source_node_id=src,
+        dest_node_id=dst,
+        payload=payload,
+        transfer_priority=prio,
+        service_not_message=(kind != "msg"),
+        request_not_response=(kind == "req"),
+    )
     out = []
     for f in t.to_frames():
         out.append("%08X#%s" % (f.message_id, bytes(f.bytes).hex()))
@@ -43,15 +49,32 @@ def line(name, payload, fields, src=10, prio=20, tid=0, kind="msg", dst=None):
     if dst is not None:
         keys.append("dst=%d" % dst)
     keys += ["%s=%s" % (k, fmt(v)) for k, v in fields]
-    print("%s %s : %s" % (name, " ".join(keys),
-                          " ".join(frames_of(payload, src, prio, tid, kind, dst))))
+    print(
+        "%s %s : %s"
+        % (name, " ".join(keys), " ".join(frames_of(payload, src, prio, tid, kind, dst)))
+    )
 
 
 def node_status(uptime, health, mode, sub_mode, vendor, **kw):
-    m = U.protocol.NodeStatus(uptime_sec=uptime, health=health, mode=mode,
-                              sub_mode=sub_mode, vendor_specific_status_code=vendor)
-    line("node_status", m, [("uptime_sec", uptime), ("health", health), ("mode", mode),
-                            ("sub_mode", sub_mode), ("vendor", vendor)], **kw)
+    m = U.protocol.NodeStatus(
+        uptime_sec=uptime,
+        health=health,
+        mode=mode,
+        sub_mode=sub_mode,
+        vendor_specific_status_code=vendor,
+    )
+    line(
+        "node_status",
+        m,
+        [
+            ("uptime_sec", uptime),
+            ("health", health),
+            ("mode", mode),
+            ("sub_mode", sub_mode),
+            ("vendor", vendor),
+        ],
+        **kw,
+    )
 
 
 def raw_command(cmd, **kw):
@@ -59,43 +82,90 @@ def raw_command(cmd, **kw):
 
 
 def esc_status(ec, v, c, t, rpm, pwr, idx, **kw):
-    m = U.equipment.esc.Status(error_count=ec, voltage=v, current=c, temperature=t,
-                               rpm=rpm, power_rating_pct=pwr, esc_index=idx)
-    line("esc_status", m, [("error_count", ec), ("voltage", repr(v)), ("current", repr(c)),
-                           ("temperature", repr(t)), ("rpm", rpm),
-                           ("power_rating_pct", pwr), ("esc_index", idx)], **kw)
+    m = U.equipment.esc.Status(
+        error_count=ec,
+        voltage=v,
+        current=c,
+        temperature=t,
+        rpm=rpm,
+        power_rating_pct=pwr,
+        esc_index=idx,
+    )
+    line(
+        "esc_status",
+        m,
+        [
+            ("error_count", ec),
+            ("voltage", repr(v)),
+            ("current", repr(c)),
+            ("temperature", repr(t)),
+            ("rpm", rpm),
+            ("power_rating_pct", pwr),
+            ("esc_index", idx),
+        ],
+        **kw,
+    )
 
 
 def esc_status_ext(inp, outp, temp, angle, flags, idx, **kw):
-    m = U.equipment.esc.StatusExtended(input_pct=inp, output_pct=outp,
-                                       motor_temperature_degC=temp, motor_angle=angle,
-                                       status_flags=flags, esc_index=idx)
-    line("esc_status_extended", m, [("input_pct", inp), ("output_pct", outp),
-                                    ("motor_temperature_degC", temp), ("motor_angle", angle),
-                                    ("status_flags", flags), ("esc_index", idx)], **kw)
+    m = U.equipment.esc.StatusExtended(
+        input_pct=inp,
+        output_pct=outp,
+        motor_temperature_degC=temp,
+        motor_angle=angle,
+        status_flags=flags,
+        esc_index=idx,
+    )
+    line(
+        "esc_status_extended",
+        m,
+        [
+            ("input_pct", inp),
+            ("output_pct", outp),
+            ("motor_temperature_degC", temp),
+            ("motor_angle", angle),
+            ("status_flags", flags),
+            ("esc_index", idx),
+        ],
+        **kw,
+    )
 
 
 def arming(status, **kw):
-    line("arming_status", U.equipment.safety.ArmingStatus(status=status),
-         [("status", status)], **kw)
+    line(
+        "arming_status", U.equipment.safety.ArmingStatus(status=status), [("status", status)], **kw
+    )
 
 
 def targetted(proto, target, serial_id, options, baud, buf, **kw):
-    m = U.tunnel.Targetted(target_node=target, serial_id=serial_id, options=options,
-                           baudrate=baud)
+    m = U.tunnel.Targetted(target_node=target, serial_id=serial_id, options=options, baudrate=baud)
     m.protocol.protocol = proto
     m.buffer = list(buf)
-    line("tunnel_targetted", m, [("protocol", proto), ("target_node", target),
-                                 ("serial_id", serial_id), ("options", options),
-                                 ("baudrate", baud), ("buffer", bytes(buf))], **kw)
+    line(
+        "tunnel_targetted",
+        m,
+        [
+            ("protocol", proto),
+            ("target_node", target),
+            ("serial_id", serial_id),
+            ("options", options),
+            ("baudrate", baud),
+            ("buffer", bytes(buf)),
+        ],
+        **kw,
+    )
 
 
 def broadcast(proto, channel, buf, **kw):
     m = U.tunnel.Broadcast(channel_id=channel)
     m.protocol.protocol = proto
     m.buffer = list(buf)
-    line("tunnel_broadcast", m, [("protocol", proto), ("channel_id", channel),
-                                 ("buffer", bytes(buf))], **kw)
+    line(
+        "tunnel_broadcast",
+        m,
+        [("protocol", proto), ("channel_id", channel), ("buffer", bytes(buf))],
+        **kw,
+    )
 
 
 def node_info(uptime, sw, hw_major, hw_minor, uid, coa, name, **kw):
@@ -105,20 +175,41 @@ def node_info(uptime, sw, hw_major, hw_minor, uid, coa, name, **kw):
     r.status.mode = 0
     r.status.sub_mode = 2
     r.status.vendor_specific_status_code = 0xBEEF
-    (r.software_version.major, r.software_version.minor,
-     r.software_version.optional_field_flags, r.software_version.vcs_commit,
-     r.software_version.image_crc) = sw
+    (
+        r.software_version.major,
+        r.software_version.minor,
+        r.software_version.optional_field_flags,
+        r.software_version.vcs_commit,
+        r.software_version.image_crc,
+    ) = sw
     r.hardware_version.major = hw_major
     r.hardware_version.minor = hw_minor
     r.hardware_version.unique_id = list(uid)
     r.hardware_version.certificate_of_authenticity = list(coa)
     r.name = name
-    line("get_node_info_rsp", r,
-         [("uptime_sec", uptime), ("health", 1), ("mode", 0), ("sub_mode", 2),
-          ("vendor", 0xBEEF), ("sw_major", sw[0]), ("sw_minor", sw[1]), ("sw_flags", sw[2]),
-          ("vcs_commit", sw[3]), ("image_crc", sw[4]), ("hw_major", hw_major),
-          ("hw_minor", hw_minor), ("unique_id", bytes(uid)), ("coa", bytes(coa)),
-          ("name", name.encode())], kind="rsp", **kw)
+    line(
+        "get_node_info_rsp",
+        r,
+        [
+            ("uptime_sec", uptime),
+            ("health", 1),
+            ("mode", 0),
+            ("sub_mode", 2),
+            ("vendor", 0xBEEF),
+            ("sw_major", sw[0]),
+            ("sw_minor", sw[1]),
+            ("sw_flags", sw[2]),
+            ("vcs_commit", sw[3]),
+            ("image_crc", sw[4]),
+            ("hw_major", hw_major),
+            ("hw_minor", hw_minor),
+            ("unique_id", bytes(uid)),
+            ("coa", bytes(coa)),
+            ("name", name.encode()),
+        ],
+        kind="rsp",
+        **kw,
+    )
 
 
 def node_info_req(**kw):
@@ -127,8 +218,10 @@ def node_info_req(**kw):
 
 def main():
     print("# DroneCAN test vectors, generated by tests/vectors/gen_dronecan.py with")
-    print("# pydronecan %s. Do not edit; regenerate." % getattr(
-        sys.modules["dronecan"], "__version__", "?"))
+    print(
+        "# pydronecan %s. Do not edit; regenerate."
+        % getattr(sys.modules["dronecan"], "__version__", "?")
+    )
     print("# <msg> <key>=<value>... : <canid>#<data>...  (see the script for the format)")
     # The three reference vectors from the task brief.
     node_status(1, 0, 0, 0, 0x1234)
@@ -164,10 +257,32 @@ def main():
     broadcast(255, 255, b"abc", tid=19)
     # GetNodeInfo: request (empty) and responses with a name.
     node_info_req(src=42, dst=10, prio=30, tid=20)
-    node_info(1234, (1, 2, 3, 0xDEADBEEF, 0x0123456789ABCDEF), 4, 5, bytes(range(16, 32)),
-              b"", "org.dan.can_gateway", src=10, dst=42, prio=30, tid=20)
-    node_info(5, (0, 9, 0, 0, 0), 1, 0, bytes(16), bytes(range(200, 220)),
-              "n" * 80, src=125, dst=1, prio=24, tid=31)
+    node_info(
+        1234,
+        (1, 2, 3, 0xDEADBEEF, 0x0123456789ABCDEF),
+        4,
+        5,
+        bytes(range(16, 32)),
+        b"",
+        "org.dan.can_gateway",
+        src=10,
+        dst=42,
+        prio=30,
+        tid=20,
+    )
+    node_info(
+        5,
+        (0, 9, 0, 0, 0),
+        1,
+        0,
+        bytes(16),
+        bytes(range(200, 220)),
+        "n" * 80,
+        src=125,
+        dst=1,
+        prio=24,
+        tid=31,
+    )
 
 
 if __name__ == "__main__":

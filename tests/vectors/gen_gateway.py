@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """Generate tests/vectors/gateway.txt: CAN-over-DAN gateway payload vectors
 (docs/PROTOCOL.md section 7), from this plain-Python encoder written from
-the document, independent of the C codec.
+the document (the wire basics in _wire.py), independent of the C codec.
 
 Usage: python3 tests/vectors/gen_gateway.py > tests/vectors/gateway.txt
 """
+
 import os
-import struct
+
+from _wire import array, frame, u8, u16, u24, u32, uvarint
 
 HEADER = """\
 # CAN-over-DAN gateway payload vectors (docs/PROTOCOL.md section 7).
@@ -47,35 +49,6 @@ HEADER = """\
 """
 
 
-def uv(v):
-    out = bytearray()
-    while v >= 0x80:
-        out.append((v & 0x7F) | 0x80)
-        v >>= 7
-    out.append(v)
-    return bytes(out)
-
-
-def u8(v):
-    return bytes([v & 0xFF])
-
-
-def u16(v):
-    return struct.pack("<H", v & 0xFFFF)
-
-
-def u24(v):
-    return struct.pack("<I", v & 0xFFFFFF)[:3]
-
-
-def u32(v):
-    return struct.pack("<I", v & 0xFFFFFFFF)
-
-
-def arr(b):
-    return uv(len(b)) + bytes(b)
-
-
 def hx(b):
     return bytes(b).hex() if b else "-"
 
@@ -85,7 +58,6 @@ def emit(msg, d, fields, payload):
 
 
 def esc_cmd(values):
-    bits = 0
     acc = 0
     for i, v in enumerate(values):
         acc |= (v & 0x3FFF) << (14 * i)
@@ -98,9 +70,9 @@ def rec_bytes(r):
     (idx, node, fl, age, v, c, t, rpm, pwr, err, eage, inp, outp, mt, ang, sf) = r
     b = u8(idx) + u8(node) + u8(fl)
     if fl & 1:
-        b += uv(age) + u16(v) + u16(c) + u16(t) + u24(rpm) + u8(pwr) + uv(err)
+        b += uvarint(age) + u16(v) + u16(c) + u16(t) + u24(rpm) + u8(pwr) + uvarint(err)
     if fl & 2:
-        b += uv(eage) + u8(inp) + u8(outp) + u16(mt) + u16(ang) + u24(sf)
+        b += uvarint(eage) + u8(inp) + u8(outp) + u16(mt) + u16(ang) + u24(sf)
     return b
 
 
@@ -116,7 +88,9 @@ def rec_text(r):
 
 def telem(flags, aux, recs):
     payload = u8(flags) + u8(aux) + u8(len(recs)) + b"".join(rec_bytes(r) for r in recs)
-    emit("telem", "rsp", ["flags=%d" % flags, "aux=%d" % aux] + [rec_text(r) for r in recs], payload)
+    emit(
+        "telem", "rsp", ["flags=%d" % flags, "aux=%d" % aux] + [rec_text(r) for r in recs], payload
+    )
 
 
 def frame_bytes(idf, data):
@@ -130,8 +104,8 @@ def frame_text(idf, data):
     return "frame=%08X/%d/%s" % (idf, len(data), hx(data))
 
 
-def main():
-    print(HEADER, end="")
+def esc_vectors():
+    """ESC_CMD, telemetry, ESC_TELEM, ARM, CONFIG, STATS."""
     # ESC commands: the 4-channel one is the 12-byte frame of the brief
     esc_cmd([0, 100, 200, 300])
     esc_cmd([-1])
@@ -139,78 +113,167 @@ def main():
     esc_cmd([i * 811 - 8000 for i in range(20)])
     # telemetry records (f16 bit patterns: 12.5 V = 0x4A40, -1.25 A = 0xBD00,
     # 300 K = 0x5CB0)
-    telem(0x05, 4, [(3, 20, 1, 17, 0x4A40, 0xBD00, 0x5CB0, -1234, 50, 7,
-                     0, 0, 0, 0, 0, 0)])
+    telem(0x05, 4, [(3, 20, 1, 17, 0x4A40, 0xBD00, 0x5CB0, -1234, 50, 7, 0, 0, 0, 0, 0, 0)])
     telem(0x02, 0, [])
-    telem(0x01, 0xFF, [(0, 21, 3, 200, 0x4C33, 0x4248, 0x5CD9, 131071, 100, 300,
-                        5, 50, 48, -40, 359, 370085),
-                       (31, 127, 2, 0, 0, 0, 0, 0, 0, 0,
-                        65535, 127, 0, 255, 511, 524287),
-                       (7, 1, 1, 4294967295, 0x7BFF, 0x8000, 0x0001, -131072, 0, 4294967295,
-                        0, 0, 0, 0, 0, 0)])
+    telem(
+        0x01,
+        0xFF,
+        [
+            (0, 21, 3, 200, 0x4C33, 0x4248, 0x5CD9, 131071, 100, 300, 5, 50, 48, -40, 359, 370085),
+            (31, 127, 2, 0, 0, 0, 0, 0, 0, 0, 65535, 127, 0, 255, 511, 524287),
+            (7, 1, 1, 4294967295, 0x7BFF, 0x8000, 0x0001, -131072, 0, 4294967295, 0, 0, 0, 0, 0, 0),
+        ],
+    )
     emit("esc_telem", "req", ["first=0"], u8(0))
     emit("esc_telem", "req", ["first=17"], u8(17))
     emit("arm", "req", ["status=255"], u8(255))
     emit("arm", "req", ["status=0"], u8(0))
     emit("arm", "rsp", ["flags=5"], u8(5))
     for mask, to, rate in [(0, 0, 0), (1, 750, 0), (2, 0, 10), (3, 60000, 50)]:
-        p = u8(mask) + (uv(to) if mask & 1 else b"") + (uv(rate) if mask & 2 else b"")
+        p = u8(mask) + (uvarint(to) if mask & 1 else b"") + (uvarint(rate) if mask & 2 else b"")
         emit("config", "req", ["mask=%d" % mask, "timeout=%d" % to, "rate=%d" % rate], p)
-    emit("config", "rsp", ["node=10", "timeout=500", "rate=2", "flags=4"],
-         u8(10) + uv(500) + uv(2) + u8(4))
+    emit(
+        "config",
+        "rsp",
+        ["node=10", "timeout=500", "rate=2", "flags=4"],
+        u8(10) + uvarint(500) + uvarint(2) + u8(4),
+    )
     vals = [123456, 0, 3, 17, 123450, 5000, 4000, 0, 1, 300, 2, 0, 6000, 1, 0, 128, 16384, 4]
-    emit("stats", "rsp", ["values=" + ",".join(map(str, vals))],
-         u8(len(vals)) + b"".join(uv(v) for v in vals))
+    emit(
+        "stats",
+        "rsp",
+        ["values=" + ",".join(map(str, vals))],
+        u8(len(vals)) + b"".join(uvarint(v) for v in vals),
+    )
+
+
+def node_vectors():
+    """NODES, NODE_INFO."""
     emit("nodes", "req", ["first=1"], u8(1))
-    nodes = [(20, 0, 0, 0, 1234, 0xBEEF, 150, 2), (21, 1, 2, 5, 0, 0, 0, 1),
-             (127, 3, 7, 7, 4294967295, 65535, 3001, 3)]
+    nodes = [
+        (20, 0, 0, 0, 1234, 0xBEEF, 150, 2),
+        (21, 1, 2, 5, 0, 0, 0, 1),
+        (127, 3, 7, 7, 4294967295, 65535, 3001, 3),
+    ]
     p = u8(0) + u8(len(nodes))
-    for (nid, h, m, sm, up, ven, age, st) in nodes:
-        p += u8(nid) + u8(h | (m << 2) | (sm << 5)) + uv(up) + u16(ven) + uv(age) + u8(st)
+    for nid, h, m, sm, up, ven, age, st in nodes:
+        p += u8(nid) + u8(h | (m << 2) | (sm << 5)) + uvarint(up) + u16(ven) + uvarint(age) + u8(st)
     emit("nodes", "rsp", ["next=0"] + ["node=" + "/".join(map(str, n)) for n in nodes], p)
     emit("nodes", "rsp", ["next=64"], u8(64) + u8(0))
     emit("node_info", "req", ["node=20"], u8(20))
     uid = bytes(range(16, 32))
     name = b"org.dronecan.esc"
-    emit("node_info", "rsp", ["node=20", "state=2", "sw=1/2/1", "vcs=3735928559", "hw=4/5",
-                              "uid=" + hx(uid), "name=" + hx(name)],
-         u8(20) + u8(2) + u8(1) + u8(2) + u8(1) + u32(3735928559) + u8(4) + u8(5) + uid + arr(name))
-    emit("node_info", "rsp", ["node=33", "state=1", "sw=0/0/0", "vcs=0", "hw=0/0",
-                              "uid=" + hx(bytes(16)), "name=-"], u8(33) + u8(1))
-    for (port, mode, proto, target, serial, opts, baud) in [(0, 1, 255, 20, 0, 1, 115200),
-                                                           (1, 2, 2, 7, 0, 0, 0),
-                                                           (3, 1, 0, 127, -16, 15, 16777215),
-                                                           (0, 0, 0, 0, 0, 0, 0)]:
-        emit("tun_open", "req", ["port=%d" % port, "mode=%d" % mode, "protocol=%d" % proto,
-                                 "target=%d" % target, "serial=%d" % serial, "options=%d" % opts,
-                                 "baud=%d" % baud],
-             u8(port) + u8(mode) + u8(proto) + u8(target) + u8(serial) + u8(opts) + uv(baud))
+    emit(
+        "node_info",
+        "rsp",
+        [
+            "node=20",
+            "state=2",
+            "sw=1/2/1",
+            "vcs=3735928559",
+            "hw=4/5",
+            "uid=" + hx(uid),
+            "name=" + hx(name),
+        ],
+        u8(20)
+        + u8(2)
+        + u8(1)
+        + u8(2)
+        + u8(1)
+        + u32(3735928559)
+        + u8(4)
+        + u8(5)
+        + uid
+        + array(name),
+    )
+    emit(
+        "node_info",
+        "rsp",
+        ["node=33", "state=1", "sw=0/0/0", "vcs=0", "hw=0/0", "uid=" + hx(bytes(16)), "name=-"],
+        u8(33) + u8(1),
+    )
+
+
+def tunnel_vectors():
+    """TUN_OPEN, TUN_XFER."""
+    for port, mode, proto, target, serial, opts, baud in [
+        (0, 1, 255, 20, 0, 1, 115200),
+        (1, 2, 2, 7, 0, 0, 0),
+        (3, 1, 0, 127, -16, 15, 16777215),
+        (0, 0, 0, 0, 0, 0, 0),
+    ]:
+        emit(
+            "tun_open",
+            "req",
+            [
+                "port=%d" % port,
+                "mode=%d" % mode,
+                "protocol=%d" % proto,
+                "target=%d" % target,
+                "serial=%d" % serial,
+                "options=%d" % opts,
+                "baud=%d" % baud,
+            ],
+            u8(port) + u8(mode) + u8(proto) + u8(target) + u8(serial) + u8(opts) + uvarint(baud),
+        )
     emit("tun_open", "rsp", ["port=1", "result=0"], u8(1) + u8(0))
     emit("tun_open", "rsp", ["port=9", "result=1"], u8(9) + u8(1))
     data = bytes((i * 37 + 5) & 0xFF for i in range(128))
-    for (port, wr, rd, mx, d) in [(0, 0, 0, 128, b"hello"), (1, 4294967200, 65536, 0, data),
-                                  (0, 1000, 2000, 128, b"")]:
-        emit("tun_xfer", "req", ["port=%d" % port, "wr=%d" % wr, "rd=%d" % rd, "max=%d" % mx,
-                                 "data=" + hx(d)],
-             u8(port) + uv(wr) + uv(rd) + uv(mx) + arr(d))
-    for (port, wr, sp, rd, dr, d) in [(0, 5, 1019, 0, 0, b"world"), (1, 4294967295, 0, 70000, 12, data),
-                                      (0, 1000, 1024, 2000, 0, b"")]:
-        emit("tun_xfer", "rsp", ["port=%d" % port, "wr=%d" % wr, "space=%d" % sp, "rd=%d" % rd,
-                                 "dropped=%d" % dr, "data=" + hx(d)],
-             u8(port) + uv(wr) + uv(sp) + uv(rd) + uv(dr) + arr(d))
-    frames = [(0x80000000 | 0x1401550A, bytes([1, 0, 0, 0, 0, 0x34, 0x12, 0xC0])),
-              (0x123, b""), (0x7FF, bytes([0xAA])), (0x40000000 | 0x456, 0),
-              (0xC0000000 | 0x1FFFFFFF, 8)]
+    for port, wr, rd, mx, d in [
+        (0, 0, 0, 128, b"hello"),
+        (1, 4294967200, 65536, 0, data),
+        (0, 1000, 2000, 128, b""),
+    ]:
+        emit(
+            "tun_xfer",
+            "req",
+            ["port=%d" % port, "wr=%d" % wr, "rd=%d" % rd, "max=%d" % mx, "data=" + hx(d)],
+            u8(port) + uvarint(wr) + uvarint(rd) + uvarint(mx) + array(d),
+        )
+    for port, wr, sp, rd, dr, d in [
+        (0, 5, 1019, 0, 0, b"world"),
+        (1, 4294967295, 0, 70000, 12, data),
+        (0, 1000, 1024, 2000, 0, b""),
+    ]:
+        emit(
+            "tun_xfer",
+            "rsp",
+            [
+                "port=%d" % port,
+                "wr=%d" % wr,
+                "space=%d" % sp,
+                "rd=%d" % rd,
+                "dropped=%d" % dr,
+                "data=" + hx(d),
+            ],
+            u8(port) + uvarint(wr) + uvarint(sp) + uvarint(rd) + uvarint(dr) + array(d),
+        )
+
+
+def can_vectors():
+    """CAN_SEND, CAN_RECV, CAN_FILTER."""
+    frames = [
+        (0x80000000 | 0x1401550A, bytes([1, 0, 0, 0, 0, 0x34, 0x12, 0xC0])),
+        (0x123, b""),
+        (0x7FF, bytes([0xAA])),
+        (0x40000000 | 0x456, 0),
+        (0xC0000000 | 0x1FFFFFFF, 8),
+    ]
     p = u8(7) + u8(len(frames))
-    for (i, d) in frames:
+    for i, d in frames:
         p += frame_bytes(i, d)
     emit("can_send", "req", ["seq=7"] + [frame_text(i, d) for (i, d) in frames], p)
-    emit("can_send", "rsp", ["seq=7", "accepted=5", "free=123"], u8(7) + u8(5) + uv(123))
-    emit("can_recv", "req", ["seq=0", "max=11"], uv(0) + u8(11))
-    emit("can_recv", "req", ["seq=300", "max=4"], uv(300) + u8(4))
-    p = uv(298) + uv(3) + u8(2) + frame_bytes(*frames[0]) + frame_bytes(*frames[2])
-    emit("can_recv", "rsp", ["seq=298", "dropped=3", frame_text(*frames[0]), frame_text(*frames[2])], p)
-    emit("can_recv", "rsp", ["seq=5", "dropped=0"], uv(5) + uv(0) + u8(0))
+    emit("can_send", "rsp", ["seq=7", "accepted=5", "free=123"], u8(7) + u8(5) + uvarint(123))
+    emit("can_recv", "req", ["seq=0", "max=11"], uvarint(0) + u8(11))
+    emit("can_recv", "req", ["seq=300", "max=4"], uvarint(300) + u8(4))
+    p = uvarint(298) + uvarint(3) + u8(2) + frame_bytes(*frames[0]) + frame_bytes(*frames[2])
+    emit(
+        "can_recv",
+        "rsp",
+        ["seq=298", "dropped=3", frame_text(*frames[0]), frame_text(*frames[2])],
+        p,
+    )
+    emit("can_recv", "rsp", ["seq=5", "dropped=0"], uvarint(5) + uvarint(0) + u8(0))
     filters = [(0x80000000 | 0x0040A00, 0x00FFFF80), (0x100, 0x700)]
     for op in (0, 1, 2):
         p = u8(op) + u8(len(filters)) + b"".join(u32(i) + u32(m) for (i, m) in filters)
@@ -218,6 +281,14 @@ def main():
     emit("can_filter", "req", ["op=3"], u8(3) + u8(0))
     p = u8(0) + u8(1) + u32(filters[1][0]) + u32(filters[1][1])
     emit("can_filter", "rsp", ["result=0", "filter=%08X/%08X" % filters[1]], p)
+
+
+def main():
+    print(HEADER, end="")
+    esc_vectors()
+    node_vectors()
+    tunnel_vectors()
+    can_vectors()
 
 
 def crc16_ccitt_false(data):
@@ -229,15 +300,6 @@ def crc16_ccitt_false(data):
     return crc
 
 
-def crc8_dvb_s2(data):
-    crc = 0
-    for b in data:
-        crc ^= b
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0xD5) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
-    return crc
-
-
 def sealed_vectors():
     """tests/vectors/gateway_sealed.txt: the seal every gateway message
     carries (CRC-16/CCITT-FALSE over the code's uvarint and the payload),
@@ -245,30 +307,35 @@ def sealed_vectors():
     req, rsp = 0, 1
     cases = [
         (0x42, req, bytes.fromhex("04000019800cb004")),  # ESC_CMD 0,100,200,300
-        (0x42, req, bytes.fromhex("01ff3f")),            # ESC_CMD -1
-        (0x42, rsp, bytes.fromhex("040000")),            # ESC_CMD response, no telemetry
-        (0x44, req, u8(255)), (0x44, req, u8(0)),        # ARM / DISARM
-        (0x44, rsp, u8(5)),                              # ARM response flags 5
-        (0x44, rsp, u8(0)),                              # same bytes as DISARM, other direction
-        (0x43, req, u8(0)),                              # ESC_TELEM first 0
-        (0x46, req, b""),                                # STATS request
-        (0x4A, req, u8(1) + uv(0) + uv(0) + uv(128) + arr(b"hello")),
+        (0x42, req, bytes.fromhex("01ff3f")),  # ESC_CMD -1
+        (0x42, rsp, bytes.fromhex("040000")),  # ESC_CMD response, no telemetry
+        (0x44, req, u8(255)),
+        (0x44, req, u8(0)),  # ARM / DISARM
+        (0x44, rsp, u8(5)),  # ARM response flags 5
+        (0x44, rsp, u8(0)),  # same bytes as DISARM, other direction
+        (0x43, req, u8(0)),  # ESC_TELEM first 0
+        (0x46, req, b""),  # STATS request
+        (0x4A, req, u8(1) + uvarint(0) + uvarint(0) + uvarint(128) + array(b"hello")),
         (0x4D, req, u8(0) + u8(1) + u32(0x100) + u32(0x700)),
     ]
-    lines = ["# Sealed gateway messages (docs/PROTOCOL.md section 7, the seal).",
-             "# Generated by tests/vectors/gen_gateway.py; do not edit, regenerate.",
-             "# sealed <code decimal> <req|rsp> <inner payload hex or -> <sealed payload hex> <DAN frame hex>",
-             "# seal = CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no xorout)",
-             "#        over uvarint(code) + direction byte (0 request, 1 response) + inner payload,",
-             "#        appended little endian."]
+    lines = [
+        "# Sealed gateway messages (docs/PROTOCOL.md section 7, the seal).",
+        "# Generated by tests/vectors/gen_gateway.py; do not edit, regenerate.",
+        "# sealed <code decimal> <req|rsp> <inner payload hex or -> <sealed payload hex> <DAN frame hex>",
+        "# seal = CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no xorout)",
+        "#        over uvarint(code) + direction byte (0 request, 1 response) + inner payload,",
+        "#        appended little endian.",
+    ]
     for code, d, inner in cases:
-        c = crc16_ccitt_false(uv(code) + bytes([d]) + inner)
+        c = crc16_ccitt_false(uvarint(code) + bytes([d]) + inner)
         sealed = inner + bytes([c & 0xFF, c >> 8])
-        body = uv(code) + uv(len(sealed)) + sealed
-        frame = b"D" + body + bytes([crc8_dvb_s2(body)])
-        lines.append("sealed %d %s %s %s %s" % (code, ("req", "rsp")[d], inner.hex() or "-", sealed.hex(),
-                                                frame.hex()))
-    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "gateway_sealed.txt"), "w") as f:
+        lines.append(
+            "sealed %d %s %s %s %s"
+            % (code, ("req", "rsp")[d], inner.hex() or "-", sealed.hex(), frame(code, sealed).hex())
+        )
+    with open(
+        os.path.join(os.path.dirname(os.path.abspath(__file__)), "gateway_sealed.txt"), "w"
+    ) as f:
         f.write("\n".join(lines) + "\n")
 
 

@@ -1,12 +1,22 @@
 """danprobe can dump / can send: raw CAN frames through the gateway, in
 can-utils' formats."""
+
 import argparse
 import time
 
-from danprobe import gateway
-from danprobe.commands.common import (EXIT_FAIL, EXIT_USAGE, CliError, add_gateway_options,
-                                      gateway_operation, gateway_report, long_running,
-                                      positive_float, positive_int)
+from danprobe import gateway_can, gateway_msgs
+from danprobe.commands.common import (
+    EXIT_FAIL,
+    EXIT_USAGE,
+    CliError,
+    add_duration_option,
+    add_gateway_options,
+    gateway_operation,
+    gateway_report,
+    long_running,
+    positive_int,
+    time_left,
+)
 from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import now
 
@@ -16,12 +26,13 @@ DESCRIPTION = (
     "Raw CAN frames on the DroneCAN bus behind the gateway. 'can dump' sets the gateway's "
     "receive filter and prints every frame that passes in candump's log format, "
     "'(1700000000.123456) can0 1404060A#0001900C800B01C0', which can-utils (log2asc, "
-    "canplayer) and cantools read. 'can send' sends frames written as for cansend.")
+    "canplayer) and cantools read. 'can send' sends frames written as for cansend."
+)
 
 IDLE_POLL_S = 0.01
 
 
-def filter_spec(s: str) -> gateway.Filter:
+def filter_spec(s: str) -> gateway_can.Filter:
     """ID:MASK[:ext] in hex; more than 3 ID digits also means extended."""
     parts = s.split(":")
     if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] not in ("ext", "std")):
@@ -31,16 +42,17 @@ def filter_spec(s: str) -> gateway.Filter:
     except ValueError:
         raise argparse.ArgumentTypeError(f"ID and MASK are hex numbers: {s!r}") from None
     ext = parts[2] == "ext" if len(parts) == 3 else len(parts[0]) > 3
-    top = gateway.EFF_MASK if ext else gateway.SFF_MASK
-    if not 0 <= fid <= top or not 0 <= mask <= gateway.EFF_MASK:
-        raise argparse.ArgumentTypeError(f"{s!r}: ID or MASK out of range for a "
-                                         f"{'29' if ext else '11'}-bit filter")
-    return gateway.Filter(fid, mask, ext)
+    top = gateway_msgs.EFF_MASK if ext else gateway_msgs.SFF_MASK
+    if not 0 <= fid <= top or not 0 <= mask <= gateway_msgs.EFF_MASK:
+        raise argparse.ArgumentTypeError(
+            f"{s!r}: ID or MASK out of range for a {'29' if ext else '11'}-bit filter"
+        )
+    return gateway_can.Filter(fid, mask, ext)
 
 
-def frame_spec(s: str) -> gateway.CanFrame:
+def frame_spec(s: str) -> gateway_can.CanFrame:
     try:
-        return gateway.parse_cansend(s)
+        return gateway_can.parse_cansend(s)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
 
@@ -48,34 +60,48 @@ def frame_spec(s: str) -> gateway.CanFrame:
 def add_arguments(p):
     sub = p.add_subparsers(dest="can_command", metavar="dump|send")
     sub.required = True
-    d = sub.add_parser("dump", help="print received frames in candump log format",
-                       description=DESCRIPTION)
+    d = sub.add_parser(
+        "dump", help="print received frames in candump log format", description=DESCRIPTION
+    )
     add_gateway_options(d, long_running=True)
     g = d.add_argument_group("dump options")
-    g.add_argument("--filter", type=filter_spec, action="append", metavar="ID:MASK[:ext]",
-                   help="pass frames with (id & MASK) == (ID & MASK) (hex; repeatable, up to "
-                        f"{gateway.FILTERS_MAX}); default: every frame")
+    g.add_argument(
+        "--filter",
+        type=filter_spec,
+        action="append",
+        metavar="ID:MASK[:ext]",
+        help="pass frames with (id & MASK) == (ID & MASK) (hex; repeatable, up to "
+        f"{gateway_msgs.FILTERS_MAX}); default: every frame",
+    )
     g.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
-    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
-    g.add_argument("--ifname", default="can0", metavar="NAME",
-                   help="interface name in the log lines (default can0)")
-    s = sub.add_parser("send", help="send frames written as for cansend",
-                       description=DESCRIPTION)
+    add_duration_option(g)
+    g.add_argument(
+        "--ifname",
+        default="can0",
+        metavar="NAME",
+        help="interface name in the log lines (default can0)",
+    )
+    s = sub.add_parser("send", help="send frames written as for cansend", description=DESCRIPTION)
     add_gateway_options(s)
-    s.add_argument("frames", type=frame_spec, nargs="+", metavar="ID#DATA",
-                   help="3 hex digits: 11-bit id, 4..8: 29-bit; data in hex, '.' allowed "
-                        "between bytes; ID#R or ID#Rn: remote frame")
+    s.add_argument(
+        "frames",
+        type=frame_spec,
+        nargs="+",
+        metavar="ID#DATA",
+        help="3 hex digits: 11-bit id, 4..8: 29-bit; data in hex, '.' allowed "
+        "between bytes; ID#R or ID#Rn: remote frame",
+    )
 
 
-def log_line(t: float, ifname: str, f: gateway.CanFrame) -> str:
+def log_line(t: float, ifname: str, f: gateway_can.CanFrame) -> str:
     return f"({t:.6f}) {ifname} {f.candump()}"
 
 
 def _dump(ctx) -> int:
     a = ctx.args
-    filters = a.filter or list(gateway.PASS_ALL)
-    if len(filters) > gateway.FILTERS_MAX:
-        raise CliError(f"at most {gateway.FILTERS_MAX} filters", EXIT_USAGE)
+    filters = a.filter or list(gateway_can.PASS_ALL)
+    if len(filters) > gateway_msgs.FILTERS_MAX:
+        raise CliError(f"at most {gateway_msgs.FILTERS_MAX} filters", EXIT_USAGE)
     res = {"frames": 0, "lost": 0, "dropped": 0}
 
     def op(m, gw):
@@ -85,8 +111,11 @@ def _dump(ctx) -> int:
         t0 = now()
         with stop:
             try:
-                while not stop.stop and (a.count is None or res["frames"] < a.count) and \
-                        (a.duration is None or now() - t0 < a.duration):
+                while (
+                    not stop.stop
+                    and (a.count is None or res["frames"] < a.count)
+                    and time_left(ctx, t0)
+                ):
                     try:
                         frames = gw.can_recv()
                     except OperationTimeout:
@@ -101,8 +130,14 @@ def _dump(ctx) -> int:
                             break
                         res["frames"] += 1
                         if a.json:
-                            ctx.emit_json({"event": "frame", "time": round(stamp, 6),
-                                           "ifname": a.ifname, **f.as_dict()})
+                            ctx.emit_json(
+                                {
+                                    "event": "frame",
+                                    "time": round(stamp, 6),
+                                    "ifname": a.ifname,
+                                    **f.as_dict(),
+                                }
+                            )
                         else:
                             print(log_line(stamp, a.ifname, f), flush=True)
                     if not frames:
@@ -110,15 +145,21 @@ def _dump(ctx) -> int:
             finally:
                 res["lost"], res["dropped"] = gw.can_rx_lost, gw.can_rx_dropped
                 try:
-                    gw.can_filter(gateway.FILTER_REPLACE, previous)
+                    gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
                 except DanError as e:
                     ctx.error(f"could not restore the gateway's filter: {e}")
 
     m, failure, ms = gateway_operation(ctx, op)
     if res["lost"]:
         ctx.error(f"{res['lost']} frame(s) lost (the gateway's receive ring overflowed)")
-    rc = gateway_report(ctx, m, failure, ms, {"event": "summary", **res},
-                        lambda: ctx.progress(f"{res['frames']} frame(s)"))
+    rc = gateway_report(
+        ctx,
+        m,
+        failure,
+        ms,
+        {"event": "summary", **res},
+        lambda: ctx.progress(f"{res['frames']} frame(s)"),
+    )
     if rc == 0 and a.count is not None and res["frames"] < a.count:
         ctx.error(f"can dump: {res['frames']} of {a.count} frame(s) received")
         return EXIT_FAIL
@@ -132,7 +173,7 @@ def _send(ctx) -> int:
     def op(m, gw):
         frames = list(a.frames)
         while frames:
-            batch = frames[:gateway.CAN_FRAMES_MAX]
+            batch = frames[: gateway_msgs.CAN_FRAMES_MAX]
             tries = 0
             accepted = None
             while accepted is None:
@@ -144,7 +185,7 @@ def _send(ctx) -> int:
                     tries += 1
                     if tries > 3:
                         raise
-            if accepted == 0:       # the gateway's queue is full: all or nothing, try again
+            if accepted == 0:  # the gateway's queue is full: all or nothing, try again
                 time.sleep(0.01)
                 continue
             res["sent"] += accepted
@@ -155,8 +196,9 @@ def _send(ctx) -> int:
     def human():
         print(f"can send: {res['sent']} frame(s) sent ({ms:.1f} ms)")
 
-    return gateway_report(ctx, m, failure, ms,
-                          {"frames": [f.candump() for f in a.frames], "sent": res["sent"]}, human)
+    return gateway_report(
+        ctx, m, failure, ms, {"frames": [f.candump() for f in a.frames], "sent": res["sent"]}, human
+    )
 
 
 def run(ctx) -> int:

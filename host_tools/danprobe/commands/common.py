@@ -2,19 +2,23 @@
 progress and output. A subcommand module defines NAME, HELP,
 add_arguments(parser) and run(ctx) -> exit code (see commands/__init__.py).
 """
+
 import argparse
 import json
 import signal
 import sys
-from typing import Callable, Iterable, List, Optional, Tuple, Type
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from typing import Callable, Optional
 
-from danprobe import gateway, registry
+from danprobe import gateway_client, gateway_msgs, registry
 from danprobe.master import DanError, DanTimeout, Master, MasterConfig, NotFound, OperationTimeout
 from danprobe.port import PortError, SerialPort, now
+from danprobe.ptyport import Pty
 
 EXIT_OK = 0
-EXIT_FAIL = 1       # the operation failed: no answer, configure failed, port I/O error
-EXIT_USAGE = 2      # bad arguments, or the port cannot be opened (missing, busy, not a tty)
+EXIT_FAIL = 1  # the operation failed: no answer, configure failed, port I/O error
+EXIT_USAGE = 2  # bad arguments, or the port cannot be opened (missing, busy, not a tty)
 
 DEFAULT_BAUD = 9600
 DEFAULT_TYPES = "vtx,can-gw"
@@ -30,6 +34,7 @@ class CliError(Exception):
 
 # ---- argument types ----
 
+
 def _int_at_least(minimum: int):
     def parse(s: str) -> int:
         try:
@@ -39,6 +44,7 @@ def _int_at_least(minimum: int):
         if v < minimum:
             raise argparse.ArgumentTypeError(f"must be at least {minimum}: {s!r}")
         return v
+
     return parse
 
 
@@ -56,7 +62,7 @@ def positive_float(s: str) -> float:
     return v
 
 
-def type_list(s: str) -> List[registry.PeripheralType]:
+def type_list(s: str) -> list[registry.PeripheralType]:
     out = []
     for name in filter(None, (x.strip() for x in s.split(","))):
         t = registry.lookup(name)
@@ -72,42 +78,86 @@ def type_list(s: str) -> List[registry.PeripheralType]:
 
 # ---- shared options ----
 
-def add_common_options(p: argparse.ArgumentParser, *, port_required: bool = True,
-                       baud_help: str = "the line's baud rate (default 9600)",
-                       timeout_default: Optional[float] = 30.0,
-                       timeout_help: str = "give up after S seconds (default 30)"):
+
+def add_common_options(
+    p: argparse.ArgumentParser,
+    *,
+    port_required: bool = True,
+    baud_help: str = "the line's baud rate (default 9600)",
+    timeout_default: Optional[float] = 30.0,
+    timeout_help: str = "give up after S seconds (default 30)",
+):
     g = p.add_argument_group("common options")
-    g.add_argument("--port", required=port_required, metavar="TTY",
-                   help="serial port: a USB-serial adapter on the DAN wire, or a dan-vbus endpoint")
+    g.add_argument(
+        "--port",
+        required=port_required,
+        metavar="TTY",
+        help="serial port: a USB-serial adapter on the DAN wire, or a dan-vbus endpoint",
+    )
     g.add_argument("--baud", type=positive_int, metavar="N", help=baud_help)
     g.add_argument("--json", action="store_true", help="machine-readable output on stdout")
-    g.add_argument("--timeout", type=positive_float, default=timeout_default, metavar="S",
-                   help=timeout_help)
+    g.add_argument(
+        "--timeout", type=positive_float, default=timeout_default, metavar="S", help=timeout_help
+    )
     g.add_argument("-q", "--quiet", action="store_true", help="no progress messages on stderr")
 
 
 def add_gap_option(g):
-    g.add_argument("--gap-ms", type=positive_int, default=20, metavar="N",
-                   help="idle time that ends a partial frame (default 20: USB adapters, ptys)")
+    g.add_argument(
+        "--gap-ms",
+        type=positive_int,
+        default=20,
+        metavar="N",
+        help="idle time that ends a partial frame (default 20: USB adapters, ptys)",
+    )
+
+
+def add_duration_option(g):
+    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+
+
+def add_pty_options(g):
+    """--link and --duration of a command that bridges to a local pty."""
+    g.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty")
+    add_duration_option(g)
 
 
 def add_master_options(p: argparse.ArgumentParser, *, types_default: str = DEFAULT_TYPES):
     """Options of every command that talks on the bus as its master."""
     g = p.add_argument_group("bus options")
-    g.add_argument("--types", type=type_list, default=type_list(types_default), metavar="LIST",
-                   help=f"peripheral types to probe, comma-separated names or first codes "
-                        f"(default {types_default}; known: "
-                        f"{', '.join(t.name for t in registry.TYPES)})")
-    g.add_argument("--no-echo", action="store_true",
-                   help="the adapter does not echo our bytes (default: single wire, echo checked)")
-    g.add_argument("--latency-ms", type=positive_int, default=50, metavar="N",
-                   help="reply start window after our request (default 50: USB adapters, ptys)")
+    g.add_argument(
+        "--types",
+        type=type_list,
+        default=type_list(types_default),
+        metavar="LIST",
+        help=f"peripheral types to probe, comma-separated names or first codes "
+        f"(default {types_default}; known: "
+        f"{', '.join(t.name for t in registry.TYPES)})",
+    )
+    g.add_argument(
+        "--no-echo",
+        action="store_true",
+        help="the adapter does not echo our bytes (default: single wire, echo checked)",
+    )
+    g.add_argument(
+        "--latency-ms",
+        type=positive_int,
+        default=50,
+        metavar="N",
+        help="reply start window after our request (default 50: USB adapters, ptys)",
+    )
     add_gap_option(g)
-    g.add_argument("--retries", type=non_negative_int, default=2, metavar="N",
-                   help="extra attempts per transaction (default 2)")
+    g.add_argument(
+        "--retries",
+        type=non_negative_int,
+        default=2,
+        metavar="N",
+        help="extra attempts per transaction (default 2)",
+    )
 
 
 # ---- the run-time context ----
+
 
 class Context:
     def __init__(self, args: argparse.Namespace):
@@ -130,8 +180,9 @@ class Context:
 
     def master(self, port: SerialPort, baud: int) -> Master:
         a = self.args
-        cfg = MasterConfig(resp_latency_s=a.latency_ms / 1000, gap_s=a.gap_ms / 1000,
-                           retries=a.retries)
+        cfg = MasterConfig(
+            resp_latency_s=a.latency_ms / 1000, gap_s=a.gap_ms / 1000, retries=a.retries
+        )
         m = Master(port, a.types, baud, cfg, echo=not a.no_echo, progress=self.progress)
         m.set_time_limit(a.timeout)
         return m
@@ -157,13 +208,27 @@ def peers_table(peers) -> str:
     rows = [("type", "code", "baud", "manufacturer", "model", "hw", "sw", "bauds")]
     for p in peers:
         i = p.identity
-        rows.append((p.type.name, f"0x{p.type.first:02X}", str(p.baud), i.manufacturer, i.model,
-                     i.hw_version, i.sw_version, ",".join(map(str, i.bauds))))
+        rows.append(
+            (
+                p.type.name,
+                f"0x{p.type.first:02X}",
+                str(p.baud),
+                i.manufacturer,
+                i.model,
+                i.hw_version,
+                i.sw_version,
+                ",".join(map(str, i.bauds)),
+            )
+        )
     return format_table(rows)
 
 
-def master_operation(ctx: Context, baud: int, op: Callable[[Master], None],
-                     expected: Tuple[Type[DanError], ...] = (DanError,)):
+def master_operation(
+    ctx: Context,
+    baud: int,
+    op: Callable[[Master], None],
+    expected: tuple[type[DanError], ...] = (DanError,),
+):
     """Opens the port, runs op(master) and returns (master, failure, ms):
     failure is the expected DanError op raised, or None. OperationTimeout
     and other errors propagate (cli.main reports them)."""
@@ -180,16 +245,31 @@ def master_operation(ctx: Context, baud: int, op: Callable[[Master], None],
         return m, failure, (now() - t0) * 1000
 
 
-def report(ctx: Context, m: Master, failure: Optional[DanError], ms: float, fields: dict,
-           failure_text: str, human: Callable[[], None]) -> int:
+def report(
+    ctx: Context,
+    m: Master,
+    failure: Optional[DanError],
+    ms: float,
+    fields: dict,
+    failure_text: str,
+    human: Callable[[], None],
+) -> int:
     """The end of a bus command: the JSON document (command, result, error,
     detail, ms, port, baud, the command's fields, peers), or the human
     text; failure_text on stderr and EXIT_FAIL on failure."""
     a = ctx.args
     if a.json:
-        ctx.emit_json({"command": a.command, **error_fields(failure), "ms": round(ms, 1),
-                       "port": a.port, "baud": m.baud, **fields,
-                       "peers": [p.as_dict() for p in m.present()]})
+        ctx.emit_json(
+            {
+                "command": a.command,
+                **error_fields(failure),
+                "ms": round(ms, 1),
+                "port": a.port,
+                "baud": m.baud,
+                **fields,
+                "peers": [p.as_dict() for p in m.present()],
+            }
+        )
     if failure is not None:
         ctx.error(failure_text)
         return EXIT_FAIL
@@ -207,18 +287,27 @@ def add_gateway_options(p: argparse.ArgumentParser, *, long_running: bool = Fals
     """The options of every gateway command: the common and bus options
     (--types defaults to can-gw alone), --bus-baud and --configure."""
     add_common_options(
-        p, baud_help="the baud the bus is at, if known: the gateway is tried there first "
-                     "(one IDENTIFY), then by discovery from 9600 (default: discovery)",
-        timeout_help=("give up finding the gateway after S seconds; then fail once it has "
-                      "not answered for S seconds (default 30)") if long_running else
-                     "give up after S seconds (default 30)")
+        p,
+        baud_help="the baud the bus is at, if known: the gateway is tried there first "
+        "(one IDENTIFY), then by discovery from 9600 (default: discovery)",
+        timeout_help=(
+            "give up finding the gateway after S seconds; then fail once it has "
+            "not answered for S seconds (default 30)"
+        )
+        if long_running
+        else "give up after S seconds (default 30)",
+    )
     add_master_options(p, types_default=GATEWAY_TYPE.name)
     g = p.add_argument_group("gateway options")
-    g.add_argument("--bus-baud", dest="baud", type=positive_int, metavar="N",
-                   help="the same as --baud")
-    g.add_argument("--configure", action="store_true",
-                   help="first move the bus to the best baud of every peripheral found "
-                        "(--types; 115200 for the gateway alone)")
+    g.add_argument(
+        "--bus-baud", dest="baud", type=positive_int, metavar="N", help="the same as --baud"
+    )
+    g.add_argument(
+        "--configure",
+        action="store_true",
+        help="first move the bus to the best baud of every peripheral found "
+        "(--types; 115200 for the gateway alone)",
+    )
 
 
 def find_gateway(ctx: Context, m: Master):
@@ -236,18 +325,24 @@ def find_gateway(ctx: Context, m: Master):
             pass
     if not peer.present:
         others = ", ".join(f"{p.type.name} at {p.baud}" for p in m.present())
-        raise NotFound("no CAN gateway answered" + (f" ({others} did)" if others else "") +
-                       " at " + ", ".join(map(str, sorted({a.baud or 9600, 9600, 19200, 38400,
-                                                           57600, 115200}))) + " baud")
+        raise NotFound(
+            "no CAN gateway answered"
+            + (f" ({others} did)" if others else "")
+            + " at "
+            + ", ".join(map(str, sorted({a.baud or 9600, 9600, 19200, 38400, 57600, 115200})))
+            + " baud"
+        )
     m.switch_baud(peer.baud)
     if a.configure:
         m.configure()
-    ctx.progress(f"gateway at {m.baud} baud ({peer.identity.manufacturer} {peer.identity.model} "
-                 f"{peer.identity.sw_version})")
+    ctx.progress(
+        f"gateway at {m.baud} baud ({peer.identity.manufacturer} {peer.identity.model} "
+        f"{peer.identity.sw_version})"
+    )
     return peer
 
 
-def gateway_operation(ctx: Context, op: Callable[[Master, gateway.GatewayClient], None]):
+def gateway_operation(ctx: Context, op: Callable[[Master, gateway_client.GatewayClient], None]):
     """Opens the port, finds the gateway and runs op(master, client); returns
     (master, failure, ms) like master_operation()."""
     a = ctx.args
@@ -256,12 +351,19 @@ def gateway_operation(ctx: Context, op: Callable[[Master, gateway.GatewayClient]
 
     def run(m: Master):
         find_gateway(ctx, m)
-        op(m, gateway.GatewayClient(m))
+        op(m, gateway_client.GatewayClient(m))
+
     return master_operation(ctx, a.baud or DEFAULT_BAUD, run)
 
 
-def gateway_report(ctx: Context, m: Master, failure: Optional[DanError], ms: float, fields: dict,
-                   human: Callable[[], None]) -> int:
+def gateway_report(
+    ctx: Context,
+    m: Master,
+    failure: Optional[DanError],
+    ms: float,
+    fields: dict,
+    human: Callable[[], None],
+) -> int:
     """report() for a one-shot gateway command."""
     return report(ctx, m, failure, ms, fields, f"{ctx.args.command}: {failure}", human)
 
@@ -306,19 +408,57 @@ class Watchdog:
             raise DanTimeout(f"the gateway has not answered for {self.seconds:g} s (last: {e})")
 
 
-def long_running(m: Master, ctx: Context) -> Tuple[StopSignals, Watchdog]:
+def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     """After the gateway was found: no overall time limit any more."""
     m.set_time_limit(None)
     return StopSignals(), Watchdog(ctx.args.timeout)
 
 
-def telemetry_table(records: Iterable[gateway.TelemRecord]) -> str:
+def time_left(ctx: Context, t0: float) -> bool:
+    """--duration has not run out since t0 (without it, never)."""
+    d = ctx.args.duration
+    return d is None or now() - t0 < d
+
+
+@contextmanager
+def bridge_pty(ctx: Context, res: dict, what: str, **ready) -> Iterator[Pty]:
+    """The local pty of a bridging command (--link), closed at the end. Its
+    path goes into res["pty"] and is announced: a "ready" event (with the
+    ready fields) for --json, else the line "COMMAND: PATH (link L)WHAT"."""
+    a = ctx.args
+    try:
+        pty = Pty(a.link)
+    except PortError as e:
+        raise CliError(str(e), EXIT_USAGE) from None
+    res["pty"] = pty.path
+    with pty:
+        if a.json:
+            ctx.emit_json({"event": "ready", "pty": pty.path, "link": a.link, **ready})
+        else:
+            print(
+                f"{a.command}: {pty.path}" + (f" (link {a.link})" if a.link else "") + what,
+                flush=True,
+            )
+        yield pty
+
+
+def telemetry_table(records: Iterable[gateway_msgs.TelemRecord]) -> str:
     rows = [("esc", "node", "rpm", "voltage", "current", "temp", "power", "errors", "age")]
     for t in sorted(records, key=lambda r: r.esc_index):
-        if t.flags & gateway.TELEM_STATUS:
-            rows.append((str(t.esc_index), str(t.node_id), str(t.rpm), f"{t.voltage:.2f} V",
-                         f"{t.current:.2f} A", f"{t.temperature - 273.15:.1f} C",
-                         f"{t.power_pct} %", str(t.error_count), f"{t.age_ms} ms"))
+        if t.flags & gateway_msgs.TELEM_STATUS:
+            rows.append(
+                (
+                    str(t.esc_index),
+                    str(t.node_id),
+                    str(t.rpm),
+                    f"{t.voltage:.2f} V",
+                    f"{t.current:.2f} A",
+                    f"{t.temperature - 273.15:.1f} C",
+                    f"{t.power_pct} %",
+                    str(t.error_count),
+                    f"{t.age_ms} ms",
+                )
+            )
         else:
             rows.append((str(t.esc_index), str(t.node_id)) + ("-",) * 7)
     return format_table(rows)

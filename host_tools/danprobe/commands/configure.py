@@ -1,18 +1,27 @@
 """danprobe configure: move the bus to a faster baud and verify it."""
-from danprobe.commands.common import (DEFAULT_BAUD, add_common_options, add_master_options,
-                                      master_operation, peers_table, report)
+
+from danprobe.commands.common import (
+    DEFAULT_BAUD,
+    add_common_options,
+    add_master_options,
+    master_operation,
+    peers_table,
+    report,
+)
 
 NAME = "configure"
 HELP = "discover, then move every peripheral to a baud (default: the best common one)"
 DESCRIPTION = (
     "Discovers the bus, sends CONFIGURE to every peripheral not at the target baud, "
     "switches and verifies each one with IDENTIFY at the target. If anything fails the "
-    "bus is recovered to 9600 baud and the command fails.")
+    "bus is recovered to 9600 baud and the command fails."
+)
 
 
 def add_arguments(p):
-    add_common_options(p, baud_help="the target baud (default: the highest every peripheral "
-                                    "supports)")
+    add_common_options(
+        p, baud_help="the target baud (default: the highest every peripheral supports)"
+    )
     add_master_options(p)
 
 
@@ -29,10 +38,19 @@ def run(ctx) -> int:
     m, failure, ms = master_operation(ctx, DEFAULT_BAUD, op)
 
     def human():
-        print(f"configure: ok, bus at {m.baud} baud, {len(m.present())} peripheral(s) "
-              f"verified ({ms:.1f} ms)")
+        print(
+            f"configure: ok, bus at {m.baud} baud, {len(m.present())} peripheral(s) "
+            f"verified ({ms:.1f} ms)"
+        )
         print(peers_table(m.present()))
 
     recovered = f"; bus recovered at {m.baud} baud" if m.stats.recoveries else ""
-    return report(ctx, m, failure, ms, {"target": target, "recoveries": m.stats.recoveries},
-                  f"configure failed: {failure}{recovered}", human)
+    return report(
+        ctx,
+        m,
+        failure,
+        ms,
+        {"target": target, "recoveries": m.stats.recoveries},
+        f"configure failed: {failure}{recovered}",
+        human,
+    )

@@ -1,9 +1,16 @@
 """danprobe nodes: the DroneCAN nodes the gateway has seen."""
+
 import time
 
-from danprobe import gateway
-from danprobe.commands.common import (add_gateway_options, format_table, gateway_operation,
-                                      gateway_report, long_running, positive_float)
+from danprobe import gateway_msgs
+from danprobe.commands.common import (
+    add_gateway_options,
+    format_table,
+    gateway_operation,
+    gateway_report,
+    long_running,
+    positive_float,
+)
 from danprobe.master import DanError, OperationTimeout
 from danprobe.port import now
 
@@ -12,16 +19,21 @@ HELP = "CAN gateway: the DroneCAN node table (NodeStatus and GetNodeInfo of ever
 DESCRIPTION = (
     "Reads the gateway's node table (NODES, page by page) and each node's GetNodeInfo data "
     "(NODE_INFO): id, health, mode, uptime, name, software and hardware versions, unique "
-    "id. --watch refreshes it every second until Ctrl-C or --duration.")
+    "id. --watch refreshes it every second until Ctrl-C or --duration."
+)
 
 
 def add_arguments(p):
     add_gateway_options(p, long_running=True)
     g = p.add_argument_group("nodes options")
-    g.add_argument("--watch", action="store_true",
-                   help="refresh every second (--json: one document per refresh)")
-    g.add_argument("--duration", type=positive_float, metavar="S",
-                   help="with --watch: stop after S seconds")
+    g.add_argument(
+        "--watch",
+        action="store_true",
+        help="refresh every second (--json: one document per refresh)",
+    )
+    g.add_argument(
+        "--duration", type=positive_float, metavar="S", help="with --watch: stop after S seconds"
+    )
 
 
 def _uptime(s: int) -> str:
@@ -38,14 +50,17 @@ class NodeTable:
     def __init__(self, gw):
         self.gw = gw
         self.entries = []
-        self.info = {}          # node id -> (uptime when read, NodeInfo)
+        self.info = {}  # node id -> (uptime when read, NodeInfo)
 
     def refresh(self):
         self.entries = self.gw.nodes()
         for e in self.entries:
             known = self.info.get(e.node_id)
-            if (known is None or known[1].info_state != gateway.INFO_VALID
-                    or e.uptime_sec < known[0]):
+            if (
+                known is None
+                or known[1].info_state != gateway_msgs.INFO_VALID
+                or e.uptime_sec < known[0]
+            ):
                 self.info[e.node_id] = (e.uptime_sec, self.gw.node_info(e.node_id))
 
     def rows(self):
@@ -54,20 +69,31 @@ class NodeTable:
             d = e.as_dict()
             i = self.info.get(e.node_id)
             d.update(i[1].as_dict() if i else {})
-            d["info_state_name"] = gateway.INFO_STATE_NAMES[d["info_state"]] \
-                if d["info_state"] < len(gateway.INFO_STATE_NAMES) else str(d["info_state"])
+            d["info_state_name"] = (
+                gateway_msgs.INFO_STATE_NAMES[d["info_state"]]
+                if d["info_state"] < len(gateway_msgs.INFO_STATE_NAMES)
+                else str(d["info_state"])
+            )
             out.append(d)
         return out
 
     def text(self) -> str:
         rows = [("id", "health", "mode", "uptime", "name", "sw", "hw", "unique id", "info")]
         for d in self.rows():
-            valid = d["info_state"] == gateway.INFO_VALID
-            rows.append((str(d["node_id"]), d["health_name"], d["mode_name"],
-                         _uptime(d["uptime_sec"]), d["name"] if valid else "",
-                         "%d.%d" % tuple(d["sw"]) if valid else "",
-                         "%d.%d" % tuple(d["hw"]) if valid else "",
-                         d["unique_id"] if valid else "", d["info_state_name"]))
+            valid = d["info_state"] == gateway_msgs.INFO_VALID
+            rows.append(
+                (
+                    str(d["node_id"]),
+                    d["health_name"],
+                    d["mode_name"],
+                    _uptime(d["uptime_sec"]),
+                    d["name"] if valid else "",
+                    "%d.%d" % tuple(d["sw"]) if valid else "",
+                    "%d.%d" % tuple(d["hw"]) if valid else "",
+                    d["unique_id"] if valid else "",
+                    d["info_state_name"],
+                )
+            )
         return format_table(rows)
 
 
@@ -97,13 +123,17 @@ def run(ctx) -> int:
                     dog.ok()
                     refreshes += 1
                     if a.json:
-                        ctx.emit_json({"event": "nodes", "time": round(t - t0, 3),
-                                       "nodes": table.rows()})
+                        ctx.emit_json(
+                            {"event": "nodes", "time": round(t - t0, 3), "nodes": table.rows()}
+                        )
                     else:
                         print(f"--- {time.strftime('%H:%M:%S')}  {len(table.entries)} node(s)")
                         print(table.text(), flush=True)
-                while not stop.stop and now() < t + 1.0 and \
-                        (a.duration is None or now() - t0 < a.duration):
+                while (
+                    not stop.stop
+                    and now() < t + 1.0
+                    and (a.duration is None or now() - t0 < a.duration)
+                ):
                     time.sleep(0.05)
         state["refreshes"] = refreshes
 

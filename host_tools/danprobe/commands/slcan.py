@@ -1,14 +1,30 @@
 """danprobe slcan: the CAN bus behind the gateway as an SLCAN (Lawicel)
 adapter on a local pseudo-terminal."""
+
 import time
 
-from danprobe import gateway
-from danprobe.commands.common import (EXIT_USAGE, CliError, add_gateway_options,
-                                      gateway_operation, gateway_report, long_running,
-                                      positive_float)
+from danprobe import gateway_can, gateway_msgs
+from danprobe.commands.common import (
+    add_gateway_options,
+    add_pty_options,
+    bridge_pty,
+    gateway_operation,
+    gateway_report,
+    long_running,
+    time_left,
+)
 from danprobe.master import DanError, OperationTimeout, RemoteError
-from danprobe.port import PortError, now
-from danprobe.ptyport import Pty
+from danprobe.port import now
+from danprobe.slcan_codec import (
+    ACK,
+    BEL,
+    FRAME_KINDS,
+    LINE_MAX,
+    format_frame,
+    is_hex,
+    parse_frame,
+    tx_ack,
+)
 
 NAME = "slcan"
 HELP = "CAN gateway: an SLCAN (Lawicel) adapter on a pty, for pydronecan and the DroneCAN GUI"
@@ -18,54 +34,25 @@ DESCRIPTION = (
     "acknowledged (z/Z) once the gateway took them; every frame the gateway receives comes "
     "back as a t/T line (CAN_RECV, the filter set to pass everything while the channel is "
     "open). pydronecan: dronecan.make_node('slcan:PTY', node_id=N, bitrate=1000000). The bus "
-    "is DroneCAN's 1 Mbit/s: only S8 is accepted. Runs until Ctrl-C, SIGTERM or --duration.")
+    "is DroneCAN's 1 Mbit/s: only S8 is accepted. Runs until Ctrl-C, SIGTERM or --duration."
+)
 
 IDLE_POLL_S = 0.005
-TX_QUEUE_MAX = 64           # frames from the client not taken by the gateway yet
-ACK, BEL = b"\r", b"\x07"
-LINE_MAX = 64
-_HEX = frozenset(b"0123456789abcdefABCDEF")
+TX_QUEUE_MAX = 64  # frames from the client not taken by the gateway yet
 
 
 def add_arguments(p):
     add_gateway_options(p, long_running=True)
     g = p.add_argument_group("slcan options")
-    g.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty")
-    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    add_pty_options(g)
 
 
-def _hex(b: bytes) -> bool:
-    return bool(b) and set(b) <= _HEX
-
-
-def parse_frame(line: bytes):
-    """A t/T/r/R line (no CR) as a CanFrame, or None if malformed."""
-    kind = line[:1]
-    idlen = 3 if kind in (b"t", b"r") else 8
-    ident, dlc = line[1:1 + idlen], line[1 + idlen:2 + idlen]
-    if len(ident) != idlen or not _hex(ident) or dlc not in [b"%d" % i for i in range(9)]:
+def can_frame(line: bytes):
+    """A t/T/r/R line (no CR) as the gateway's CanFrame, or None if malformed."""
+    f = parse_frame(line)
+    if f is None:
         return None
-    n = int(dlc)
-    fid = int(ident, 16)
-    try:
-        if kind in (b"r", b"R"):
-            if len(line) != 2 + idlen:
-                return None
-            return gateway.CanFrame(fid, b"", kind == b"R", True, n).check()
-        data = line[2 + idlen:]
-        if len(data) != 2 * n or (n and not _hex(data)):
-            return None
-        return gateway.CanFrame(fid, bytes.fromhex(data.decode()), kind == b"T").check()
-    except ValueError:
-        return None
-
-
-def format_frame(f: gateway.CanFrame, stamp_ms=None) -> bytes:
-    kind = ("R" if f.ext else "r") if f.rtr else ("T" if f.ext else "t")
-    text = kind + (f"{f.id:08X}" if f.ext else f"{f.id:03X}") + str(f.dlc) + f.data.hex().upper()
-    if stamp_ms is not None:
-        text += f"{stamp_ms % 60000:04X}"
-    return text.encode() + ACK
+    return gateway_can.CanFrame(f.id, f.data, f.ext, f.rtr, f.dlc if f.rtr else 0)
 
 
 class Adapter:
@@ -75,7 +62,7 @@ class Adapter:
         self.open = False
         self.listen_only = False
         self.timestamps = False
-        self.tx = []                # CanFrames waiting for the gateway
+        self.tx = []  # CanFrames waiting for the gateway
         self._line = bytearray()
         self._overlong = False
         self.errors = 0
@@ -103,12 +90,12 @@ class Adapter:
         c, arg = line[:1], line[1:]
         if not line:
             return ACK
-        if c in (b"t", b"T", b"r", b"R"):
-            f = parse_frame(line)
+        if c in FRAME_KINDS:
+            f = can_frame(line)
             if f is None or not self.open or self.listen_only or len(self.tx) >= TX_QUEUE_MAX:
                 return self._error()
             self.tx.append(f)
-            return b""              # z / Z once the gateway took it
+            return b""  # z / Z once the gateway took it
         if c == b"S":
             return ACK if arg == b"8" and not self.open else self._error()
         if c == b"s":
@@ -131,7 +118,7 @@ class Adapter:
         if line in (b"Z0", b"Z1"):
             self.timestamps = line == b"Z1"
             return ACK
-        if c in (b"M", b"m") and len(arg) == 8 and _hex(arg):
+        if c in (b"M", b"m") and len(arg) == 8 and is_hex(arg):
             return ACK
         return self._error()
 
@@ -141,28 +128,19 @@ class Adapter:
 
 
 def run(ctx) -> int:
-    res = {"pty": None, "link": ctx.args.link, "to_can": 0, "from_can": 0, "errors": 0,
-           "lost": 0}
+    res = {"pty": None, "link": ctx.args.link, "to_can": 0, "from_can": 0, "errors": 0, "lost": 0}
 
     def op(m, gw):
-        try:
-            pty = Pty(ctx.args.link)
-        except PortError as e:
-            raise CliError(str(e), EXIT_USAGE) from None
-        res["pty"] = pty.path
-        with pty:
-            if ctx.args.json:
-                ctx.emit_json({"event": "ready", "pty": pty.path, "link": ctx.args.link})
-            else:
-                print(f"slcan: {pty.path}" + (f" (link {ctx.args.link})" if ctx.args.link else "")
-                      + " is an SLCAN adapter on the CAN bus behind the gateway", flush=True)
+        with bridge_pty(ctx, res, " is an SLCAN adapter on the CAN bus behind the gateway") as pty:
             _serve(ctx, m, gw, pty, res)
 
     m, failure, ms = gateway_operation(ctx, op)
 
     def human():
-        print(f"slcan: stopped; {res['to_can']} frame(s) sent to CAN, {res['from_can']} received"
-              + (f", {res['lost']} lost" if res["lost"] else ""))
+        print(
+            f"slcan: stopped; {res['to_can']} frame(s) sent to CAN, {res['from_can']} received"
+            + (f", {res['lost']} lost" if res["lost"] else "")
+        )
 
     return gateway_report(ctx, m, failure, ms, {"event": "summary", **res}, human)
 
@@ -170,40 +148,39 @@ def run(ctx) -> int:
 def _serve(ctx, m, gw, pty, res):
     stop, dog = long_running(m, ctx)
     ad = Adapter()
-    previous = None             # the gateway's filter table before we opened the channel
-    filter_on = False           # ours (pass everything) is set
-    resend = False              # the last CAN_SEND's transaction failed: repeat it
+    previous = None  # the gateway's filter table before we opened the channel
+    filter_on = False  # ours (pass everything) is set
+    resend = False  # the last CAN_SEND's transaction failed: repeat it
     out = bytearray()
     t0 = now()
     with stop:
         try:
-            while not stop.stop and (ctx.args.duration is None or
-                                     now() - t0 < ctx.args.duration):
+            while not stop.stop and time_left(ctx, t0):
                 was_open = ad.open
                 answers = ad.feed(pty.read())
                 if was_open and not ad.open:
-                    pty.discard_output()        # like an adapter: nothing stale after C
+                    pty.discard_output()  # like an adapter: nothing stale after C
                     out.clear()
                     resend = False
                 out += answers
-                del out[:pty.write(out)]
+                del out[: pty.write(out)]
                 moved = False
                 try:
                     if ad.open and not filter_on:
-                        listening = gw.can_listen(gateway.PASS_ALL)
+                        listening = gw.can_listen(gateway_can.PASS_ALL)
                         previous = listening if previous is None else previous
                         filter_on = True
                         ctx.progress("channel open: receiving every frame")
                     elif not ad.open and filter_on:
-                        gw.can_filter(gateway.FILTER_REPLACE, previous)
+                        gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
                         filter_on = False
                         ctx.progress("channel closed")
                     if ad.open and ad.tx:
-                        batch = ad.tx[:gateway.CAN_FRAMES_MAX]
+                        batch = ad.tx[: gateway_msgs.CAN_FRAMES_MAX]
                         accepted = gw.can_send_again() if resend else gw.can_send(batch)
                         resend = False
                         for f in batch[:accepted]:
-                            out += b"Z\r" if f.ext else b"z\r"
+                            out += tx_ack(f.ext)
                         del ad.tx[:accepted]
                         res["to_can"] += accepted
                         moved = moved or accepted > 0
@@ -223,13 +200,13 @@ def _serve(ctx, m, gw, pty, res):
                     dog.failed(e)
                     continue
                 dog.ok()
-                del out[:pty.write(out)]
+                del out[: pty.write(out)]
                 if not moved:
                     pty.wait_readable(IDLE_POLL_S)
         finally:
             res["errors"], res["lost"] = ad.errors, gw.can_rx_lost
             if filter_on:
                 try:
-                    gw.can_filter(gateway.FILTER_REPLACE, previous)
+                    gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
                 except DanError as e:
                     ctx.error(f"could not restore the gateway's filter: {e}")

@@ -1,8 +1,17 @@
 """danprobe sniff: decode a live DAN line (never transmitting) or a
 dan-vbus capture file."""
-from danprobe.commands.common import (DEFAULT_BAUD, EXIT_FAIL, EXIT_OK, EXIT_USAGE, CliError,
-                                      add_common_options, add_gap_option, positive_int,
-                                      positive_float)
+
+from danprobe.commands.common import (
+    DEFAULT_BAUD,
+    EXIT_FAIL,
+    EXIT_OK,
+    EXIT_USAGE,
+    CliError,
+    add_common_options,
+    add_gap_option,
+    positive_float,
+    positive_int,
+)
 from danprobe.master import char_s
 from danprobe.port import now
 from danprobe.sniff import CaptureError, Sniffer, read_capture, sniff_capture
@@ -13,14 +22,18 @@ DESCRIPTION = (
     "Prints every frame with its time, source (capture files know it), baud, gap since "
     "the previous frame, code name and decoded payload, plus decoder errors as they "
     "happen; the counters at the end. A live port is only read, never written. Stops "
-    "after --count frames, --duration seconds, or Ctrl-C.")
+    "after --count frames, --duration seconds, or Ctrl-C."
+)
 
 
 def add_arguments(p):
-    add_common_options(p, port_required=False,
-                       baud_help="the live line's baud (default 9600)",
-                       timeout_default=None,
-                       timeout_help="live: fail if no frame was heard within S seconds")
+    add_common_options(
+        p,
+        port_required=False,
+        baud_help="the live line's baud (default 9600)",
+        timeout_default=None,
+        timeout_help="live: fail if no frame was heard within S seconds",
+    )
     g = p.add_argument_group("sniff options")
     g.add_argument("--capture", metavar="FILE", help="decode a dan-vbus capture file instead")
     g.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
@@ -73,8 +86,12 @@ class _Printer:
             self.ctx.emit_json({"event": "summary", **s})
         else:
             names = ", ".join(f"{k} {v}" for k, v in s.pop("frames_by_name").items())
-            print(f"summary: {s.pop('frames')} frames" + (f" ({names})" if names else "") + "; " +
-                  ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in s.items()))
+            print(
+                f"summary: {s.pop('frames')} frames"
+                + (f" ({names})" if names else "")
+                + "; "
+                + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in s.items())
+            )
         return EXIT_OK if self.frames else EXIT_FAIL
 
 
@@ -116,12 +133,20 @@ def _sniff_live(ctx, printer: _Printer) -> int:
                     break
                 if silent_until is not None and not printer.frames and t >= silent_until:
                     printer.summary()
-                    ctx.error(f"no DAN frame heard on {a.port} in {a.timeout:g} s "
-                              f"(wrong --baud? wiring?)")
+                    ctx.error(
+                        f"no DAN frame heard on {a.port} in {a.timeout:g} s (wrong --baud? wiring?)"
+                    )
                     return EXIT_FAIL
-                wake = min(x for x in (stop, silent_until, t + 0.5,
-                                       last_rx + gap if sniffer.busy() else None)
-                           if x is not None)
+                wake = min(
+                    x
+                    for x in (
+                        stop,
+                        silent_until,
+                        t + 0.5,
+                        last_rx + gap if sniffer.busy() else None,
+                    )
+                    if x is not None
+                )
                 data = port.read(wake - t)
                 t = now()
                 if data:
@@ -147,7 +172,10 @@ def _sniff_live(ctx, printer: _Printer) -> int:
 def run(ctx) -> int:
     a = ctx.args
     if bool(a.capture) == bool(a.port):
-        raise CliError("give --port (a live line) or --capture FILE, not both", EXIT_USAGE) \
-            if a.capture else CliError("--port or --capture is required", EXIT_USAGE)
+        raise (
+            CliError("give --port (a live line) or --capture FILE, not both", EXIT_USAGE)
+            if a.capture
+            else CliError("--port or --capture is required", EXIT_USAGE)
+        )
     printer = _Printer(ctx, Sniffer())
     return _sniff_capture(ctx, printer) if a.capture else _sniff_live(ctx, printer)

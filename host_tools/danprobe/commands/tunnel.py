@@ -1,13 +1,22 @@
 """danprobe tunnel: a gateway serial tunnel as a local pseudo-terminal."""
+
 import time
 
-from danprobe import gateway
-from danprobe.commands.common import (EXIT_USAGE, CliError, add_gateway_options,
-                                      gateway_operation, gateway_report, long_running,
-                                      non_negative_int, positive_float)
+from danprobe import gateway_client, gateway_msgs
+from danprobe.commands.common import (
+    EXIT_USAGE,
+    CliError,
+    add_gateway_options,
+    add_pty_options,
+    bridge_pty,
+    gateway_operation,
+    gateway_report,
+    long_running,
+    non_negative_int,
+    time_left,
+)
 from danprobe.master import DanError, OperationTimeout, RemoteError
-from danprobe.port import PortError, now
-from danprobe.ptyport import Pty
+from danprobe.port import now
 
 NAME = "tunnel"
 HELP = "CAN gateway: bridge a DroneCAN serial tunnel to a local pseudo-terminal"
@@ -17,94 +26,128 @@ DESCRIPTION = (
     "bridges it to a new pseudo-terminal: bytes written to the pty go out through TUN_XFER, "
     "bytes from the tunnel come back into it, so any serial tool (a GPS configurator, a "
     "terminal, MAVProxy) can talk to the device behind the CAN bus. Prints the pty's path; "
-    "runs until Ctrl-C, SIGTERM or --duration, then closes the tunnel port.")
+    "runs until Ctrl-C, SIGTERM or --duration, then closes the tunnel port."
+)
 
-IDLE_POLL_S = 0.02          # nothing moved: look again this much later
-OUT_LIMIT = 8192            # bytes for the pty client before we stop reading the tunnel
-IN_LIMIT = 4096             # bytes from the pty client waiting for the gateway
+IDLE_POLL_S = 0.02  # nothing moved: look again this much later
+OUT_LIMIT = 8192  # bytes for the pty client before we stop reading the tunnel
+IN_LIMIT = 4096  # bytes from the pty client waiting for the gateway
 
 
 def add_arguments(p):
     add_gateway_options(p, long_running=True)
     g = p.add_argument_group("tunnel options")
-    g.add_argument("--target", type=non_negative_int, metavar="NODE",
-                   help="Targetted: the node id of the device's end")
-    g.add_argument("--serial-id", type=int, default=0, metavar="N",
-                   help="Targetted: serial_id of the device's port (-1..15, default 0)")
-    g.add_argument("--serial-baud", type=non_negative_int, default=0, metavar="B",
-                   help="Targetted: baudrate to ask the device's port for (default 0: keep)")
-    g.add_argument("--lock", action="store_true",
-                   help="Targetted: set LOCK_PORT (the device's port serves only the tunnel)")
-    g.add_argument("--protocol", type=non_negative_int, metavar="P",
-                   help="Broadcast: uavcan.tunnel.Protocol value")
-    g.add_argument("--channel", type=non_negative_int, metavar="C",
-                   help="Broadcast: channel_id")
-    g.add_argument("--tunnel-port", type=non_negative_int, default=0, metavar="N",
-                   help="the gateway's tunnel port to use (default 0)")
-    g.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the pty")
-    g.add_argument("--duration", type=positive_float, metavar="S", help="stop after S seconds")
+    g.add_argument(
+        "--target",
+        type=non_negative_int,
+        metavar="NODE",
+        help="Targetted: the node id of the device's end",
+    )
+    g.add_argument(
+        "--serial-id",
+        type=int,
+        default=0,
+        metavar="N",
+        help="Targetted: serial_id of the device's port (-1..15, default 0)",
+    )
+    g.add_argument(
+        "--serial-baud",
+        type=non_negative_int,
+        default=0,
+        metavar="B",
+        help="Targetted: baudrate to ask the device's port for (default 0: keep)",
+    )
+    g.add_argument(
+        "--lock",
+        action="store_true",
+        help="Targetted: set LOCK_PORT (the device's port serves only the tunnel)",
+    )
+    g.add_argument(
+        "--protocol",
+        type=non_negative_int,
+        metavar="P",
+        help="Broadcast: uavcan.tunnel.Protocol value",
+    )
+    g.add_argument("--channel", type=non_negative_int, metavar="C", help="Broadcast: channel_id")
+    g.add_argument(
+        "--tunnel-port",
+        type=non_negative_int,
+        default=0,
+        metavar="N",
+        help="the gateway's tunnel port to use (default 0)",
+    )
+    add_pty_options(g)
 
 
-def tunnel_config(a) -> gateway.TunOpen:
+def tunnel_config(a) -> gateway_msgs.TunOpen:
     if (a.target is None) == (a.protocol is None and a.channel is None):
-        raise CliError("give --target NODE (Targetted) or --protocol P --channel C (Broadcast)",
-                       EXIT_USAGE)
+        raise CliError(
+            "give --target NODE (Targetted) or --protocol P --channel C (Broadcast)", EXIT_USAGE
+        )
     if a.target is not None:
         if not 1 <= a.target <= 127 or not -1 <= a.serial_id <= 15 or a.serial_baud > 0xFFFFFF:
-            raise CliError("--target 1..127, --serial-id -1..15, --serial-baud up to 16777215",
-                           EXIT_USAGE)
-        return gateway.TunOpen(a.tunnel_port, gateway.TUN_TARGETTED, gateway.PROTOCOL_UNDEFINED,
-                               a.target, a.serial_id, gateway.TUN_LOCK_PORT if a.lock else 0,
-                               a.serial_baud)
+            raise CliError(
+                "--target 1..127, --serial-id -1..15, --serial-baud up to 16777215", EXIT_USAGE
+            )
+        return gateway_msgs.TunOpen(
+            a.tunnel_port,
+            gateway_msgs.TUN_TARGETTED,
+            gateway_msgs.PROTOCOL_UNDEFINED,
+            a.target,
+            a.serial_id,
+            gateway_msgs.TUN_LOCK_PORT if a.lock else 0,
+            a.serial_baud,
+        )
     if a.protocol is None or a.channel is None or a.protocol > 255 or a.channel > 255:
         raise CliError("Broadcast needs --protocol P and --channel C (0..255)", EXIT_USAGE)
-    return gateway.TunOpen(a.tunnel_port, gateway.TUN_BROADCAST, a.protocol, a.channel)
+    return gateway_msgs.TunOpen(a.tunnel_port, gateway_msgs.TUN_BROADCAST, a.protocol, a.channel)
 
 
-def describe(cfg: gateway.TunOpen) -> str:
-    if cfg.mode == gateway.TUN_TARGETTED:
-        return (f"Targetted node {cfg.target} serial {cfg.serial_id}"
-                + (f" at {cfg.baud} baud" if cfg.baud else "")
-                + (" (locked)" if cfg.options & gateway.TUN_LOCK_PORT else ""))
+def describe(cfg: gateway_msgs.TunOpen) -> str:
+    if cfg.mode == gateway_msgs.TUN_TARGETTED:
+        return (
+            f"Targetted node {cfg.target} serial {cfg.serial_id}"
+            + (f" at {cfg.baud} baud" if cfg.baud else "")
+            + (" (locked)" if cfg.options & gateway_msgs.TUN_LOCK_PORT else "")
+        )
     return f"Broadcast protocol {cfg.protocol} channel {cfg.target}"
 
 
 def run(ctx) -> int:
     a = ctx.args
     cfg = tunnel_config(a)
-    res = {"to_tunnel": 0, "from_tunnel": 0, "reopens": 0, "rd_lost": 0, "rd_dropped": 0,
-           "pty": None, "link": a.link}
+    res = {
+        "to_tunnel": 0,
+        "from_tunnel": 0,
+        "reopens": 0,
+        "rd_lost": 0,
+        "rd_dropped": 0,
+        "pty": None,
+        "link": a.link,
+    }
 
     def op(m, gw):
         gw.tunnel_open(cfg)
-        try:
-            pty = Pty(a.link)
-        except PortError as e:
-            raise CliError(str(e), EXIT_USAGE) from None
-        res["pty"] = pty.path
-        with pty:
-            if a.json:
-                ctx.emit_json({"event": "ready", "pty": pty.path, "link": a.link,
-                               "tunnel": cfg.as_dict()})
-            else:
-                print(f"tunnel: {pty.path}" + (f" (link {a.link})" if a.link else "")
-                      + f" <-> {describe(cfg)}, gateway port {cfg.port}", flush=True)
+        what = f" <-> {describe(cfg)}, gateway port {cfg.port}"
+        with bridge_pty(ctx, res, what, tunnel=cfg.as_dict()) as pty:
             try:
                 _bridge(ctx, m, gw, cfg, pty, res)
             finally:
-                st = gw.tun.get(cfg.port, gateway.TunnelState())
+                st = gw.tun.get(cfg.port, gateway_client.TunnelState())
                 res["rd_lost"] += st.rd_lost
                 res["rd_dropped"] = st.rd_dropped
                 try:
-                    gw.tunnel_open(gateway.TunOpen(cfg.port, gateway.TUN_CLOSED))
+                    gw.tunnel_open(gateway_msgs.TunOpen(cfg.port, gateway_msgs.TUN_CLOSED))
                 except DanError as e:
                     ctx.error(f"could not close tunnel port {cfg.port}: {e}")
 
     m, failure, ms = gateway_operation(ctx, op)
 
     def human():
-        print(f"tunnel: closed; {res['to_tunnel']} byte(s) to the tunnel, {res['from_tunnel']} "
-              f"from it" + (f", {res['rd_lost']} lost" if res["rd_lost"] else ""))
+        print(
+            f"tunnel: closed; {res['to_tunnel']} byte(s) to the tunnel, {res['from_tunnel']} "
+            f"from it" + (f", {res['rd_lost']} lost" if res["rd_lost"] else "")
+        )
 
     return gateway_report(ctx, m, failure, ms, {"event": "summary", **res}, human)
 
@@ -112,17 +155,20 @@ def run(ctx) -> int:
 def _bridge(ctx, m, gw, cfg, pty, res):
     stop, dog = long_running(m, ctx)
     t0 = now()
-    pending = bytearray()       # from the pty client, for the gateway
-    out = bytearray()           # from the tunnel, for the pty client
+    pending = bytearray()  # from the pty client, for the gateway
+    out = bytearray()  # from the tunnel, for the pty client
     with stop:
-        while not stop.stop and (ctx.args.duration is None or now() - t0 < ctx.args.duration):
+        while not stop.stop and time_left(ctx, t0):
             if len(pending) < IN_LIMIT:
                 pending += pty.read()
             if out:
-                del out[:pty.write(out)]
+                del out[: pty.write(out)]
             try:
-                data = gw.tunnel_xfer(cfg.port, pending[:gateway.TUN_CHUNK_MAX],
-                                      gateway.TUN_CHUNK_MAX if len(out) < OUT_LIMIT else 0)
+                data = gw.tunnel_xfer(
+                    cfg.port,
+                    pending[: gateway_msgs.TUN_CHUNK_MAX],
+                    gateway_msgs.TUN_CHUNK_MAX if len(out) < OUT_LIMIT else 0,
+                )
             except OperationTimeout:
                 raise
             except RemoteError as e:
@@ -138,7 +184,7 @@ def _bridge(ctx, m, gw, cfg, pty, res):
                     dog.failed(e2)
                 continue
             except DanError as e:
-                dog.failed(e)       # the next xfer repeats the same offsets
+                dog.failed(e)  # the next xfer repeats the same offsets
                 continue
             dog.ok()
             taken = gw.tun[cfg.port].accepted
@@ -147,9 +193,9 @@ def _bridge(ctx, m, gw, cfg, pty, res):
             res["from_tunnel"] += len(data)
             out += data
             if out:
-                del out[:pty.write(out)]
+                del out[: pty.write(out)]
             if not taken and not data:
                 if pending:
-                    time.sleep(IDLE_POLL_S)     # the gateway's buffer is full
+                    time.sleep(IDLE_POLL_S)  # the gateway's buffer is full
                 else:
                     pty.wait_readable(IDLE_POLL_S)

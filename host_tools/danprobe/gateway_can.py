@@ -1,0 +1,247 @@
+"""The gateway's raw CAN messages (docs/PROTOCOL.md section 7: CAN_SEND,
+CAN_RECV, CAN_FILTER), the classic CAN frame they carry and cansend's
+ID#DATA text for it. Same rules as gateway_msgs.py: decoders never read
+past the payload and raise PayloadError for a field out of range."""
+
+from dataclasses import asdict, dataclass, field
+
+from danprobe.gateway_msgs import (
+    CAN_FRAMES_MAX,
+    CAN_ID_EXT,
+    CAN_ID_RTR,
+    EFF_MASK,
+    FILTER_READ,
+    FILTERS_MAX,
+    SFF_MASK,
+    check_range,
+)
+from danprobe.payloads import PayloadError, Reader, Writer
+
+
+@dataclass
+class CanFrame:
+    id: int = 0
+    data: bytes = b""
+    ext: bool = False
+    rtr: bool = False
+    rtr_dlc: int = 0  # dlc of a remote frame (it has no data)
+
+    @property
+    def dlc(self) -> int:
+        return self.rtr_dlc if self.rtr else len(self.data)
+
+    @property
+    def id_flags(self) -> int:
+        return self.id | (CAN_ID_EXT if self.ext else 0) | (CAN_ID_RTR if self.rtr else 0)
+
+    def check(self) -> "CanFrame":
+        if not 0 <= self.id <= (EFF_MASK if self.ext else SFF_MASK):
+            raise ValueError(
+                f"CAN id {self.id:X} out of range for a {'29' if self.ext else '11'}-bit identifier"
+            )
+        if self.dlc > 8 or (self.rtr and self.data):
+            raise ValueError("CAN frame: at most 8 data bytes, none in a remote frame")
+        return self
+
+    def put(self, w: Writer):
+        self.check()
+        w.u32(self.id_flags).u8(self.dlc)
+        if not self.rtr:
+            w.raw(self.data)
+
+    @classmethod
+    def get(cls, r: Reader) -> "CanFrame":
+        idf, dlc = r.u32("id_flags"), r.u8("dlc")
+        ext, rtr = bool(idf & CAN_ID_EXT), bool(idf & CAN_ID_RTR)
+        fid = idf & EFF_MASK
+        if dlc > 8 or idf & 0x20000000 or (not ext and fid > SFF_MASK):
+            raise PayloadError(f"CAN frame: id_flags {idf:08X} dlc {dlc} out of range")
+        if rtr:
+            return cls(fid, b"", ext, True, dlc)
+        return cls(fid, r.raw(dlc, "frame data"), ext)
+
+    def candump(self) -> str:
+        """can-utils' ID#DATA (3 or 8 hex digits; ID#R[len] for a remote frame)."""
+        ident = f"{self.id:08X}" if self.ext else f"{self.id:03X}"
+        if self.rtr:
+            return f"{ident}#R" + (f"{self.rtr_dlc:X}" if self.rtr_dlc else "")
+        return f"{ident}#{self.data.hex().upper()}"
+
+    def as_dict(self) -> dict:
+        return {
+            "id": self.id,
+            "ext": self.ext,
+            "rtr": self.rtr,
+            "dlc": self.dlc,
+            "data": self.data.hex(),
+            "text": self.candump(),
+        }
+
+
+_HEX = set("0123456789abcdefABCDEF")
+
+
+def parse_cansend(text: str) -> CanFrame:
+    """cansend's <id>#<data>: up to 3 hex digits an 11-bit id, 4..8 a 29-bit
+    one (cansend: exactly 3 or 8); data as hex bytes, '.' allowed between
+    them; <id>#R or <id>#R<len> a remote frame."""
+    ident, sep, rest = text.partition("#")
+    if not sep or not 1 <= len(ident) <= 8 or not set(ident) <= _HEX:
+        raise ValueError(f"{text!r}: expected ID#DATA (ID: 3 or 8 hex digits)")
+    ext = len(ident) > 3
+    if rest[:1] in ("R", "r"):
+        n = rest[1:]
+        if len(n) > 1 or (n and n not in "012345678"):
+            raise ValueError(f"{text!r}: remote frame length must be R or R0..R8")
+        return CanFrame(int(ident, 16), b"", ext, True, int(n or "0")).check()
+    digits = rest.replace(".", "")
+    if len(digits) % 2 or not set(digits) <= _HEX:
+        raise ValueError(f"{text!r}: data must be whole hex bytes")
+    try:
+        return CanFrame(int(ident, 16), bytes.fromhex(digits), ext).check()
+    except ValueError as e:
+        raise ValueError(f"{text!r}: {e}") from None
+
+
+@dataclass
+class CanSendRequest:
+    seq: int = 0
+    frames: list[CanFrame] = field(default_factory=list)
+
+    def encode(self) -> bytes:
+        if len(self.frames) > CAN_FRAMES_MAX:
+            raise ValueError(f"CAN_SEND: at most {CAN_FRAMES_MAX} frames")
+        w = Writer().u8(self.seq).u8(len(self.frames))
+        for f in self.frames:
+            f.put(w)
+        return w.bytes()
+
+    @classmethod
+    def decode(cls, payload) -> "CanSendRequest":
+        r = Reader(payload)
+        s, n = r.u8("seq"), r.u8("count")
+        if n > CAN_FRAMES_MAX:
+            raise PayloadError(f"count: {n} frames, at most {CAN_FRAMES_MAX}")
+        return cls(s, [CanFrame.get(r) for _ in range(n)])
+
+    def as_dict(self) -> dict:
+        return {"seq": self.seq, "frames": [f.candump() for f in self.frames]}
+
+
+@dataclass
+class CanSendResponse:
+    seq: int = 0
+    accepted: int = 0
+    queue_free: int = 0
+
+    def encode(self) -> bytes:
+        return Writer().u8(self.seq).u8(self.accepted).uvarint(self.queue_free).bytes()
+
+    @classmethod
+    def decode(cls, payload) -> "CanSendResponse":
+        r = Reader(payload)
+        return cls(r.u8("seq"), r.u8("accepted"), r.uvarint("queue_free"))
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class CanRecvRequest:
+    next_seq: int = 0
+    max: int = CAN_FRAMES_MAX
+
+    def encode(self) -> bytes:
+        return Writer().uvarint(self.next_seq).u8(self.max).bytes()
+
+    @classmethod
+    def decode(cls, payload) -> "CanRecvRequest":
+        r = Reader(payload)
+        return cls(r.uvarint("next_seq"), r.u8("max"))
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class CanRecvResponse:
+    first_seq: int = 0
+    dropped: int = 0
+    frames: list[CanFrame] = field(default_factory=list)
+
+    def encode(self) -> bytes:
+        if len(self.frames) > CAN_FRAMES_MAX:
+            raise ValueError(f"CAN_RECV: at most {CAN_FRAMES_MAX} frames")
+        w = Writer().uvarint(self.first_seq).uvarint(self.dropped).u8(len(self.frames))
+        for f in self.frames:
+            f.put(w)
+        return w.bytes()
+
+    @classmethod
+    def decode(cls, payload) -> "CanRecvResponse":
+        r = Reader(payload)
+        q = cls(r.uvarint("first_seq"), r.uvarint("dropped"))
+        n = r.u8("count")
+        if n > CAN_FRAMES_MAX:
+            raise PayloadError(f"count: {n} frames, at most {CAN_FRAMES_MAX}")
+        q.frames = [CanFrame.get(r) for _ in range(n)]
+        return q
+
+    def as_dict(self) -> dict:
+        return {
+            "first_seq": self.first_seq,
+            "dropped": self.dropped,
+            "frames": [f.candump() for f in self.frames],
+        }
+
+
+@dataclass
+class Filter:
+    """Passes a frame with the same ext flag and (id & mask) == (self.id & mask)."""
+
+    id: int = 0
+    mask: int = 0
+    ext: bool = False
+
+    def matches(self, f: CanFrame) -> bool:
+        return f.ext == self.ext and (f.id & self.mask) == (self.id & self.mask)
+
+    def text(self) -> str:
+        return f"{self.id:X}:{self.mask:X}" + (":ext" if self.ext else "")
+
+
+PASS_ALL = (Filter(0, 0, False), Filter(0, 0, True))  # every 11-bit and 29-bit frame
+
+
+@dataclass
+class FilterTable:
+    """CAN_FILTER request (op, entries) and response (result, the table)."""
+
+    op: int = FILTER_READ  # request: FILTER_*; response: 0 OK, 1 table full
+    filters: list[Filter] = field(default_factory=list)
+
+    def encode(self) -> bytes:
+        if len(self.filters) > FILTERS_MAX:
+            raise ValueError(f"CAN_FILTER: at most {FILTERS_MAX} entries")
+        w = Writer().u8(self.op).u8(len(self.filters))
+        for f in self.filters:
+            check_range(f.id, 0, EFF_MASK, "filter id")
+            check_range(f.mask, 0, EFF_MASK, "filter mask")
+            w.u32(f.id | (CAN_ID_EXT if f.ext else 0)).u32(f.mask)
+        return w.bytes()
+
+    @classmethod
+    def decode(cls, payload) -> "FilterTable":
+        r = Reader(payload)
+        t, n = cls(r.u8("op/result")), r.u8("count")
+        if n > FILTERS_MAX:
+            raise PayloadError(f"count: {n} filters, at most {FILTERS_MAX}")
+        for _ in range(n):
+            idf, mask = r.u32("filter id"), r.u32("filter mask")
+            if idf & 0x60000000 or mask & 0xE0000000:
+                raise PayloadError(f"filter {idf:08X}/{mask:08X}: reserved bits set")
+            t.filters.append(Filter(idf & EFF_MASK, mask, bool(idf & CAN_ID_EXT)))
+        return t
+
+    def as_dict(self) -> dict:
+        return {"op": self.op, "filters": [f.text() for f in self.filters]}

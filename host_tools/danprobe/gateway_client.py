@@ -1,0 +1,357 @@
+"""A blocking client of the CAN-over-DAN gateway over master.Master, and
+the gateway's names in the registry (for sniff and error messages). The
+messages are gateway_msgs.py and gateway_can.py.
+
+The client mirrors libdan's (peripherals/can_gateway/gw_client.c), so
+retried transactions never duplicate or lose anything: the master's
+retries repeat the same request bytes; tunnel writes carry their stream
+offset and reads acknowledge by offset; CAN_SEND carries a sequence number that changes per call, not per
+attempt; CAN_RECV acknowledges by sequence number. Two additions for a
+tool that joins a running gateway (libdan's FC client starts with it):
+the first CAN_SEND of a session is preceded by an empty one that sets the
+gateway's "last accepted" sequence number (so our first real sequence
+number is never mistaken for a retry of someone else's), and frames the
+first CAN_RECV skips are not counted as lost (they were before our time).
+A CAN_SEND whose transaction failed is sent again with the same sequence
+number by can_send_again(), so a lost response never duplicates frames.
+"""
+
+import random
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+from danprobe import registry
+from danprobe.codec import MalformedError
+from danprobe.gateway_can import (
+    CanFrame,
+    CanRecvRequest,
+    CanRecvResponse,
+    CanSendRequest,
+    CanSendResponse,
+    Filter,
+    FilterTable,
+)
+from danprobe.gateway_msgs import (
+    ARM_FULLY_ARMED,
+    CAN_FRAMES_MAX,
+    CAN_RESYNC,
+    CODE_ARM,
+    CODE_CAN_FILTER,
+    CODE_CAN_RECV,
+    CODE_CAN_SEND,
+    CODE_CONFIG,
+    CODE_ESC_CMD,
+    CODE_ESC_TELEM,
+    CODE_NODE_INFO,
+    CODE_NODES,
+    CODE_STATS,
+    CODE_TUN_OPEN,
+    CODE_TUN_XFER,
+    FILTER_READ,
+    FILTER_REPLACE,
+    NONE,
+    REQUEST,
+    RESPONSE,
+    TUN_CHUNK_MAX,
+    ConfigRequest,
+    ConfigResponse,
+    NodeEntry,
+    NodeInfo,
+    NodesPage,
+    Telemetry,
+    TelemRecord,
+    TunOpen,
+    TunOpenResult,
+    TunXferRequest,
+    TunXferResponse,
+    check_range,
+    decode_esc_cmd,
+    decode_stats,
+    decode_u8,
+    encode_esc_cmd,
+    flags_dict,
+    off_diff,
+    reply_check,
+    seal,
+    stats_dict,
+    unseal,
+)
+from danprobe.master import Malformed, Master, Nack
+
+# ---- names for sniff and error messages ----
+
+
+def _describer(code: int, direction: int, fn: Callable) -> Callable[[bytes], dict]:
+    """A registry describer: unseals a wire payload, decodes the inner one
+    (fn returns a dict or an object with as_dict())."""
+
+    def describe(payload: bytes) -> dict:
+        v = fn(unseal(code, direction, payload))
+        return v.as_dict() if hasattr(v, "as_dict") else v
+
+    return describe
+
+
+def register_names():
+    """Names codes 0x42..0x4D in the registry, with describers of the sealed
+    payloads, so sniff shows and decodes them (the CLI calls this at start)."""
+    u8 = decode_u8
+    for code, name, req, rsp in (
+        (CODE_ESC_CMD, "ESC_CMD", lambda p: {"values": decode_esc_cmd(p)}, Telemetry.decode),
+        (CODE_ESC_TELEM, "ESC_TELEM", lambda p: {"first": u8(p)}, Telemetry.decode),
+        (CODE_ARM, "ARM", lambda p: {"status": u8(p)}, lambda p: flags_dict(u8(p))),
+        (CODE_CONFIG, "CONFIG", ConfigRequest.decode, ConfigResponse.decode),
+        (CODE_STATS, "STATS", registry.describe_empty, lambda p: stats_dict(decode_stats(p))),
+        (CODE_NODES, "NODES", lambda p: {"first": u8(p)}, NodesPage.decode),
+        (CODE_NODE_INFO, "NODE_INFO", lambda p: {"node": u8(p)}, NodeInfo.decode),
+        (CODE_TUN_OPEN, "TUN_OPEN", TunOpen.decode, TunOpenResult.decode),
+        (CODE_TUN_XFER, "TUN_XFER", TunXferRequest.decode, TunXferResponse.decode),
+        (CODE_CAN_SEND, "CAN_SEND", CanSendRequest.decode, CanSendResponse.decode),
+        (CODE_CAN_RECV, "CAN_RECV", CanRecvRequest.decode, CanRecvResponse.decode),
+        (CODE_CAN_FILTER, "CAN_FILTER", FilterTable.decode, FilterTable.decode),
+    ):
+        registry.register_message(
+            code,
+            name,
+            request=_describer(code, REQUEST, req),
+            response=_describer(code, RESPONSE, rsp),
+        )
+
+
+# ---- the client ----
+
+
+@dataclass
+class TunnelState:
+    wr_offset: int = 0  # bytes of ours the gateway has accepted
+    rd_offset: int = 0  # bytes we have received
+    wr_space: int = 0  # gateway buffer space, last seen
+    rd_dropped: int = 0  # bytes the gateway dropped (CAN -> DAN)
+    rd_lost: int = 0  # bytes skipped here (the gateway dropped them)
+    accepted: int = 0  # of the last xfer's data
+
+
+class GatewayClient:
+    """Typed gateway calls over a Master whose bus has the gateway at
+    master.baud. Each call is one transaction (the master retries lost
+    ones) and raises the master's DanError on failure; a response that does
+    not decode raises Malformed (counted in decode_errors)."""
+
+    def __init__(self, master: Master, seed: Optional[int] = None):
+        self.m = master
+        master.reply_check = reply_check
+        self.flags = 0  # from the last response that carries them
+        self.escs_known = 0  # ESCs the gateway knows (ESC_CMD response)
+        self.esc: dict[int, TelemRecord] = {}  # newest telemetry per ESC index
+        self.config: Optional[ConfigResponse] = None
+        self.stats: list[int] = []
+        self.tun: dict[int, TunnelState] = {}
+        self.can_seq: Optional[int] = None  # last CAN_SEND sequence number used
+        self._unsent: Optional[CanSendRequest] = None  # a CAN_SEND whose transaction failed
+        self.can_accepted = 0
+        self.can_queue_free = 0
+        self.can_rx_next: Optional[int] = None  # next raw frame sequence number wanted
+        self.can_rx_dropped = 0
+        self.can_rx_lost = 0
+        self.can_rx_resyncs = 0
+        self.decode_errors = 0
+        self._rng = random.Random(seed)
+
+    def _call(self, code: int, payload: bytes, decode: Callable):
+        """One transaction: the request sealed, the reply unsealed (the
+        master's reply check already refused a bad seal) and decoded."""
+        reply = self.m.request(code, seal(code, REQUEST, payload))
+        try:
+            return decode(unseal(code, RESPONSE, reply))
+        except (MalformedError, ValueError) as e:
+            self.decode_errors += 1
+            raise Malformed(f"{registry.code_name(code)}: bad response: {e}") from None
+
+    def _malformed(self, code: int, why: str):
+        self.decode_errors += 1
+        return Malformed(f"{registry.code_name(code)}: {why}")
+
+    # ---- ESCs, arming, settings, counters ----
+
+    def esc_command(self, values: Sequence[int]) -> Optional[TelemRecord]:
+        """Sends RawCommand values; returns the telemetry record that came
+        back (round robin over the ESCs), also kept in self.esc."""
+        t = self._call(CODE_ESC_CMD, encode_esc_cmd(values), Telemetry.decode)
+        self.flags, self.escs_known = t.flags, t.aux
+        for r in t.records:
+            self.esc[r.esc_index] = r
+        return t.records[0] if t.records else None
+
+    def telemetry_page(self, first: int = 0) -> Telemetry:
+        t = self._call(CODE_ESC_TELEM, bytes([first]), Telemetry.decode)
+        self.flags = t.flags
+        for r in t.records:
+            self.esc[r.esc_index] = r
+        return t
+
+    def telemetry(self) -> list[TelemRecord]:
+        """Every ESC's newest telemetry, page by page, in index order."""
+        out, first = [], 0
+        while True:
+            t = self.telemetry_page(first)
+            out += t.records
+            if t.aux == NONE:
+                return out
+            if t.aux <= first:
+                raise self._malformed(CODE_ESC_TELEM, f"next page {t.aux} does not advance")
+            first = t.aux
+
+    def arm(self, status: int = ARM_FULLY_ARMED) -> int:
+        """ArmingStatus value (0 disarmed, 255 fully armed); returns the flags."""
+        self.flags = self._call(
+            CODE_ARM, bytes([check_range(status, 0, 255, "arming status")]), decode_u8
+        )
+        return self.flags
+
+    def read_config(self, set_req: Optional[ConfigRequest] = None) -> ConfigResponse:
+        self.config = self._call(
+            CODE_CONFIG, (set_req or ConfigRequest()).encode(), ConfigResponse.decode
+        )
+        self.flags = self.config.flags
+        return self.config
+
+    def read_stats(self) -> dict[str, int]:
+        self.stats = self._call(CODE_STATS, b"", decode_stats)
+        return stats_dict(self.stats)
+
+    # ---- DroneCAN nodes ----
+
+    def nodes_page(self, first: int = 1) -> NodesPage:
+        return self._call(CODE_NODES, bytes([first]), NodesPage.decode)
+
+    def nodes(self) -> list[NodeEntry]:
+        out, first = [], 1
+        while True:
+            p = self.nodes_page(first)
+            out += p.entries
+            if p.next == 0:
+                return out
+            if p.next <= first:
+                raise self._malformed(CODE_NODES, f"next page {p.next} does not advance")
+            first = p.next
+
+    def node_info(self, node_id: int) -> NodeInfo:
+        i = self._call(CODE_NODE_INFO, bytes([node_id]), NodeInfo.decode)
+        if i.node_id != node_id:
+            raise self._malformed(CODE_NODE_INFO, f"answer for node {i.node_id}, not {node_id}")
+        return i
+
+    # ---- tunnels ----
+
+    def tunnel_open(self, cfg: TunOpen) -> None:
+        """Opens, reconfigures or (mode TUN_CLOSED) closes a port; both
+        offsets restart at 0. Raises Nack if the gateway refused."""
+        r = self._call(CODE_TUN_OPEN, cfg.encode(), TunOpenResult.decode)
+        if r.port != cfg.port:
+            raise self._malformed(CODE_TUN_OPEN, f"answer for port {r.port}, not {cfg.port}")
+        if r.result != 0:
+            raise Nack(f"the gateway refused tunnel port {cfg.port} ({cfg})")
+        self.tun[cfg.port] = TunnelState()
+
+    def tunnel_xfer(self, port: int, data: bytes = b"", rd_max: int = TUN_CHUNK_MAX) -> bytes:
+        """Writes the first up to 128 bytes of data (the bytes from our write
+        offset on: drop .tun[port].accepted of them afterwards and pass the
+        rest again) and returns the new bytes read (up to rd_max)."""
+        t = self.tun.setdefault(port, TunnelState())
+        data = bytes(data[:TUN_CHUNK_MAX])
+        req = TunXferRequest(port, t.wr_offset, t.rd_offset, min(rd_max, TUN_CHUNK_MAX), data)
+        t.accepted = 0
+        x = self._call(CODE_TUN_XFER, req.encode(), TunXferResponse.decode)
+        if x.port != port:
+            raise self._malformed(CODE_TUN_XFER, f"answer for port {x.port}, not {port}")
+        adv = off_diff(x.wr_next, t.wr_offset)
+        if not 0 <= adv <= len(data):
+            raise self._malformed(CODE_TUN_XFER, f"took {adv} of {len(data)} bytes")
+        skip = off_diff(x.rd_offset, t.rd_offset)
+        if skip < 0:
+            raise self._malformed(CODE_TUN_XFER, "data older than what we acknowledged")
+        t.accepted, t.wr_offset = adv, x.wr_next
+        t.wr_space, t.rd_dropped = x.wr_space, x.rd_dropped
+        t.rd_lost += skip
+        t.rd_offset = (x.rd_offset + len(x.data)) & 0xFFFFFFFF
+        return x.data
+
+    # ---- raw frames ----
+
+    def _can_sync(self):
+        """An empty CAN_SEND makes its sequence number the gateway's last
+        accepted one, so our next (different) number is never taken for a
+        retry of an earlier client's request."""
+        self.can_seq = self._rng.randrange(256)
+        self._call(CODE_CAN_SEND, CanSendRequest(self.can_seq).encode(), CanSendResponse.decode)
+
+    def _can_send(self, req: CanSendRequest) -> int:
+        self._unsent = req
+        rsp = self._call(CODE_CAN_SEND, req.encode(), CanSendResponse.decode)
+        self._unsent = None
+        if rsp.seq != req.seq:
+            raise self._malformed(CODE_CAN_SEND, f"answer for seq {rsp.seq}, not {req.seq}")
+        self.can_accepted, self.can_queue_free = rsp.accepted, rsp.queue_free
+        return rsp.accepted
+
+    def can_send(self, frames: Sequence[CanFrame]) -> int:
+        """Sends up to 11 frames, all or nothing: returns how many the
+        gateway took (0: its queue was full, send them again later)."""
+        if len(frames) > CAN_FRAMES_MAX:
+            raise ValueError(f"at most {CAN_FRAMES_MAX} frames per CAN_SEND")
+        if self.can_seq is None:
+            self._can_sync()
+        # a new number per call, not per attempt: the master's retries repeat it
+        self.can_seq = (self.can_seq + 1) & 0xFF
+        return self._can_send(CanSendRequest(self.can_seq, list(frames)))
+
+    @property
+    def can_send_failed(self) -> bool:
+        """The last CAN_SEND's transaction failed: can_send_again() repeats it."""
+        return self._unsent is not None
+
+    def can_send_again(self) -> int:
+        """Sends the CAN_SEND whose transaction failed again, with its
+        sequence number: if the gateway took it before, it is not sent twice."""
+        if self._unsent is None:
+            raise ValueError("no failed CAN_SEND to repeat")
+        return self._can_send(self._unsent)
+
+    def can_recv(self, max_frames: int = CAN_FRAMES_MAX) -> list[CanFrame]:
+        """The next frames that passed the filter (acknowledging the ones
+        received before)."""
+        first = self.can_rx_next is None
+        req = CanRecvRequest(0 if first else self.can_rx_next, min(max_frames, CAN_FRAMES_MAX))
+        q = self._call(CODE_CAN_RECV, req.encode(), CanRecvResponse.decode)
+        if not first:
+            skip = off_diff(q.first_seq, self.can_rx_next)
+            if skip < 0 or skip > CAN_RESYNC:
+                # not where we left off: the gateway restarted (its sequence
+                # starts elsewhere each boot); follow it, as the C client does
+                self.can_rx_resyncs += 1
+            else:
+                self.can_rx_lost += skip
+        self.can_rx_next = (q.first_seq + len(q.frames)) & 0xFFFFFFFF
+        self.can_rx_dropped = q.dropped
+        return q.frames
+
+    def can_listen(self, filters: Sequence[Filter]) -> list[Filter]:
+        """Starts receiving with our filter: empties the filter, drops the
+        frames still waiting in the gateway (they passed someone else's
+        filter, earlier), then sets filters. Returns the table it replaced,
+        for can_filter(FILTER_REPLACE, previous) at the end."""
+        previous = self.can_filter(FILTER_READ).filters
+        self.can_filter(FILTER_REPLACE, [])
+        while self.can_recv():
+            pass
+        if self.can_filter(FILTER_REPLACE, filters).op != 0:
+            raise Nack("the gateway's filter table is full")
+        return previous
+
+    def can_filter(self, op: int, filters: Sequence[Filter] = ()) -> FilterTable:
+        """Changes (or, FILTER_READ, reads) the receive filter; returns the
+        result (0 OK, 1 table full) and the gateway's table."""
+        return self._call(
+            CODE_CAN_FILTER, FilterTable(op, list(filters)).encode(), FilterTable.decode
+        )
