@@ -9,6 +9,7 @@ from `def` to the function's last line; nested functions count on their
 own. Prints the longest K and every function over the limit; exit 1 if
 there is one.
 """
+
 import argparse
 import ast
 import re
