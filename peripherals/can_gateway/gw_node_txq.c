@@ -33,6 +33,16 @@ void dan_gw_node_tx_pop(dan_gw_node_t *g)
     }
 }
 
+void dan_gw_node_tx_sent(dan_gw_node_t *g, uint64_t now_us)
+{
+    dan_can_frame_t f;
+    if (dan_gw_node_tx_peek(g, &f)) {
+        dan_gw_node_tx_pop(g);
+        f.flags |= DAN_CAN_OWN;
+        dan_gwn_raw_in(g, &f, now_us);
+    }
+}
+
 size_t dan_gw_node_tx_pending(const dan_gw_node_t *g)
 {
     return (size_t)g->q_urgent.len + g->q_bulk.len;
