@@ -95,6 +95,7 @@ int dan_gw_msg_call_state_decode(dan_gw_call_state_t *s, const uint8_t *p, size_
  * state, uv result_len, uv offset, array data (<= min(max, 128); empty until
  * DONE). Unknown call_id: error frame. */
 #define DAN_GW_RESULT_CHUNK_MAX 128u
+#define DAN_GW_RESULT_REQ_MAX   8u /* call_id, a 5-byte uvarint, max */
 
 typedef struct {
     uint16_t call_id;
