@@ -23,8 +23,9 @@ static void check_nodes(dan_gw_node_t *g, dan_gw_health_t *h, uint64_t now_us)
     unsigned pass, health;
     size_t i;
     for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
-        if (g->nodes[i].e.node_id != 0u && g->nodes[i].duplicate) {
-            note(h, DAN_GW_REASON_DUPLICATE, g->nodes[i].e.node_id, 0);
+        const dan_gw_node_slot_t *n = &g->nodes[i];
+        if (n->e.node_id != 0u && n->duplicate && !dan_gwn_offline(n, now_us)) {
+            note(h, DAN_GW_REASON_DUPLICATE, n->e.node_id, 0);
         }
     }
     for (pass = 0; pass < 3u; pass++) {
