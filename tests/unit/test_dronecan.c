@@ -732,8 +732,12 @@ static void test_tx_misc(void **state)
     assert_int_equal(f[0].data[6], DAN_DC_TAIL_SOT | DAN_DC_TAIL_EOT);
     /* The anonymous frame decodes. */
     dan_dc_rx_init(rx, 10, accept_known, NULL);
-    assert_int_equal(dan_dc_rx_frame(rx, &f[0], 0, &out), 0); /* DTID 1 unknown */
-    assert_int_equal(rx->stats.ignored, 1);
+    /* DTID 1 is dynamic_node_id.Allocation: an anonymous transfer */
+    assert_int_equal(dan_dc_rx_frame(rx, &f[0], 0, &out), 1);
+    assert_int_equal(out.source_node, 0);
+    assert_int_equal(out.data_type_id, 1);
+    assert_int_equal(out.payload_len, 6);
+    assert_memory_equal(out.payload, p, 6);
     t.payload = NULL;
     assert_int_equal(dan_dc_tx_build(&t, f, 8), DAN_ERR_ARG);
     assert_int_equal(dan_dc_tx_build(NULL, f, 8), DAN_ERR_ARG);
