@@ -46,10 +46,152 @@ static void cat_hex(char *out, size_t cap, const uint8_t *p, size_t n)
 static void cat_frame(char *out, size_t cap, const dan_can_frame_t *f)
 {
     uint32_t id = f->id | ((f->flags & DAN_CAN_EXT) ? DAN_GW_CAN_ID_EXT : 0u) |
-                  ((f->flags & DAN_CAN_RTR) ? DAN_GW_CAN_ID_RTR : 0u);
+                  ((f->flags & DAN_CAN_RTR) ? DAN_GW_CAN_ID_RTR : 0u) |
+                  ((f->flags & DAN_CAN_OWN) ? DAN_GW_CAN_ID_OWN : 0u);
     cat(out, cap, " frame=%08X/%u/", (unsigned)id, f->dlc);
     cat_hex(out, cap, f->data, (f->flags & DAN_CAN_RTR) ? 0u : f->dlc);
 }
+
+static void cat_value(char *out, size_t cap, const char *key, const dan_gw_value_t *v)
+{
+    uint32_t bits;
+    cat(out, cap, " %s=%u", key, v->tag);
+    switch (v->tag) {
+    case DAN_GW_VALUE_INTEGER: cat(out, cap, "/%lld", (long long)v->integer); break;
+    case DAN_GW_VALUE_REAL:
+        memcpy(&bits, &v->real, sizeof bits);
+        cat(out, cap, "/%08lx", (unsigned long)bits);
+        break;
+    case DAN_GW_VALUE_BOOLEAN: cat(out, cap, "/%u", v->boolean); break;
+    case DAN_GW_VALUE_STRING:
+        cat(out, cap, "/");
+        cat_hex(out, cap, v->string, v->string_len);
+        break;
+    default: break;
+    }
+}
+
+/* The bus-management messages (gen_gateway_mgmt.py). */
+static int vec_call(const char *dir, const uint8_t *p, size_t len, char *txt, size_t cap,
+                    uint8_t *enc, size_t ecap)
+{
+    if (!strcmp(dir, "req")) {
+        dan_gw_call_t c;
+        assert_int_equal(dan_gw_msg_call_decode(&c, p, len), DAN_OK);
+        cat(txt, cap, "id=%u node=%u op=%u", c.call_id, c.node_id, c.op);
+        if (c.op == DAN_GW_CALL_PARAM_GET_INDEX) {
+            cat(txt, cap, " index=%u", c.index);
+        } else if (c.op == DAN_GW_CALL_PARAM_GET_NAME || c.op == DAN_GW_CALL_PARAM_SET) {
+            cat(txt, cap, " name=");
+            cat_hex(txt, cap, (const uint8_t *)c.name, c.name_len);
+            if (c.op == DAN_GW_CALL_PARAM_SET) {
+                cat_value(txt, cap, "value", &c.value);
+            }
+        } else if (c.op == DAN_GW_CALL_RESTART) {
+            cat(txt, cap, " magic=%llu force=%u", (unsigned long long)c.magic, c.force);
+        }
+        return dan_gw_msg_call_encode(&c, enc, ecap);
+    } else {
+        dan_gw_call_state_t st;
+        assert_int_equal(dan_gw_msg_call_state_decode(&st, p, len), DAN_OK);
+        cat(txt, cap, "id=%u state=%u len=%lu", st.call_id, st.state, (unsigned long)st.result_len);
+        return dan_gw_msg_call_state_encode(&st, enc, ecap);
+    }
+}
+
+static int vec_result(const char *msg, const char *dir, const uint8_t *p, size_t len, char *txt,
+                      size_t cap, uint8_t *enc, size_t ecap)
+{
+    if (!strcmp(msg, "call_result")) {
+        dan_gw_result_t q;
+        if (!strcmp(dir, "req")) {
+            assert_int_equal(dan_gw_msg_result_req_decode(&q, p, len), DAN_OK);
+            cat(txt, cap, "id=%u offset=%lu max=%u", q.call_id, (unsigned long)q.offset, q.max);
+            return dan_gw_msg_result_req_encode(&q, enc, ecap);
+        }
+        assert_int_equal(dan_gw_msg_result_rsp_decode(&q, p, len), DAN_OK);
+        cat(txt, cap, "id=%u state=%u len=%lu offset=%lu data=", q.call_id, q.state,
+            (unsigned long)q.result_len, (unsigned long)q.offset);
+        cat_hex(txt, cap, q.data, q.len);
+        return dan_gw_msg_result_rsp_encode(&q, enc, ecap);
+    }
+    if (!strcmp(msg, "param")) {
+        dan_gw_param_t pr;
+        assert_int_equal(dan_gw_msg_param_decode(&pr, p, len), DAN_OK);
+        cat(txt, cap, "present=%u", pr.present);
+        cat_value(txt, cap, "value", &pr.value);
+        if (pr.present & DAN_GW_PARAM_HAS_DEFAULT) {
+            cat_value(txt, cap, "default", &pr.default_value);
+        }
+        if (pr.present & DAN_GW_PARAM_HAS_MAX) {
+            cat_value(txt, cap, "max", &pr.max_value);
+        }
+        if (pr.present & DAN_GW_PARAM_HAS_MIN) {
+            cat_value(txt, cap, "min", &pr.min_value);
+        }
+        cat(txt, cap, " name=");
+        cat_hex(txt, cap, (const uint8_t *)pr.name, pr.name_len);
+        return dan_gw_msg_param_encode(&pr, enc, ecap);
+    } else {
+        dan_gw_opcode_result_t o;
+        assert_int_equal(dan_gw_msg_opcode_result_decode(&o, p, len), DAN_OK);
+        cat(txt, cap, "ok=%u arg=%lld", o.ok, (long long)o.argument);
+        return dan_gw_msg_opcode_result_encode(&o, enc, ecap);
+    }
+}
+
+static int vec_mgmt(const char *msg, const char *dir, const uint8_t *p, size_t len, char *txt,
+                    size_t cap, uint8_t *enc, size_t ecap)
+{
+    dan_reader_t r;
+    dan_writer_t w;
+    size_t i;
+    dan_reader_init(&r, p, len);
+    dan_writer_init(&w, enc, ecap);
+    if (!strcmp(msg, "node_call")) {
+        return vec_call(dir, p, len, txt, cap, enc, ecap);
+    }
+    if (!strcmp(msg, "call_result") || !strcmp(msg, "param") || !strcmp(msg, "opcode")) {
+        return vec_result(msg, dir, p, len, txt, cap, enc, ecap);
+    }
+    if (!strcmp(msg, "health")) {
+        dan_gw_health_t h;
+        if (!strcmp(dir, "req")) {
+            assert_int_equal(len, 0);
+            return 0;
+        }
+        assert_int_equal(dan_gw_msg_health_decode(&h, p, len), DAN_OK);
+        cat(txt, cap, "verdict=%u reason=%u subject=%u detail=%u problems=%u", h.verdict, h.reason,
+            h.subject, h.detail, h.problems);
+        return dan_gw_msg_health_encode(&h, enc, ecap);
+    }
+    if (!strcmp(msg, "dna")) {
+        dan_gw_dna_hdr_t h;
+        dan_gw_dna_entry_t e;
+        if (!strcmp(dir, "req")) {
+            cat(txt, cap, "first=%u", p[0]);
+            dan_put_u8(&w, p[0]);
+            return dan_writer_finish(&w);
+        }
+        assert_int_equal(dan_gw_msg_dna_hdr_get(&r, &h), DAN_OK);
+        dan_gw_msg_dna_hdr_put(&w, &h);
+        cat(txt, cap, "flags=%u entries=%u capacity=%u next=%u", h.flags, h.entries, h.capacity,
+            h.next);
+        for (i = 0; i < h.count; i++) {
+            assert_int_equal(dan_gw_msg_dna_entry_get(&r, &e), DAN_OK);
+            dan_gw_msg_dna_entry_put(&w, &e);
+            cat(txt, cap, " entry=%u/", e.node_id);
+            cat_hex(txt, cap, e.unique_id, sizeof e.unique_id);
+        }
+        return dan_writer_finish(&w);
+    }
+    fail_msg("unknown message %s", msg);
+    return -1;
+}
+
+/* The field text of the vector being checked (can_recv's response layout
+ * depends on its request's opts, which the text carries). */
+static const char *fields_hint = "";
 
 /* Decodes payload p as msg/dir, writes the canonical field text into txt
  * and the re-encoded payload into enc; returns the encoded length. */
@@ -105,13 +247,15 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_config_t c;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_config_req_decode(&c, p, len), DAN_OK);
-            cat(txt, cap, "mask=%u timeout=%lu rate=%lu", c.set_mask,
-                (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz);
+            cat(txt, cap, "mask=%u timeout=%lu rate=%lu telem=%lu dna=%u", c.set_mask,
+                (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz,
+                (unsigned long)c.telem_timeout_ms, c.dna);
             return dan_gw_msg_config_req_encode(&c, enc, ecap);
         }
         assert_int_equal(dan_gw_msg_config_rsp_decode(&c, p, len), DAN_OK);
-        cat(txt, cap, "node=%u timeout=%lu rate=%lu flags=%u", c.node_id,
-            (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz, c.gw_flags);
+        cat(txt, cap, "node=%u timeout=%lu rate=%lu flags=%u telem=%lu dna=%u", c.node_id,
+            (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz, c.gw_flags,
+            (unsigned long)c.telem_timeout_ms, c.dna);
         return dan_gw_msg_config_rsp_encode(&c, enc, ecap);
     }
     if (!strcmp(msg, "stats")) {
@@ -207,16 +351,24 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_can_frame_t f;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_can_recv_req_decode(&q, p, len), DAN_OK);
-            cat(txt, cap, "seq=%lu max=%u", (unsigned long)q.seq, q.count);
+            cat(txt, cap, "seq=%lu max=%u opts=%u", (unsigned long)q.seq, q.count, q.opts);
             return dan_gw_msg_can_recv_req_encode(&q, enc, ecap);
         }
+        /* the response's layout follows the request's opts: the text has them */
+        q.opts = (uint8_t)(strstr(fields_hint, "opts=1") != NULL ? DAN_GW_RECV_TIMES : 0u);
         assert_int_equal(dan_gw_msg_can_recv_rsp_get(&r, &q), DAN_OK);
         dan_gw_msg_can_recv_rsp_put(&w, &q);
-        cat(txt, cap, "seq=%lu dropped=%lu", (unsigned long)q.seq, (unsigned long)q.dropped);
+        cat(txt, cap, "seq=%lu dropped=%lu opts=%u t0=%lu", (unsigned long)q.seq,
+            (unsigned long)q.dropped, q.opts, (unsigned long)q.t0_us);
         for (i = 0; i < q.count; i++) {
             assert_int_equal(dan_gw_msg_can_frame_get(&r, &f), DAN_OK);
             dan_gw_msg_can_frame_put(&w, &f);
             cat_frame(txt, cap, &f);
+            if (q.opts & DAN_GW_RECV_TIMES) {
+                uint32_t dt = dan_get_uvarint(&r);
+                dan_put_uvarint(&w, dt);
+                cat(txt, cap, " dt=%lu", (unsigned long)dt);
+            }
         }
         return dan_writer_finish(&w);
     }
@@ -233,8 +385,7 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         }
         return dan_writer_finish(&w);
     }
-    fail_msg("unknown message %s", msg);
-    return -1;
+    return vec_mgmt(msg, dir, p, len, txt, cap, enc, ecap);
 }
 
 static void test_vectors(void **state)
@@ -263,6 +414,7 @@ static void test_vectors(void **state)
         } else {
             fields[2] = fields[1] + strlen(fields[1]);
         }
+        fields_hint = fields[2];
         n = vec_one(fields[0], fields[1], p, len, txt, sizeof txt, enc, sizeof enc);
         if (strcmp(txt, fields[2]) != 0) {
             fail_msg("line %d: decoded\n  %s\nexpected\n  %s", v.lineno, txt, fields[2]);
