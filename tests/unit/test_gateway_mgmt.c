@@ -239,6 +239,54 @@ static void test_dna_storage(void **state)
     assert_int_equal(R->g.dna.n, 0);
 }
 
+/* Each way a stored table can fail to check has its reason; none is
+ * taken. */
+static void test_dna_blob_reasons(void **state)
+{
+    uint8_t b[64];
+    size_t len;
+    uint16_t crc;
+    (void)state;
+    stored_len = 0;
+    restart_node();
+    advance(1000);
+    assert_int_equal(allocate(UID_A, 0), 125);
+    assert_int_equal(allocate(UID_B, 0), 124);
+    advance(1000);
+    len = (size_t)stored_len;
+    assert_int_equal(len, 4 + 1 + 2 * 17 + 2);
+    memcpy(b, stored, len);
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_OK);
+    assert_int_equal(dan_gw_dna_blob_check(b, 6), DAN_GW_DNA_BLOB_SHORT);
+    assert_int_equal(dan_gw_dna_blob_check(b, len - 1), DAN_GW_DNA_BLOB_LENGTH);
+    b[20] ^= 1;
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_CRC);
+    memcpy(b, stored, len);
+    b[0] = 'X';
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_MAGIC);
+    memcpy(b, stored, len);
+    b[4] = 200;
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_COUNT);
+    /* a well-sealed table whose content is wrong: re-sealed after the edit */
+    memcpy(b, stored, len);
+    b[5] = 126;
+    crc = dan_crc16_ccitt(0xFFFFu, b, len - 2);
+    b[len - 2] = (uint8_t)crc;
+    b[len - 1] = (uint8_t)(crc >> 8);
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_NODE_ID);
+    b[5] = 124; /* the second entry's ID again */
+    crc = dan_crc16_ccitt(0xFFFFu, b, len - 2);
+    b[len - 2] = (uint8_t)crc;
+    b[len - 1] = (uint8_t)(crc >> 8);
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_TWICE);
+    assert_string_equal(dan_gw_dna_blob_error(DAN_GW_DNA_BLOB_CRC), "CRC mismatch");
+    assert_string_equal(dan_gw_dna_blob_error(99), "unknown");
+    memcpy(stored, b, len);
+    restart_node();
+    assert_int_equal(R->g.dna.flags, DAN_GW_DNA_STORE_ERROR);
+    assert_int_equal(R->g.dna.n, 0);
+}
+
 static void test_dna_table_full(void **state)
 {
     uint8_t uid[16];
@@ -539,6 +587,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_dna_off, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_foreign_allocator, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_storage, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_dna_blob_reasons, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_table_full, setup, teardown),
         cmocka_unit_test_setup_teardown(test_param_get_pipelined, setup, teardown),
         cmocka_unit_test_setup_teardown(test_param_set_retry_sent_once, setup, teardown),
