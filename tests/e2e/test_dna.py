@@ -202,6 +202,10 @@ def test_unhealthy_node_fails_health(rig):
     h = health_when(r, lambda h: h["reason_name"] == "unhealthy", "HEALTH UNHEALTHY")
     assert h["verdict"] == 1 and h["reason"] == 3
     assert h["subject"] == 60 and h["detail"] == HEALTH_ERROR
+    out = fc(r, "telem-timeout:250", "config", "telem-timeout:0")
+    assert (
+        out["config"]["telem_timeout_ms"] == 250 and out["telem-timeout"]["telem_timeout_ms"] == 0
+    )
 
 
 def gateway_unique_id(r):
