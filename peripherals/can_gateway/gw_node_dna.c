@@ -169,10 +169,16 @@ static bool occupied(dan_gw_node_t *g, unsigned id)
 }
 
 /* The specification's findFreeNodeID: up from the preferred ID, then down;
- * without a preference, the highest free one. 0 if none. */
+ * without a preference, the highest free one. 0 if none. A preference of
+ * 126 or 127 (reserved for maintenance tools, never allocated) counts as
+ * 125: the pseudocode's downward search would start at it and grant it
+ * (found by the dna fuzz target). */
 static uint8_t free_id(dan_gw_node_t *g, uint8_t preferred)
 {
-    unsigned start = preferred > 0u ? preferred : DAN_DC_ALLOCATION_MAX_NODE_ID, id;
+    unsigned start = DAN_DC_ALLOCATION_MAX_NODE_ID, id;
+    if (preferred > 0u && preferred < start) {
+        start = preferred;
+    }
     for (id = start; id <= DAN_DC_ALLOCATION_MAX_NODE_ID; id++) {
         if (!occupied(g, id)) {
             return (uint8_t)id;
@@ -201,22 +207,36 @@ static void answer(dan_gw_node_t *g, uint8_t node_id)
                             dan_dc_allocation_encode(&m, buf, sizeof buf));
 }
 
-/* All 16 bytes arrived: the same ID again for a known unique ID, else a
- * free one, stored. */
+/* The ID the table holds for a unique ID is given again unless it became
+ * the gateway's own (its node ID changed) or another device uses it now:
+ * a node of the node table whose GetNodeInfo gave another unique ID
+ * (found by the dna fuzz target: the same ID went to two devices). */
+static bool entry_usable(dan_gw_node_t *g, const dan_gw_dna_entry_t *e)
+{
+    const dan_gw_node_slot_t *n = dan_gwn_find_node(g, e->node_id);
+    return e->node_id != g->cfg.node_id &&
+           (n == NULL || n->info.info_state != DAN_GW_INFO_VALID ||
+            memcmp(n->info.unique_id, e->unique_id, DAN_DC_UNIQUE_ID_SIZE) == 0);
+}
+
+/* All 16 bytes arrived: the same ID again for a known unique ID (while
+ * usable), else a free one, stored. */
 static void allocate(dan_gw_node_t *g, uint8_t preferred)
 {
     dan_gw_dna_entry_t *e = entry_of_uid(g, g->dna.query);
     uint8_t id;
-    if (e == NULL) {
+    if (e == NULL || !entry_usable(g, e)) {
         id = free_id(g, preferred);
-        if (id == 0u || g->dna.n >= DAN_GW_NODE_DNA_MAX) {
+        if (id == 0u || (e == NULL && g->dna.n >= DAN_GW_NODE_DNA_MAX)) {
             g->dna.full = true;
             g->dna.query_len = 0;
             return;
         }
-        e = &g->dna.table[g->dna.n++];
+        if (e == NULL) {
+            e = &g->dna.table[g->dna.n++];
+            memcpy(e->unique_id, g->dna.query, DAN_DC_UNIQUE_ID_SIZE);
+        }
         e->node_id = id;
-        memcpy(e->unique_id, g->dna.query, DAN_DC_UNIQUE_ID_SIZE);
         g->dna.dirty = true;
     }
     g->dna.full = false;
