@@ -28,7 +28,7 @@ from danprobe.codec import encode_frame
 from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
-from gw_rig import GW_NODE, Rig, TunnelFarEnd
+from gw_rig import GW_NODE, Rig, TunnelFarEnd, finish_danprobe, start_danprobe
 
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
 
@@ -567,21 +567,11 @@ class Stack(Rig):
 
     def start_danprobe(self, *args, name="danprobe"):
         """A long-running danprobe command (--json); returns (proc, ready event)."""
-        p = self.procs.start(
-            [sys.executable, "-m", "danprobe", *map(str, args), "--json"], name=name
-        )
-        line = p.stdout.readline().decode()
-        assert line, f"{name} ended: {p.log_path.read_text()}"
-        ev = json.loads(line)
-        assert ev.get("event") == "ready", ev
-        return p, ev
+        return start_danprobe(self.procs, *args, name=name)
 
     def finish(self, p):
         """SIGTERM, exit 0, and the summary document."""
-        assert self.procs.stop(p, timeout=30) == 0, p.log_path.read_text()
-        lines = [json.loads(x) for x in p.stdout.read().decode().splitlines() if x.strip()]
-        assert lines and lines[-1]["event"] == "summary" and lines[-1]["result"] == 0, lines
-        return lines[-1]
+        return finish_danprobe(self.procs, p)
 
     def close(self):
         super().close()
