@@ -13,15 +13,20 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
 
 import json
+import os
+import select
+import subprocess
 import sys
+import threading
 import time
+import tty
 from types import SimpleNamespace
 
 import pytest
 
 from allocatee import Allocatee
 from bus_util import danprobe, ready
-from conftest import ROOT, closing_factory, wait_for
+from conftest import BIN, ROOT, closing_factory, wait_for
 from danprobe import gateway_calls as C
 from danprobe import gateway_can as GC
 from danprobe import gateway_mgmt as M
@@ -31,7 +36,7 @@ from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, RemoteError
 from danprobe.payloads import ErrorMessage
 from danprobe.recv_clock import RecvClock, slcan_stamp_ms
-from gw_rig import GW_NODE, Rig
+from gw_rig import GW_NODE, Rig, finish_danprobe, start_danprobe
 
 sys.path.insert(0, str(ROOT / "tests" / "tools"))
 import param_node  # noqa: E402
@@ -400,3 +405,191 @@ def test_health_nodes_flags_and_dna_table(mrig, tmp_path):
     )
     assert doc["health"]["subject"] == 60 and doc["health"]["detail"] == 2
     assert doc["health"]["problems"] >= 2 and doc["health"]["verdict"] == "FAIL"
+
+
+def circular_ms(a, b):
+    d = (a - b) % 60000
+    return min(d, 60000 - d)
+
+
+def test_slcan_own_frames_and_receive_times(mrig, tmp_path):
+    """A DroneCAN node on this host, through `danprobe slcan`, sees the
+    gateway's node 10 (its NodeStatus; it answers GetNodeInfo) besides the
+    other nodes, never its own frames back; with timestamps on, a frame's
+    stamp is the gateway's receive time."""
+    import dronecan
+
+    U = dronecan.uavcan
+    r = mrig()
+    p, ev = start_danprobe(
+        r.procs,
+        "slcan",
+        "--port",
+        r.dan,
+        "--baud",
+        115200,
+        "-q",
+        "--link",
+        tmp_path / "can_danprobe",
+        name="danprobe-slcan",
+    )
+    node = r.node("_danprobe", LAPTOP_NODE, "org.test.laptop")
+    seen = set()
+    node.add_handler(U.protocol.NodeStatus, lambda e: seen.add(e.transfer.source_node_id))
+    r.spin(node)
+    wait_for(lambda: {GW_NODE, PARAM_NODE} <= seen, 30, what="NodeStatus of nodes 10 and 50")
+    info = []
+    node.request(
+        U.protocol.GetNodeInfo.Request(),
+        GW_NODE,
+        lambda e: info.append(e.response.name.decode() if e else None),
+    )
+    wait_for(lambda: info, 20, what="GetNodeInfo answer from node 10")
+    assert info == ["org.dan.can_gateway"]
+    assert LAPTOP_NODE not in seen  # its own NodeStatus left, but did not come back
+    r.close()  # the node says C, closing the channel
+    summary = finish_danprobe(r.procs, p)
+    assert summary["own"] and summary["echoes"] >= 1 and summary["lost"] == 0
+
+    # Z1: the stamps are the gateway's receive times. dan-gatewayd's clock is
+    # CLOCK_MONOTONIC, as time.monotonic() is: on one host they agree.
+    p, ev = start_danprobe(
+        r.procs, "slcan", "--port", r.dan, "--baud", 115200, "-q", name="danprobe-slcan-z1"
+    )
+    fd = pty_open(ev["pty"])
+    try:
+        os.write(fd, b"S8\rZ1\rO\r")
+        got = pump_lines(fd, 6, 30)
+    finally:
+        os.close(fd)
+    now_ms = time.monotonic() * 1000 % 60000
+    frames = [line for line in got if line[:1] == b"T"]
+    assert len(frames) >= 4, got
+    for line in frames:
+        n = int(line[9:10], 16)
+        stamp = line[10 + 2 * n :]
+        assert len(stamp) == 4 and int(stamp, 16) < 60000, line
+        assert circular_ms(int(stamp, 16), now_ms) < 35000, (line, now_ms)
+    finish_danprobe(r.procs, p)
+
+    # can dump --own: the gateway's NodeStatus (node 10), marked own, host-clock times
+    t_before = time.time()
+    rc, out, err = r.dp(
+        "can", "dump", "--own", "--filter", "1550A:FFFFFF:ext", "--count", "2", "--json"
+    )
+    docs = [json.loads(x) for x in out.splitlines()]
+    frames = [d for d in docs if d.get("event") == "frame"]
+    assert rc == 0 and len(frames) == 2, (out, err)
+    assert all(f["own"] and f["id"] & 0xFFFFFF == 0x01550A for f in frames)
+    assert t_before - 5 < frames[0]["time"] <= frames[1]["time"] < time.time() + 1
+
+
+def pty_open(path):
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    tty.setraw(fd)
+    return fd
+
+
+def pump_lines(fd, want, timeout):
+    """CR-ended lines read from fd until `want` frame lines came (or timeout)."""
+    buf, end = b"", time.monotonic() + timeout
+    while time.monotonic() < end:
+        if select.select([fd], [], [], 0.1)[0]:
+            try:
+                buf += os.read(fd, 4096)
+            except BlockingIOError:
+                pass
+        lines = buf.split(b"\r")
+        if sum(1 for x in lines[:-1] if x[:1] == b"T") >= want:
+            break
+    return buf.split(b"\r")[:-1]
+
+
+def allocator_on_laptop(r, node_id, name):
+    """A pydronecan node through the SLCAN pty (tmp/can_danprobe) with a
+    node monitor and a CentralizedServer, spun by a thread of its own (the
+    server's table is SQLite: made, used and closed in that thread); returns
+    the monitor once it runs. Rig.close() stops the thread."""
+    from dronecan.app.dynamic_node_id import CentralizedServer
+    from dronecan.app.node_monitor import NodeMonitor
+
+    node = r.node("_danprobe", node_id, name)
+    made = []
+
+    def loop():
+        monitor = NodeMonitor(node)
+        server = CentralizedServer(node, monitor)
+        made.append(monitor)
+        try:
+            while not r.stop.is_set():
+                try:
+                    node.spin(0.01)
+                except Exception:  # a malformed frame must not end the thread
+                    pass
+        finally:
+            server.close()
+
+    t = threading.Thread(target=loop, daemon=True)
+    t.start()
+    r.threads.append(t)
+    return wait_for(lambda: made and made[0], 30, what="the allocation server")
+
+
+def gateway_dna_off(r):
+    """The gateway's own allocation server off: dan-gatewayd --no-dna when
+    this build has it, else CONFIG (danprobe dna --server off)."""
+    doc = r.dp_json("dna") if r.no_dna_flag else r.dp_json("dna", "--server", "off")
+    assert not doc["server_on"] and doc["entries"] == 0
+
+
+def gatewayd_has(flag):
+    h = subprocess.run([BIN / "dan-gatewayd", "--help"], capture_output=True, timeout=30)
+    return flag in (h.stdout + h.stderr).decode()
+
+
+def allocate_through_slcan(r, own: bool, uid: bytes):
+    """danprobe slcan (with or without the gateway's own frames), the
+    laptop's allocation server behind it, an allocatee asking for node ID
+    10 on the bus: (allocator, node ID) it got."""
+    p, ev = start_danprobe(
+        r.procs,
+        *("slcan", "--port", r.dan, "--baud", 115200, "-q", "--link", r.tmp / "can_danprobe"),
+        *(() if own else ("--no-own",)),
+        name=f"danprobe-slcan-{'own' if own else 'no-own'}",
+    )
+    monitor = allocator_on_laptop(r, LAPTOP_NODE, "org.test.allocator")
+    a = Allocatee(r.tmp / "can2", uid)
+    try:
+        if own:
+            wait_for(
+                lambda: monitor.exists(GW_NODE) and monitor.are_all_nodes_discovered(),
+                30,
+                what="node 10 discovered by the laptop's node monitor",
+            )
+        return a.allocate(preferred=GW_NODE)
+    finally:
+        a.close()
+        r.close()
+        r.nodes, r.threads = [], []
+        r.stop.clear()
+        finish_danprobe(r.procs, p)
+
+
+def test_allocator_through_slcan_skips_the_gateway_node(procs, tmp_path):
+    """pydronecan's allocation server on this host, through `danprobe slcan`,
+    sees node 10 (the gateway's own frames) and so never hands 10 out, even
+    to an allocatee that asks for it. Without the own frames (--no-own) it
+    does: the failure the own frames prevent."""
+    no_dna = gatewayd_has("--no-dna")
+    r = MgmtRig(procs, tmp_path, gw_args=("--no-dna",) if no_dna else (), params=False)
+    r.no_dna_flag = no_dna
+    try:
+        gateway_dna_off(r)
+        src, node_id = allocate_through_slcan(r, True, bytes([0xA1] * 16))
+        assert src == LAPTOP_NODE and node_id not in (0, GW_NODE, LAPTOP_NODE)
+        assert node_id == GW_NODE + 1  # pydronecan: the first free ID from the preferred one up
+        blind = allocate_through_slcan(r, False, bytes([0xB2] * 16))
+        assert blind == (LAPTOP_NODE, GW_NODE)  # blind to node 10: handed out
+        assert r.dp_json("dna")["entries"] == 0  # the gateway allocated nothing
+    finally:
+        r.close()
