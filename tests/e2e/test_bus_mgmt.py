@@ -593,3 +593,53 @@ def test_allocator_through_slcan_skips_the_gateway_node(procs, tmp_path):
         assert r.dp_json("dna")["entries"] == 0  # the gateway allocated nothing
     finally:
         r.close()
+
+
+def test_sniff_names_and_arguments():
+    """sniff names and decodes the new codes; bad arguments are exit 2."""
+    from danprobe import gateway_client, registry
+
+    gateway_client.register_names()
+    assert registry.code_name(G.CODE_HEALTH) == "can-gw HEALTH"
+    assert registry.code_name(G.CODE_NODE_CALL) == "can-gw NODE_CALL"
+    sealed = G.seal(G.CODE_HEALTH, G.RESPONSE, M.Health(1, M.REASON_OFFLINE, 125, 0, 1).encode())
+    role, fields, _ = registry.describe(G.CODE_HEALTH, sealed, registry.RESPONSE)
+    assert role == registry.RESPONSE and fields["reason"] == "offline" and fields["subject"] == 125
+    call = M.NodeCall(9, 50, M.CALL_PARAM_SET, name=b"int_004", value=M.Value.integer(7))
+    sealed = G.seal(G.CODE_NODE_CALL, G.REQUEST, call.encode())
+    _, fields, _ = registry.describe(G.CODE_NODE_CALL, sealed, registry.REQUEST)
+    assert fields == {
+        "call_id": 9,
+        "node_id": 50,
+        "op": 2,
+        "op_name": "param set",
+        "name": "int_004",
+        "type": "integer",
+        "value": 7,
+    }
+    for args, message in [
+        (["param", "get", "--port", "x", "--node", "0", "n"], "--node must be 1..127"),
+        (["param", "set", "--port", "x", "--node", "5", "n"], "VALUE"),
+        (
+            ["param", "set", "--port", "x", "--node", "5", "n", "1.5", "--type", "int"],
+            "not an integer",
+        ),
+        (
+            ["param", "set", "--port", "x", "--node", "5", "n", "maybe", "--type", "bool"],
+            "not a boolean",
+        ),
+        (["param", "--port", "x"], "list|get|set|save|erase"),
+        (["restart", "--port", "x"], "--node"),
+        (["restart", "--port", "x", "--node", "5", "--magic", "0x10000000000"], "40 bits"),
+        (["dna", "--port", "x", "--server", "maybe"], "invalid choice"),
+        (["slcan", "--port", "x", "--no-own", "--own"], "unrecognized arguments"),
+    ]:
+        rc, out, err = danprobe(*args)
+        assert rc == 2 and message in err, (args, rc, err)
+    for cmd in (["health"], ["dna"], ["restart"], ["param", "list"], ["param", "set"]):
+        rc, out, err = danprobe(*cmd, "--help")
+        assert rc == 0 and "--bus-baud" in out and "--configure" in out and "--json" in out
+    rc, out, err = danprobe("slcan", "--help")
+    assert rc == 0 and "--no-own" in out
+    rc, out, err = danprobe("can", "dump", "--help")
+    assert rc == 0 and "--own" in out
