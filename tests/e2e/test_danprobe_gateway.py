@@ -941,7 +941,8 @@ def test_slcan_pty_for_pydronecan(stack):
 
 def test_slcan_protocol_answers(stack):
     s = stack(escs=0)
-    p, ev = s.start_danprobe("slcan", "--port", s.dan, "-q", name="danprobe-slcan")
+    # --no-own: only what the test sends comes back (not the gateway's NodeStatus)
+    p, ev = s.start_danprobe("slcan", "--port", s.dan, "--no-own", "-q", name="danprobe-slcan")
     fd = pty_open(ev["pty"])
 
     def cmd(c, want_len=1):
