@@ -79,6 +79,7 @@ class Call:
     restarts: int = 0
     not_before: float = 0.0  # BUSY: wait before starting again
     sent: bool = False  # the gateway took it (PENDING)
+    tried: bool = False  # a NODE_CALL with this call_id went out (its answer may be lost)
 
 
 class Pipeline:
@@ -124,7 +125,8 @@ class Pipeline:
         return out
 
     def _send(self, c: Call):
-        st = self._guard(c, lambda: self.gw.node_call(c.req))
+        fresh, c.tried = not c.tried, True
+        st = self._guard(c, lambda: self.gw.node_call(c.req, fresh))
         if st is None:
             return  # NODE_CALL again with the same id and content: a retry to the gateway
         c.req.call_id = st.call_id  # node_call() may have moved to a fresh id
@@ -177,7 +179,7 @@ class Pipeline:
                 "restarted, or made room for newer calls)"
             )
         c.restarts += 1
-        c.req.call_id, c.sent = self.gw.new_call_id(), False
+        c.req.call_id, c.sent, c.tried = self.gw.new_call_id(), False, False
         c.result.clear()
         self._send(c)
         return None

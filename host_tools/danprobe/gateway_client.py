@@ -421,10 +421,12 @@ class GatewayClient:
         self.call_id = (self.call_id + 1) & 0xFFFF
         return self.call_id
 
-    def node_call(self, call: NodeCall) -> CallState:
+    def node_call(self, call: NodeCall, fresh: bool = True) -> CallState:
         """Starts a service call (call.call_id: from new_call_id()); returns
         the gateway's state of it (PENDING, or BUSY: nothing was sent). A
-        call that was someone else's is started again under a new id."""
+        fresh call (fresh: this call_id was never sent before; not so when
+        a failed transaction is repeated) found finished at the first
+        attempt was someone else's: it is started again under a new id."""
         for _ in range(4):
             stats = getattr(self.m, "stats", None)
             retries = stats.retries if stats is not None else 0
@@ -434,7 +436,7 @@ class GatewayClient:
                     CODE_NODE_CALL, f"answer for call {st.call_id}, not {call.call_id}"
                 )
             first_attempt = stats is None or stats.retries == retries
-            if st.state not in (CALL_DONE, CALL_TIMEOUT) or not first_attempt:
+            if not fresh or st.state not in (CALL_DONE, CALL_TIMEOUT) or not first_attempt:
                 self.call = st
                 return st
             self.stale_calls += 1  # a fresh call is never finished at once

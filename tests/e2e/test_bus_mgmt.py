@@ -180,6 +180,11 @@ def test_client_stale_call_ids_and_long_results():
     assert [q.offset for q in reads if q.offset] == [128, 256]  # 364 bytes in three reads
     with pytest.raises(RemoteError):
         gw.call_result(0x1234)  # a call the gateway does not hold
+    # a NODE_CALL repeated after a failed transaction finds its own call done: not stale
+    req = M.NodeCall(gw.new_call_id(), 20, M.CALL_PARAM_GET_INDEX, index=0)
+    f.calls[req.call_id] = dict(req=req.encode(), state=M.CALL_DONE, polls=0, result=f.answer(req))
+    st = gw.node_call(req, fresh=False)
+    assert (st.call_id, st.state, gw.stale_calls) == (req.call_id, M.CALL_DONE, 1)
 
 
 # ---- receive times ----
