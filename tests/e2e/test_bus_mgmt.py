@@ -600,10 +600,12 @@ def test_allocator_through_slcan_skips_the_gateway_node(procs, tmp_path):
         r.close()
 
 
-def test_sniff_names_and_arguments():
+def test_sniff_names_and_arguments(monkeypatch):
     """sniff names and decodes the new codes; bad arguments are exit 2."""
     from danprobe import gateway_client, registry
 
+    # names registered here only: other tests see the registry as it was
+    monkeypatch.setattr(registry, "_MESSAGES", dict(registry._MESSAGES))
     gateway_client.register_names()
     assert registry.code_name(G.CODE_HEALTH) == "can-gw HEALTH"
     assert registry.code_name(G.CODE_NODE_CALL) == "can-gw NODE_CALL"
