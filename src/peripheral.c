@@ -41,7 +41,8 @@ static const dan_ptype_t *find_type(const dan_periph_t *p, uint32_t code)
 {
     size_t i;
     for (i = 0; i < p->ntypes; i++) {
-        if (code >= p->types[i].first && code - p->types[i].first < DAN_TYPE_BLOCK_SIZE) {
+        uint32_t span = DAN_TYPE_BLOCK_SIZE * (p->types[i].blocks > 1u ? p->types[i].blocks : 1u);
+        if (code >= p->types[i].first && code - p->types[i].first < span) {
             return &p->types[i];
         }
     }

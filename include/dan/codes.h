@@ -10,7 +10,7 @@
  *   0x20..0x2F   VTX (the DAN draft repository's type; reserved here)
  *   0x30..0x3F   reserved for the next registered type
  *   0x40..0x4F   CAN-over-DAN gateway (docs/PROTOCOL.md)
- *   0x50..0x5F   unassigned
+ *   0x50..0x5F   CAN-over-DAN gateway, second block (0x50, 0x51 unused)
  *   0x60..0x6F   private / test type A (never shipped in products)
  *   0x70..0x7F   private / test type B (never shipped in products)
  *   0x80..       unassigned (two-byte codes)
@@ -20,7 +20,7 @@
 
 #define DAN_CODE_ERROR 0x00u
 
-#define DAN_TYPE_BLOCK_SIZE       16u
+#define DAN_TYPE_BLOCK_SIZE       16u /* a type may own several consecutive blocks */
 #define DAN_TYPE_IDENTIFY(first)  (first)
 #define DAN_TYPE_CONFIGURE(first) ((first) + 1u)
 
@@ -32,10 +32,13 @@
 
 /* CAN-over-DAN gateway; its messages are in dan/can_gw/msgs.h
  * (peripherals/can_gateway/). */
-#define DAN_TYPE_CAN_GW_FIRST     0x40u
-#define DAN_TYPE_CAN_GW_LAST      0x4Fu
-#define DAN_CODE_CAN_GW_IDENTIFY  0x40u
-#define DAN_CODE_CAN_GW_CONFIGURE 0x41u
+#define DAN_TYPE_CAN_GW_FIRST       0x40u
+#define DAN_TYPE_CAN_GW_LAST        0x4Fu
+#define DAN_CODE_CAN_GW_IDENTIFY    0x40u
+#define DAN_CODE_CAN_GW_CONFIGURE   0x41u
+/* Its second block: 0x50 and 0x51 unused, 0x52.. messages. */
+#define DAN_TYPE_CAN_GW_BLOCK2      0x50u
+#define DAN_TYPE_CAN_GW_BLOCK2_LAST 0x5Fu
 
 /* Private / test types, for bench and test peripherals. */
 #define DAN_TYPE_TEST_A_FIRST 0x60u

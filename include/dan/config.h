@@ -142,6 +142,17 @@
 #define DAN_GW_NODE_RAW_RX 64u
 #endif
 
+/* Dynamic node ID allocation table entries. RAM: 17 bytes each, and the
+ * same again on the stack while the table is stored. 1..125. */
+#ifndef DAN_GW_NODE_DNA_MAX
+#define DAN_GW_NODE_DNA_MAX 64u
+#endif
+/* DroneCAN service calls (parameters, restart) in flight or holding a
+ * result at once. RAM: ~620 bytes each (the request and the result). */
+#ifndef DAN_GW_NODE_CALLS
+#define DAN_GW_NODE_CALLS 8u
+#endif
+
 /* DroneCAN reception (dan/can_gw/dronecan.h): concurrent multi-frame RX
  * sessions, one per (data type, transfer type, source node); a slot stays
  * in use for the transfer timeout after its transfer completes (duplicate
@@ -181,6 +192,12 @@
 #endif
 #if DAN_GW_NODE_TXQ < 19u
 #error "DAN_GW_NODE_TXQ must hold one Targetted tunnel transfer (19 frames)"
+#endif
+#if DAN_GW_NODE_DNA_MAX < 1u || DAN_GW_NODE_DNA_MAX > 125u
+#error "DAN_GW_NODE_DNA_MAX must be within 1..125"
+#endif
+#if DAN_GW_NODE_CALLS < 1u || DAN_GW_NODE_CALLS > 64u
+#error "DAN_GW_NODE_CALLS must be within 1..64"
 #endif
 #if DAN_DC_RX_SESSIONS < 1u || DAN_DC_RX_SESSIONS > 255u
 #error "DAN_DC_RX_SESSIONS must be within 1..255"

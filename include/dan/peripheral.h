@@ -75,6 +75,8 @@ typedef struct {
     size_t nhandlers;
     void *user;                     /* passed to the handlers and the envelope */
     const dan_envelope_t *envelope; /* NULL: none */
+    uint8_t blocks;                 /* consecutive blocks of codes the type owns (0 and
+                                     1: one); only the first has IDENTIFY/CONFIGURE */
 } dan_ptype_t;
 
 typedef struct {

@@ -2,6 +2,7 @@
 #include <string.h>
 
 #include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/dsdl_mgmt.h"
 
 /* Finishes an encode: DAN_ERR_OVERFLOW if the writer ran out of room. */
 static int enc_finish(const dan_dc_bw_t *w)
@@ -360,12 +361,16 @@ bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id, uint64_
         case DAN_DC_ARMING_STATUS_ID: sig = DAN_DC_ARMING_STATUS_SIGNATURE; break;
         case DAN_DC_TUNNEL_TARGETTED_ID: sig = DAN_DC_TUNNEL_TARGETTED_SIGNATURE; break;
         case DAN_DC_TUNNEL_BROADCAST_ID: sig = DAN_DC_TUNNEL_BROADCAST_SIGNATURE; break;
+        case DAN_DC_ALLOCATION_ID: sig = DAN_DC_ALLOCATION_SIGNATURE; break;
         default: return false;
         }
     } else if (transfer_type == DAN_DC_TRANSFER_REQUEST ||
                transfer_type == DAN_DC_TRANSFER_RESPONSE) {
         switch (data_type_id) {
         case DAN_DC_GET_NODE_INFO_ID: sig = DAN_DC_GET_NODE_INFO_SIGNATURE; break;
+        case DAN_DC_PARAM_GETSET_ID: sig = DAN_DC_PARAM_GETSET_SIGNATURE; break;
+        case DAN_DC_PARAM_OPCODE_ID: sig = DAN_DC_PARAM_OPCODE_SIGNATURE; break;
+        case DAN_DC_RESTART_ID: sig = DAN_DC_RESTART_SIGNATURE; break;
         default: return false;
         }
     } else {

@@ -1,7 +1,7 @@
 /* CAN-over-DAN gateway client (FC side). */
 #include <string.h>
 
-#include "dan/can_gw/client.h"
+#include "gw_client_internal.h"
 
 /* The master's reply check: a gateway reply must carry a matching seal, so
  * a reply corrupted past the frame CRC is retried, never decoded. */
@@ -33,7 +33,7 @@ void dan_gw_init(dan_gw_t *gw, dan_master_t *m)
 }
 
 /* Starts a transaction with the payload in buf, sealed. */
-static int start(dan_gw_t *gw, uint32_t code, const uint8_t *buf, int len, uint64_t now_us)
+int dan_gwc_start(dan_gw_t *gw, uint32_t code, const uint8_t *buf, int len, uint64_t now_us)
 {
     uint8_t sealed[DAN_MAX_PAYLOAD];
     int rc;
@@ -54,7 +54,7 @@ static int start(dan_gw_t *gw, uint32_t code, const uint8_t *buf, int len, uint6
     return rc;
 }
 
-static bool idle(const dan_gw_t *gw)
+bool dan_gwc_idle(const dan_gw_t *gw)
 {
     return gw->m != NULL && !dan_master_busy(gw->m);
 }
@@ -62,81 +62,81 @@ static bool idle(const dan_gw_t *gw)
 int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t now_us)
 {
     uint8_t buf[DAN_GW_ESC_CMD_SIZE(DAN_GW_ESC_MAX)];
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return start(gw, DAN_GW_CODE_ESC_CMD, buf,
-                 dan_gw_msg_esc_cmd_encode(values, n, buf, sizeof buf), now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_ESC_CMD, buf,
+                         dan_gw_msg_esc_cmd_encode(values, n, buf, sizeof buf), now_us);
 }
 
 int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return start(gw, DAN_GW_CODE_ESC_TELEM, &first, 1, now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_ESC_TELEM, &first, 1, now_us);
 }
 
 int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us)
 {
     uint8_t v = armed ? DAN_GW_ARM_FULLY_ARMED : DAN_GW_ARM_DISARMED;
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return start(gw, DAN_GW_CODE_ARM, &v, 1, now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_ARM, &v, 1, now_us);
 }
 
 int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us)
 {
     uint8_t buf[DAN_GW_CONFIG_REQ_MAX];
     dan_gw_config_t none;
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     if (set == NULL) {
         memset(&none, 0, sizeof none);
         set = &none;
     }
-    return start(gw, DAN_GW_CODE_CONFIG, buf, dan_gw_msg_config_req_encode(set, buf, sizeof buf),
-                 now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_CONFIG, buf,
+                         dan_gw_msg_config_req_encode(set, buf, sizeof buf), now_us);
 }
 
 int dan_gw_stats(dan_gw_t *gw, uint64_t now_us)
 {
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return start(gw, DAN_GW_CODE_STATS, NULL, 0, now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_STATS, NULL, 0, now_us);
 }
 
 int dan_gw_nodes(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return start(gw, DAN_GW_CODE_NODES, &first, 1, now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_NODES, &first, 1, now_us);
 }
 
 int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us)
 {
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return start(gw, DAN_GW_CODE_NODE_INFO, &node_id, 1, now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_NODE_INFO, &node_id, 1, now_us);
 }
 
 int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_us)
 {
     uint8_t buf[DAN_GW_TUN_OPEN_REQ_MAX];
     int rc;
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     if (cfg == NULL || cfg->port >= DAN_GW_TUNNELS) {
         return DAN_ERR_ARG;
     }
-    rc = start(gw, DAN_GW_CODE_TUN_OPEN, buf, dan_gw_msg_tun_open_encode(cfg, buf, sizeof buf),
-               now_us);
+    rc = dan_gwc_start(gw, DAN_GW_CODE_TUN_OPEN, buf,
+                       dan_gw_msg_tun_open_encode(cfg, buf, sizeof buf), now_us);
     if (rc == DAN_OK) {
         gw->port = cfg->port;
     }
@@ -149,7 +149,7 @@ int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t l
     uint8_t buf[DAN_MAX_PAYLOAD];
     dan_gw_tun_xfer_t x;
     int rc;
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     if (port >= DAN_GW_TUNNELS) {
@@ -162,8 +162,8 @@ int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t l
     x.rd_max = (uint32_t)(rd_max > DAN_GW_TUN_CHUNK_MAX ? DAN_GW_TUN_CHUNK_MAX : rd_max);
     x.data = data;
     x.len = len > DAN_GW_TUN_CHUNK_MAX ? DAN_GW_TUN_CHUNK_MAX : len;
-    rc = start(gw, DAN_GW_CODE_TUN_XFER, buf, dan_gw_msg_tun_xfer_req_encode(&x, buf, sizeof buf),
-               now_us);
+    rc = dan_gwc_start(gw, DAN_GW_CODE_TUN_XFER, buf,
+                       dan_gw_msg_tun_xfer_req_encode(&x, buf, sizeof buf), now_us);
     if (rc == DAN_OK) {
         gw->port = port;
         gw->tun[port].accepted = 0;
@@ -178,7 +178,7 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
     dan_gw_can_send_t s;
     size_t i;
     int rc;
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     if ((frames == NULL && n > 0u) || n > DAN_GW_CAN_FRAMES_MAX) {
@@ -192,7 +192,7 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
     for (i = 0; i < n; i++) {
         dan_gw_msg_can_frame_put(&w, &frames[i]);
     }
-    rc = start(gw, DAN_GW_CODE_CAN_SEND, buf, dan_writer_finish(&w), now_us);
+    rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_SEND, buf, dan_writer_finish(&w), now_us);
     if (rc == DAN_OK) {
         /* a new number per call, not per attempt: the master's retries repeat it */
         gw->can_seq = s.seq;
@@ -202,16 +202,27 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
 
 int dan_gw_can_recv(dan_gw_t *gw, uint8_t max, uint64_t now_us)
 {
+    return dan_gw_can_recv_opts(gw, max, 0, now_us);
+}
+
+int dan_gw_can_recv_opts(dan_gw_t *gw, uint8_t max, uint8_t opts, uint64_t now_us)
+{
     uint8_t buf[DAN_GW_CAN_RECV_REQ_MAX];
     dan_gw_can_recv_t q;
-    if (!idle(gw)) {
+    int rc;
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
+    memset(&q, 0, sizeof q);
     q.seq = gw->can_rx_next;
     q.count = max > DAN_GW_CAN_FRAMES_MAX ? (uint8_t)DAN_GW_CAN_FRAMES_MAX : max;
-    q.dropped = 0;
-    return start(gw, DAN_GW_CODE_CAN_RECV, buf, dan_gw_msg_can_recv_req_encode(&q, buf, sizeof buf),
-                 now_us);
+    q.opts = opts;
+    rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_RECV, buf,
+                       dan_gw_msg_can_recv_req_encode(&q, buf, sizeof buf), now_us);
+    if (rc == DAN_OK) {
+        gw->recv_opts = opts;
+    }
+    return rc;
 }
 
 int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t n, uint64_t now_us)
@@ -219,7 +230,7 @@ int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t
     uint8_t buf[DAN_MAX_PAYLOAD];
     dan_writer_t w;
     size_t i;
-    if (!idle(gw)) {
+    if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     if ((f == NULL && n > 0u) || n > DAN_GW_FILTERS_MAX || op > DAN_GW_FILTER_READ) {
@@ -230,7 +241,7 @@ int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t
     for (i = 0; i < n; i++) {
         dan_gw_msg_filter_put(&w, &f[i]);
     }
-    return start(gw, DAN_GW_CODE_CAN_FILTER, buf, dan_writer_finish(&w), now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_CAN_FILTER, buf, dan_writer_finish(&w), now_us);
 }
 
 /* ---- completion ---- */
@@ -368,7 +379,7 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
         }
         break;
     }
-    default: /* NODES, NODE_INFO, CAN_FILTER: read on demand */ break;
+    default: rc = dan_gwc_complete_mgmt(gw, code, p, len); break;
     }
     if (rc == DAN_ERR_MALFORMED) {
         gw->decode_errors++;
@@ -387,7 +398,7 @@ int dan_gw_poll(dan_gw_t *gw, uint64_t now_us)
 
 /* ---- reading variable-length results out of the response ---- */
 
-static int resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
+int dan_gwc_resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
 {
     const dan_master_t *m = gw->m;
     if (m->resp_code != code || dan_master_result(m) != DAN_OK) {
@@ -399,7 +410,7 @@ static int resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
 
 int dan_gw_nodes_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_nodes_hdr_t *hdr)
 {
-    int rc = resp_reader(gw, DAN_GW_CODE_NODES, r);
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_NODES, r);
     return rc != DAN_OK ? rc : dan_gw_msg_nodes_hdr_get(r, hdr);
 }
 
@@ -411,7 +422,7 @@ int dan_gw_nodes_next(dan_reader_t *r, dan_gw_node_entry_t *node)
 int dan_gw_node_info_get(const dan_gw_t *gw, dan_gw_node_info_t *info)
 {
     dan_reader_t r;
-    int rc = resp_reader(gw, DAN_GW_CODE_NODE_INFO, &r);
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_NODE_INFO, &r);
     return rc != DAN_OK ? rc : dan_gw_msg_node_info_decode(info, r.data, r.len);
 }
 
@@ -419,7 +430,7 @@ int dan_gw_tunnel_data(const dan_gw_t *gw, const uint8_t **data, size_t *len)
 {
     dan_reader_t r;
     dan_gw_tun_xfer_t x;
-    int rc = resp_reader(gw, DAN_GW_CODE_TUN_XFER, &r);
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_TUN_XFER, &r);
     *data = NULL;
     *len = 0;
     if (rc == DAN_OK) {
@@ -434,7 +445,8 @@ int dan_gw_tunnel_data(const dan_gw_t *gw, const uint8_t **data, size_t *len)
 
 int dan_gw_can_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_can_recv_t *hdr)
 {
-    int rc = resp_reader(gw, DAN_GW_CODE_CAN_RECV, r);
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_CAN_RECV, r);
+    hdr->opts = gw->recv_opts;
     return rc != DAN_OK ? rc : dan_gw_msg_can_recv_rsp_get(r, hdr);
 }
 
@@ -443,9 +455,16 @@ int dan_gw_can_next(dan_reader_t *r, dan_can_frame_t *f)
     return dan_gw_msg_can_frame_get(r, f);
 }
 
+int dan_gw_can_next_timed(dan_reader_t *r, dan_can_frame_t *f, uint32_t *t_us)
+{
+    int rc = dan_gw_msg_can_frame_get(r, f);
+    *t_us += dan_get_uvarint(r);
+    return rc != DAN_OK ? rc : dan_reader_finish(r);
+}
+
 int dan_gw_filter_begin(const dan_gw_t *gw, dan_reader_t *r, uint8_t *result, uint8_t *count)
 {
-    int rc = resp_reader(gw, DAN_GW_CODE_CAN_FILTER, r);
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_CAN_FILTER, r);
     return rc != DAN_OK ? rc : dan_gw_msg_filter_hdr_get(r, result, count);
 }
 

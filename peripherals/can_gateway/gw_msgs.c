@@ -182,6 +182,12 @@ int dan_gw_msg_config_req_encode(const dan_gw_config_t *c, uint8_t *out, size_t 
     if (c->set_mask & DAN_GW_CFG_ARMING_RATE) {
         dan_put_uvarint(&w, c->arming_rate_hz);
     }
+    if (c->set_mask & DAN_GW_CFG_TELEM_TIMEOUT) {
+        dan_put_uvarint(&w, c->telem_timeout_ms);
+    }
+    if (c->set_mask & DAN_GW_CFG_DNA) {
+        dan_put_u8(&w, c->dna);
+    }
     return dan_writer_finish(&w);
 }
 
@@ -208,6 +214,19 @@ int dan_gw_msg_config_req_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
             return DAN_ERR_MALFORMED;
         }
     }
+    if (c->set_mask & DAN_GW_CFG_TELEM_TIMEOUT) {
+        c->telem_timeout_ms = dan_get_uvarint(&r);
+        if (c->telem_timeout_ms != 0u && (c->telem_timeout_ms < DAN_GW_TELEM_TIMEOUT_MIN ||
+                                          c->telem_timeout_ms > DAN_GW_TELEM_TIMEOUT_MAX)) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
+    if (c->set_mask & DAN_GW_CFG_DNA) {
+        c->dna = dan_get_u8(&r);
+        if (c->dna > 1u) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
     return dan_reader_finish(&r);
 }
 
@@ -219,6 +238,8 @@ int dan_gw_msg_config_rsp_encode(const dan_gw_config_t *c, uint8_t *out, size_t 
     dan_put_uvarint(&w, c->esc_timeout_ms);
     dan_put_uvarint(&w, c->arming_rate_hz);
     dan_put_u8(&w, c->gw_flags);
+    dan_put_uvarint(&w, c->telem_timeout_ms);
+    dan_put_u8(&w, c->dna);
     return dan_writer_finish(&w);
 }
 
@@ -231,6 +252,10 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     c->esc_timeout_ms = dan_get_uvarint(&r);
     c->arming_rate_hz = dan_get_uvarint(&r);
     c->gw_flags = dan_get_u8(&r);
+    if (dan_reader_remaining(&r) > 0u) { /* fields a gateway of this version appends */
+        c->telem_timeout_ms = dan_get_uvarint(&r);
+        c->dna = dan_get_u8(&r);
+    }
     return dan_reader_finish(&r);
 }
 
@@ -463,6 +488,9 @@ void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f)
     if (f->flags & DAN_CAN_RTR) {
         id |= DAN_GW_CAN_ID_RTR;
     }
+    if (f->flags & DAN_CAN_OWN) {
+        id |= DAN_GW_CAN_ID_OWN;
+    }
     dan_put_u32(w, id);
     dan_put_u8(w, dlc);
     if (!(f->flags & DAN_CAN_RTR)) {
@@ -485,10 +513,10 @@ int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f)
     id = dan_get_u32(r);
     f->dlc = dan_get_u8(r);
     f->flags = (uint8_t)(((id & DAN_GW_CAN_ID_EXT) ? DAN_CAN_EXT : 0u) |
-                         ((id & DAN_GW_CAN_ID_RTR) ? DAN_CAN_RTR : 0u));
+                         ((id & DAN_GW_CAN_ID_RTR) ? DAN_CAN_RTR : 0u) |
+                         ((id & DAN_GW_CAN_ID_OWN) ? DAN_CAN_OWN : 0u));
     f->id = id & DAN_CAN_EFF_MASK;
-    if (f->dlc > 8u || (!(f->flags & DAN_CAN_EXT) && f->id > DAN_CAN_SFF_MASK) ||
-        (id & 0x20000000u) != 0u) {
+    if (f->dlc > 8u || (!(f->flags & DAN_CAN_EXT) && f->id > DAN_CAN_SFF_MASK)) {
         return DAN_ERR_MALFORMED;
     }
     if (!(f->flags & DAN_CAN_RTR)) {
@@ -540,6 +568,9 @@ int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, siz
     dan_writer_init(&w, out, cap);
     dan_put_uvarint(&w, q->seq);
     dan_put_u8(&w, q->count);
+    if (q->opts != 0u) {
+        dan_put_u8(&w, q->opts);
+    }
     return dan_writer_finish(&w);
 }
 
@@ -550,6 +581,8 @@ int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_
     q->seq = dan_get_uvarint(&r);
     q->count = dan_get_u8(&r);
     q->dropped = 0;
+    q->t0_us = 0;
+    q->opts = dan_reader_remaining(&r) > 0u ? dan_get_u8(&r) : 0u;
     return dan_reader_finish(&r);
 }
 
@@ -558,6 +591,9 @@ void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q)
     dan_put_uvarint(w, q->seq);
     dan_put_uvarint(w, q->dropped);
     dan_put_u8(w, q->count);
+    if (q->opts & DAN_GW_RECV_TIMES) {
+        dan_put_u32(w, q->t0_us);
+    }
 }
 
 int dan_gw_msg_can_recv_rsp_get(dan_reader_t *r, dan_gw_can_recv_t *q)
@@ -565,6 +601,7 @@ int dan_gw_msg_can_recv_rsp_get(dan_reader_t *r, dan_gw_can_recv_t *q)
     q->seq = dan_get_uvarint(r);
     q->dropped = dan_get_uvarint(r);
     q->count = dan_get_u8(r);
+    q->t0_us = (q->opts & DAN_GW_RECV_TIMES) ? dan_get_u32(r) : 0u;
     if (q->count > DAN_GW_CAN_FRAMES_MAX) {
         return DAN_ERR_MALFORMED;
     }
@@ -589,7 +626,7 @@ int dan_gw_msg_filter_hdr_get(dan_reader_t *r, uint8_t *op, uint8_t *count)
 
 void dan_gw_msg_filter_put(dan_writer_t *w, const dan_gw_filter_t *f)
 {
-    dan_put_u32(w, f->id & (DAN_GW_CAN_ID_EXT | DAN_CAN_EFF_MASK));
+    dan_put_u32(w, f->id & (DAN_GW_CAN_ID_EXT | DAN_GW_CAN_ID_OWN | DAN_CAN_EFF_MASK));
     dan_put_u32(w, f->mask & DAN_CAN_EFF_MASK);
 }
 
@@ -597,7 +634,7 @@ int dan_gw_msg_filter_get(dan_reader_t *r, dan_gw_filter_t *f)
 {
     f->id = dan_get_u32(r);
     f->mask = dan_get_u32(r);
-    if ((f->id & 0x60000000u) != 0u || (f->mask & 0xE0000000u) != 0u) {
+    if ((f->id & DAN_GW_CAN_ID_RTR) != 0u || (f->mask & 0xE0000000u) != 0u) {
         return DAN_ERR_MALFORMED;
     }
     return dan_reader_finish(r);
@@ -606,7 +643,8 @@ int dan_gw_msg_filter_get(dan_reader_t *r, dan_gw_filter_t *f)
 bool dan_gw_filter_match(const dan_gw_filter_t *e, const dan_can_frame_t *f)
 {
     bool ext = (f->flags & DAN_CAN_EXT) != 0u;
-    if (ext != ((e->id & DAN_GW_CAN_ID_EXT) != 0u)) {
+    if (ext != ((e->id & DAN_GW_CAN_ID_EXT) != 0u) ||
+        ((f->flags & DAN_CAN_OWN) != 0u && (e->id & DAN_GW_CAN_ID_OWN) == 0u)) {
         return false;
     }
     return ((f->id ^ e->id) & e->mask & DAN_CAN_EFF_MASK) == 0u;
@@ -616,7 +654,8 @@ bool dan_gw_filter_match(const dan_gw_filter_t *e, const dan_can_frame_t *f)
 
 bool dan_gw_sealed_code(uint32_t code)
 {
-    return code >= DAN_GW_CODE_ESC_CMD && code <= DAN_TYPE_CAN_GW_LAST;
+    return (code >= DAN_GW_CODE_ESC_CMD && code <= DAN_TYPE_CAN_GW_LAST) ||
+           (code >= DAN_TYPE_CAN_GW_BLOCK2 + 2u && code <= DAN_TYPE_CAN_GW_BLOCK2_LAST);
 }
 
 uint16_t dan_gw_check(uint32_t code, uint8_t dir, const uint8_t *p, size_t len)

@@ -20,6 +20,8 @@ void dan_gw_node_config_default(dan_gw_node_config_t *c)
     c->sw_minor = 1;
     c->hw_major = 1;
     c->name = DAN_GW_NODE_NAME;
+    c->dna = true;
+    c->telem_timeout_ms = DAN_GW_NODE_DEFAULT_TELEM_TIMEOUT;
 }
 
 /* The transfers we receive: everything else is left to the raw ring. */
@@ -33,11 +35,17 @@ static bool accept_cb(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uin
         case DAN_DC_ESC_STATUS_ID:
         case DAN_DC_ESC_STATUS_EXTENDED_ID:
         case DAN_DC_TUNNEL_TARGETTED_ID:
-        case DAN_DC_TUNNEL_BROADCAST_ID: break;
+        case DAN_DC_TUNNEL_BROADCAST_ID:
+        case DAN_DC_ALLOCATION_ID: break;
         default: return false;
         }
-    } else if (dtid != DAN_DC_GET_NODE_INFO_ID) {
-        return false;
+    } else if (ttype == DAN_DC_TRANSFER_REQUEST) {
+        if (dtid != DAN_DC_GET_NODE_INFO_ID) {
+            return false; /* the services we answer */
+        }
+    } else if (dtid != DAN_DC_GET_NODE_INFO_ID && dtid != DAN_DC_PARAM_GETSET_ID &&
+               dtid != DAN_DC_PARAM_OPCODE_ID && dtid != DAN_DC_RESTART_ID) {
+        return false; /* the services we call */
     }
     return dan_dc_dsdl_signature(ttype, dtid, sig);
 }
@@ -70,6 +78,8 @@ int dan_gw_node_init(dan_gw_node_t *g, const dan_gw_node_config_t *cfg, uint64_t
     g->arming.due_us = now_us;
     g->can_ok = true;
     g->esc.rr = DAN_GW_NONE;
+    dan_gwn_calls_init(g);
+    dan_gwn_dna_load(g);
     return DAN_OK;
 }
 
@@ -81,6 +91,7 @@ void dan_gw_node_ptype(dan_gw_node_t *g, dan_ptype_t *t)
     t->nhandlers = dan_gwn_nhandlers;
     t->user = g;
     t->envelope = &dan_gwn_seal;
+    t->blocks = 2; /* 0x40..0x4F and 0x50..0x5F (docs/PROTOCOL.md section 5) */
 }
 
 void dan_gw_node_attach(dan_gw_node_t *g, const dan_periph_t *p)
@@ -149,6 +160,12 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_NODES] = dan_gwn_table_count(g);
     v[DAN_GW_STAT_BAD_CHECKS] = g->stats.bad_checks;
     v[DAN_GW_STAT_NODES_DROPPED] = g->stats.nodes_dropped;
+    v[DAN_GW_STAT_DNA_ALLOCATIONS] = g->stats.dna_allocations;
+    v[DAN_GW_STAT_DNA_BAD] = g->stats.dna_bad;
+    v[DAN_GW_STAT_DNA_FOREIGN] = g->stats.dna_foreign;
+    v[DAN_GW_STAT_DUPLICATES] = g->stats.duplicates;
+    v[DAN_GW_STAT_CALLS] = g->stats.calls;
+    v[DAN_GW_STAT_CALL_TIMEOUTS] = g->stats.call_timeouts;
 }
 
 /* ---- our own DroneCAN presence ---- */
@@ -219,13 +236,13 @@ static void on_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t 
     case DAN_DC_ESC_STATUS_EXTENDED_ID: dan_gwn_on_esc_ext(g, t, now_us); break;
     case DAN_DC_TUNNEL_TARGETTED_ID: dan_gwn_on_targetted(g, t); break;
     case DAN_DC_TUNNEL_BROADCAST_ID: dan_gwn_on_tun_broadcast(g, t); break;
+    case DAN_DC_ALLOCATION_ID: dan_gwn_on_allocation(g, t, now_us); break;
     default: break;
     }
 }
 
 void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us)
 {
-    dan_dc_transfer_t t;
     g->stats.can_rx++;
     if (f->flags & DAN_CAN_ERR) {
         g->stats.can_errors++;
@@ -237,7 +254,13 @@ void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now
         }
         return;
     }
-    dan_gwn_raw_in(g, f);
+    dan_gwn_raw_in(g, f, now_us);
+    dan_gwn_hear(g, f, now_us);
+}
+
+void dan_gwn_hear(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us)
+{
+    dan_dc_transfer_t t;
     if (dan_dc_rx_frame(&g->rx, f, now_us, &t) != 1) {
         return;
     }
@@ -249,6 +272,8 @@ void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now
         } else {
             dan_gwn_on_node_info_rsp(g, &t);
         }
+    } else {
+        dan_gwn_on_call_response(g, &t, now_us);
     }
 }
 
@@ -264,6 +289,8 @@ void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us)
     dan_gwn_arming_poll(g, now_us);
     dan_gwn_table_poll(g, now_us);
     dan_gwn_tunnel_poll(g, now_us);
+    dan_gwn_calls_poll(g, now_us);
+    dan_gwn_dna_poll(g);
     dan_dc_rx_cleanup(&g->rx, now_us);
 }
 
@@ -273,5 +300,9 @@ uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us)
     t = dan_gwn_esc_next_us(g, t);
     t = dan_gwn_table_next_us(g, t);
     t = dan_gwn_tunnel_next_us(g, now_us, t);
+    t = dan_gwn_calls_next_us(g, t);
+    if (g->dna.dirty) {
+        t = now_us;
+    }
     return t < now_us ? now_us : t;
 }

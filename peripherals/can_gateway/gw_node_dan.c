@@ -116,9 +116,17 @@ static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, d
     if (c.set_mask & DAN_GW_CFG_ARMING_RATE) {
         (void)dan_gw_node_set_arming_rate(g, c.arming_rate_hz, now_us);
     }
+    if (c.set_mask & DAN_GW_CFG_TELEM_TIMEOUT) {
+        (void)dan_gw_node_set_telem_timeout(g, c.telem_timeout_ms);
+    }
+    if (c.set_mask & DAN_GW_CFG_DNA) {
+        dan_gw_node_set_dna(g, c.dna != 0u);
+    }
     c.node_id = g->cfg.node_id;
     c.esc_timeout_ms = g->cfg.esc_timeout_ms;
     c.arming_rate_hz = g->cfg.arming_rate_hz;
+    c.telem_timeout_ms = g->cfg.telem_timeout_ms;
+    c.dna = g->cfg.dna ? 1u : 0u;
     c.gw_flags = dan_gw_node_flags(g);
     PUT_ENCODED(resp, dan_gw_msg_config_rsp_encode, &c);
     return DAN_OK;
@@ -162,7 +170,7 @@ static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, da
             continue;
         }
         n->e.age_ms = dan_gwn_age_ms(now_us, n->seen_us);
-        sz = dan_gw_msg_node_size(&n->e);
+        sz = dan_gw_msg_node_size(&n->e); /* the flags do not change its size */
         if (sz > room) {
             h.next = (uint8_t)id;
             break;
@@ -175,7 +183,9 @@ static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, da
     for (id = first; id <= last; id++) {
         dan_gw_node_slot_t *n = dan_gwn_find_node(g, (uint8_t)id);
         if (n != NULL) {
-            dan_gw_msg_node_put(resp, &n->e);
+            dan_gw_node_entry_t e = n->e;
+            e.info_state = dan_gwn_node_flags(g, n, now_us);
+            dan_gw_msg_node_put(resp, &e);
         }
     }
     return DAN_OK;
@@ -264,7 +274,7 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
         return DAN_ERR_MALFORMED;
     }
     for (i = 0; i < s.count; i++) {
-        if (dan_gw_msg_can_frame_get(&r, &f[i]) != DAN_OK) {
+        if (dan_gw_msg_can_frame_get(&r, &f[i]) != DAN_OK || (f[i].flags & DAN_CAN_OWN) != 0u) {
             *err = "bad CAN frame";
             return DAN_ERR_MALFORMED;
         }
@@ -286,9 +296,14 @@ static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len,
         return DAN_ERR_MALFORMED;
     }
     dan_gwn_raw_recv(g, &q, &a, resp->cap);
+    a.t0_us = a.count > 0u ? dan_gwn_raw_time(g, 0) : 0u;
     dan_gw_msg_can_recv_rsp_put(resp, &a);
     for (i = 0; i < a.count; i++) {
         dan_gw_msg_can_frame_put(resp, dan_gwn_raw_at(g, i));
+        if (a.opts & DAN_GW_RECV_TIMES) {
+            uint32_t prev = i > 0u ? dan_gwn_raw_time(g, i - 1u) : a.t0_us;
+            dan_put_uvarint(resp, dan_gwn_raw_time(g, i) - prev);
+        }
     }
     return DAN_OK;
 }
@@ -321,6 +336,94 @@ static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t le
     return DAN_OK;
 }
 
+static int h_node_call(void *user, uint32_t code, const uint8_t *req, size_t len,
+                       dan_writer_t *resp, const char **err, uint64_t now_us)
+{
+    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_call_t c;
+    dan_gw_call_state_t st;
+    int rc;
+    if (dan_gw_msg_call_decode(&c, req, len) != DAN_OK) {
+        *err = "bad node call";
+        return DAN_ERR_MALFORMED;
+    }
+    /* the digest tells a retry (same content) from a new call reusing an id */
+    rc = dan_gwn_call_start(g, &c, dan_gw_check(code, DAN_GW_REQUEST, req, len), &st, now_us);
+    if (rc == DAN_ERR_UNSUPPORTED) {
+        *err = "restart magic is not RestartNode's: set force to send it";
+        return rc;
+    }
+    if (rc != DAN_OK) {
+        *err = "node call does not fit";
+        return rc;
+    }
+    PUT_ENCODED(resp, dan_gw_msg_call_state_encode, &st);
+    return DAN_OK;
+}
+
+static int h_call_result(void *user, uint32_t code, const uint8_t *req, size_t len,
+                         dan_writer_t *resp, const char **err, uint64_t now_us)
+{
+    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_result_t q;
+    dan_gw_node_call_t *k;
+    size_t n = 0;
+    (void)code;
+    if (dan_gw_msg_result_req_decode(&q, req, len) != DAN_OK) {
+        *err = "bad call result request";
+        return DAN_ERR_MALFORMED;
+    }
+    k = dan_gwn_call_find(g, q.call_id);
+    if (k == NULL) {
+        *err = "unknown call";
+        return DAN_ERR_NOTFOUND;
+    }
+    q.state = k->state;
+    q.result_len = k->state == DAN_GW_CALL_DONE ? k->result_len : 0u;
+    if (q.offset < q.result_len) {
+        n = q.result_len - q.offset;
+        n = n < q.max ? n : q.max;
+        n = n < DAN_GW_RESULT_CHUNK_MAX ? n : DAN_GW_RESULT_CHUNK_MAX;
+    }
+    q.data = &k->result[q.offset < q.result_len ? q.offset : 0u];
+    q.len = n;
+    PUT_ENCODED(resp, dan_gw_msg_result_rsp_encode, &q);
+    return DAN_OK;
+}
+
+static int h_health(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                    const char **err, uint64_t now_us)
+{
+    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_health_t h;
+    (void)code;
+    (void)req;
+    (void)len;
+    (void)err;
+    dan_gw_node_health(g, &h, now_us);
+    PUT_ENCODED(resp, dan_gw_msg_health_encode, &h);
+    return DAN_OK;
+}
+
+static int h_dna(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                 const char **err, uint64_t now_us)
+{
+    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_dna_hdr_t h;
+    size_t i;
+    (void)code;
+    if (len < 1u) {
+        *err = "missing first entry";
+        return DAN_ERR_MALFORMED;
+    }
+    dan_gwn_dna_page(g, req[0], resp->cap, &h);
+    dan_gw_msg_dna_hdr_put(resp, &h);
+    for (i = 0; i < h.count; i++) {
+        dan_gw_msg_dna_entry_put(resp, &g->dna.table[req[0] + i]);
+    }
+    return DAN_OK;
+}
+
 const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_ESC_CMD, h_esc_cmd},
     {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
@@ -334,6 +437,10 @@ const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_CAN_SEND, h_can_send},
     {DAN_GW_CODE_CAN_RECV, h_can_recv},
     {DAN_GW_CODE_CAN_FILTER, h_can_filter},
+    {DAN_GW_CODE_NODE_CALL, h_node_call},
+    {DAN_GW_CODE_CALL_RESULT, h_call_result},
+    {DAN_GW_CODE_HEALTH, h_health},
+    {DAN_GW_CODE_DNA, h_dna},
 };
 const size_t dan_gwn_nhandlers = sizeof dan_gwn_handlers / sizeof dan_gwn_handlers[0];
 

@@ -23,6 +23,9 @@ void dan_gwn_esc_command(dan_gw_node_t *g, const int16_t *v, size_t n, uint64_t 
 {
     send_raw_command(g, v, n);
     g->stats.esc_cmds++;
+    if (!g->esc.active || g->esc.failsafe) {
+        g->esc.start_us = now_us;
+    }
     g->esc.active = true;
     g->esc.failsafe = false;
     g->esc.n = (uint8_t)n;

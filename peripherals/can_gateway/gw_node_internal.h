@@ -49,6 +49,10 @@ void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t);
 void dan_gwn_table_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_table_next_us(const dan_gw_node_t *g, uint64_t t);
 uint32_t dan_gwn_table_count(const dan_gw_node_t *g);
+/* Seen, then silent past DroneCAN's offline timeout. */
+bool dan_gwn_offline(const dan_gw_node_slot_t *n, uint64_t now_us);
+/* A NODES entry's last byte: info state | DAN_GW_NODE_* flags. */
+uint8_t dan_gwn_node_flags(const dan_gw_node_t *g, const dan_gw_node_slot_t *n, uint64_t now_us);
 
 /* ---- tunnels (gw_node_tunnel.c) ---- */
 void dan_gwn_on_targetted(dan_gw_node_t *g, const dan_dc_transfer_t *t);
@@ -64,7 +68,10 @@ void dan_gwn_tunnel_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t);
 
 /* ---- raw frames (gw_node_raw.c) ---- */
-void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f);
+/* A frame for the capture (received, or ours with DAN_CAN_OWN). */
+void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
+/* The DroneCAN side of a received frame (also the FC's own frames once sent). */
+void dan_gwn_hear(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
 /* CAN_SEND: all or nothing; a retry (same seq and digest) is not sent
  * again. Fills s->count (accepted) and s->queue_free. */
 void dan_gwn_raw_send(dan_gw_node_t *g, dan_gw_can_send_t *s, const dan_can_frame_t *f,
@@ -74,10 +81,32 @@ void dan_gwn_raw_send(dan_gw_node_t *g, dan_gw_can_send_t *s, const dan_can_fram
  * frames are dan_gwn_raw_at(g, 0 .. a->count - 1). */
 void dan_gwn_raw_recv(dan_gw_node_t *g, const dan_gw_can_recv_t *q, dan_gw_can_recv_t *a,
                       size_t cap);
+/* Receive time of dan_gwn_raw_at(g, i), low 32 bits of microseconds. */
+uint32_t dan_gwn_raw_time(const dan_gw_node_t *g, size_t i);
 const dan_can_frame_t *dan_gwn_raw_at(const dan_gw_node_t *g, size_t i);
 /* CAN_FILTER: applies op to the table; returns the result byte (0 OK,
  * 1 full). */
 uint8_t dan_gwn_raw_filter(dan_gw_node_t *g, uint8_t op, const dan_gw_filter_t *f, size_t n);
+
+/* ---- dynamic node ID allocation (gw_node_dna.c) ---- */
+void dan_gwn_dna_load(dan_gw_node_t *g);
+void dan_gwn_on_allocation(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_dna_poll(dan_gw_node_t *g);
+/* The table's entry for a node ID, or NULL. */
+const dan_gw_dna_entry_t *dan_gwn_dna_entry(const dan_gw_node_t *g, uint8_t node_id);
+/* Fills h for a DNA page from entry first in room bytes of response. */
+void dan_gwn_dna_page(const dan_gw_node_t *g, uint8_t first, size_t room, dan_gw_dna_hdr_t *h);
+
+/* ---- service calls (gw_node_call.c) ---- */
+void dan_gwn_calls_init(dan_gw_node_t *g);
+/* NODE_CALL: starts a call, or reports the state of the same call already
+ * held (a retry). DAN_ERR_UNSUPPORTED: a restart magic refused. */
+int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest,
+                       dan_gw_call_state_t *st, uint64_t now_us);
+dan_gw_node_call_t *dan_gwn_call_find(dan_gw_node_t *g, uint16_t call_id);
+void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_calls_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_calls_next_us(const dan_gw_node_t *g, uint64_t t);
 
 /* ---- DAN side (gw_node_dan.c) ---- */
 extern const dan_handler_t dan_gwn_handlers[];

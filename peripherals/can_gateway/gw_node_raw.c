@@ -3,9 +3,10 @@
  * frames from the FC queue behind throttle and arming (the bulk queue). */
 #include "gw_node_internal.h"
 
-void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f)
+void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us)
 {
     dan_gw_node_raw_t *r = &g->raw;
+    size_t at;
     size_t i;
     for (i = 0; i < r->nfilters; i++) {
         if (dan_gw_filter_match(&r->filters[i], f)) {
@@ -19,8 +20,15 @@ void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f)
         g->stats.raw_dropped++;
         return;
     }
-    r->ring[(r->head + r->len) % DAN_GW_NODE_RAW_RX] = *f;
+    at = (r->head + r->len) % DAN_GW_NODE_RAW_RX;
+    r->ring[at] = *f;
+    r->ring_us[at] = (uint32_t)now_us;
     r->len++;
+}
+
+uint32_t dan_gwn_raw_time(const dan_gw_node_t *g, size_t i)
+{
+    return g->raw.ring_us[(g->raw.head + i) % DAN_GW_NODE_RAW_RX];
 }
 
 /* A retry repeats seq and frames; an FC that rebooted may reuse a seq with
@@ -69,8 +77,15 @@ void dan_gwn_raw_recv(dan_gw_node_t *g, const dan_gw_can_recv_t *q, dan_gw_can_r
     a->seq = r->first;
     a->dropped = g->stats.raw_dropped;
     a->count = 0;
+    a->opts = q->opts;
+    if (q->opts & DAN_GW_RECV_TIMES) {
+        room = room > DAN_GW_CAN_RECV_TIME_SIZE ? room - DAN_GW_CAN_RECV_TIME_SIZE : 0u;
+    }
     for (i = 0; i < r->len && a->count < q->count && a->count < DAN_GW_CAN_FRAMES_MAX; i++) {
         size_t sz = dan_gw_msg_can_frame_size(dan_gwn_raw_at(g, i));
+        if (q->opts & DAN_GW_RECV_TIMES) {
+            sz += DAN_UVARINT_MAX_BYTES; /* its dt_us at the largest */
+        }
         if (sz > room) {
             break;
         }

@@ -15,6 +15,27 @@ dan_gw_node_slot_t *dan_gwn_find_node(dan_gw_node_t *g, uint8_t id)
     return NULL;
 }
 
+bool dan_gwn_offline(const dan_gw_node_slot_t *n, uint64_t now_us)
+{
+    return now_us - n->seen_us > DAN_GW_NODE_OFFLINE_US;
+}
+
+/* The NODES entry's last byte: the info state and the node's flags. */
+uint8_t dan_gwn_node_flags(const dan_gw_node_t *g, const dan_gw_node_slot_t *n, uint64_t now_us)
+{
+    uint8_t f = n->e.info_state;
+    if (n->duplicate) {
+        f |= DAN_GW_NODE_DUPLICATE;
+    }
+    if (dan_gwn_offline(n, now_us)) {
+        f |= DAN_GW_NODE_OFFLINE;
+    }
+    if (dan_gwn_dna_entry(g, n->e.node_id) != NULL) {
+        f |= DAN_GW_NODE_ALLOCATED;
+    }
+    return f;
+}
+
 uint32_t dan_gwn_table_count(const dan_gw_node_t *g)
 {
     uint32_t n = 0;
@@ -44,6 +65,46 @@ static dan_gw_node_slot_t *slot_for_new(dan_gw_node_t *g, uint64_t now_us)
     return best;
 }
 
+static void flag_duplicate(dan_gw_node_t *g, dan_gw_node_slot_t *n)
+{
+    if (!n->duplicate) {
+        n->duplicate = true;
+        g->stats.duplicates++;
+    }
+}
+
+/* Two nodes with one ID interleave their NodeStatus: the uptime goes down
+ * again and again. A node that really restarted does it once. */
+static void uptime_went_down(dan_gw_node_t *g, dan_gw_node_slot_t *n, uint64_t now_us)
+{
+    if (n->drops == 0u || now_us - n->drops_since_us > DAN_GW_NODE_FLAP_US) {
+        n->drops = 0;
+        n->drops_since_us = now_us;
+    }
+    if (++n->drops >= DAN_GW_NODE_FLAP_COUNT) {
+        flag_duplicate(g, n);
+    }
+}
+
+/* A GetNodeInfo answer's unique ID: a duplicate if the allocation table
+ * gave this ID to another unique ID, or if an earlier unique ID of this
+ * node ID comes back after another one. */
+static void check_uid(dan_gw_node_t *g, dan_gw_node_slot_t *n, const uint8_t *uid)
+{
+    const dan_gw_dna_entry_t *a = dan_gwn_dna_entry(g, n->e.node_id);
+    bool had = n->info.info_state == DAN_GW_INFO_VALID;
+    if (a != NULL && memcmp(a->unique_id, uid, DAN_DC_UNIQUE_ID_SIZE) != 0) {
+        flag_duplicate(g, n);
+    }
+    if (had && memcmp(n->info.unique_id, uid, DAN_DC_UNIQUE_ID_SIZE) != 0) {
+        if (n->had_uid && memcmp(n->prev_uid, uid, DAN_DC_UNIQUE_ID_SIZE) == 0) {
+            flag_duplicate(g, n);
+        }
+        memcpy(n->prev_uid, n->info.unique_id, DAN_DC_UNIQUE_ID_SIZE);
+        n->had_uid = true;
+    }
+}
+
 void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
 {
     dan_dc_node_status_t s;
@@ -67,12 +128,17 @@ void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64
         n->e.info_state = DAN_GW_INFO_NONE;
         n->info_tries = 0;
         n->info_due_us = now_us;
+        uptime_went_down(g, n, now_us);
     }
     n->e.health = s.health;
     n->e.mode = s.mode;
     n->e.sub_mode = s.sub_mode;
     n->e.uptime_sec = s.uptime_sec;
     n->e.vendor_status = s.vendor_specific_status_code;
+    if (dan_gwn_offline(n, now_us)) {
+        n->duplicate = false; /* it was gone: judge it afresh */
+        n->drops = 0;
+    }
     n->seen_us = now_us;
 }
 
@@ -84,6 +150,7 @@ void dan_gwn_on_node_info_rsp(dan_gw_node_t *g, const dan_dc_transfer_t *t)
     if (n == NULL || dan_dc_get_node_info_rsp_decode(rp, t->payload, t->payload_len) != DAN_OK) {
         return;
     }
+    check_uid(g, n, rp->hardware_version.unique_id);
     n->info.node_id = n->e.node_id;
     n->info.info_state = DAN_GW_INFO_VALID;
     n->info.sw_major = rp->software_version.major;

@@ -9,6 +9,8 @@ Usage: python3 tests/vectors/gen_gateway.py > tests/vectors/gateway.txt
 import os
 
 from _wire import array, frame, u8, u16, u24, u32, uvarint
+from gen_gateway_mgmt import __doc__ as MGMT_DOC
+from gen_gateway_mgmt import mgmt_vectors
 
 HEADER = """\
 # CAN-over-DAN gateway payload vectors (docs/PROTOCOL.md section 7).
@@ -28,12 +30,12 @@ HEADER = """\
 #                     motor_temp_c/motor_angle/status_flags
 #   esc_telem req     first=
 #   arm req           status=        arm rsp  flags=
-#   config req        mask= timeout= rate=
-#   config rsp        node= timeout= rate= flags=
+#   config req        mask= timeout= rate= telem= dna=
+#   config rsp        node= timeout= rate= flags= telem= dna=
 #   stats rsp         values=
 #   nodes req         first=
 #   nodes rsp         next= then node= per entry:
-#                     id/health/mode/sub_mode/uptime/vendor/age_ms/info_state
+#                     id/health/mode/sub_mode/uptime/vendor/age_ms/info_state (with its flags)
 #   node_info req     node=
 #   node_info rsp     node= state= sw=major/minor/flags vcs= hw=major/minor uid=<hex> name=<hex>
 #   tun_open req      port= mode= protocol= target= serial= options= baud=
@@ -42,8 +44,8 @@ HEADER = """\
 #   tun_xfer rsp      port= wr= space= rd= dropped= data=<hex>
 #   can_send req      seq= then frame= per frame: <id_flags 8 hex>/<dlc>/<data hex>
 #   can_send rsp      seq= accepted= free=
-#   can_recv req      seq= max=
-#   can_recv rsp      seq= dropped= then frame=...
+#   can_recv req      seq= max= opts=
+#   can_recv rsp      seq= dropped= opts= t0= then frame=... (and dt= after each with opts 1)
 #   can_filter req    op= then filter=<id_flags 8 hex>/<mask 8 hex>
 #   can_filter rsp    result= then filter=...
 """
@@ -129,16 +131,28 @@ def esc_vectors():
     emit("arm", "req", ["status=255"], u8(255))
     emit("arm", "req", ["status=0"], u8(0))
     emit("arm", "rsp", ["flags=5"], u8(5))
-    for mask, to, rate in [(0, 0, 0), (1, 750, 0), (2, 0, 10), (3, 60000, 50)]:
+    for mask, to, rate, tel, dna in [
+        (0, 0, 0, 0, 0),
+        (1, 750, 0, 0, 0),
+        (2, 0, 10, 0, 0),
+        (3, 60000, 50, 0, 0),
+        (4, 0, 0, 2500, 0),
+        (12, 0, 0, 0, 1),
+        (15, 500, 2, 100, 0),
+    ]:
         p = u8(mask) + (uvarint(to) if mask & 1 else b"") + (uvarint(rate) if mask & 2 else b"")
-        emit("config", "req", ["mask=%d" % mask, "timeout=%d" % to, "rate=%d" % rate], p)
-    emit(
-        "config",
-        "rsp",
-        ["node=10", "timeout=500", "rate=2", "flags=4"],
-        u8(10) + uvarint(500) + uvarint(2) + u8(4),
-    )
+        p += (uvarint(tel) if mask & 4 else b"") + (u8(dna) if mask & 8 else b"")
+        fields = ["mask=%d" % mask, "timeout=%d" % to, "rate=%d" % rate]
+        emit("config", "req", fields + ["telem=%d" % tel, "dna=%d" % dna], p)
+    for tel, dna in [(1000, 1), (0, 0)]:
+        emit(
+            "config",
+            "rsp",
+            ["node=10", "timeout=500", "rate=2", "flags=4", "telem=%d" % tel, "dna=%d" % dna],
+            u8(10) + uvarint(500) + uvarint(2) + u8(4) + uvarint(tel) + u8(dna),
+        )
     vals = [123456, 0, 3, 17, 123450, 5000, 4000, 0, 1, 300, 2, 0, 6000, 1, 0, 128, 16384, 4]
+    vals += [0, 1, 3, 2, 1, 1, 120, 5]  # ... bad_checks .. call_timeouts
     emit(
         "stats",
         "rsp",
@@ -154,6 +168,7 @@ def node_vectors():
         (20, 0, 0, 0, 1234, 0xBEEF, 150, 2),
         (21, 1, 2, 5, 0, 0, 0, 1),
         (127, 3, 7, 7, 4294967295, 65535, 3001, 3),
+        (125, 0, 0, 0, 42, 0, 3500, 2 | 0x04 | 0x08 | 0x10),  # duplicate, offline, allocated
     ]
     p = u8(0) + u8(len(nodes))
     for nid, h, m, sm, up, ven, age, st in nodes:
@@ -264,17 +279,38 @@ def can_vectors():
         p += frame_bytes(i, d)
     emit("can_send", "req", ["seq=7"] + [frame_text(i, d) for (i, d) in frames], p)
     emit("can_send", "rsp", ["seq=7", "accepted=5", "free=123"], u8(7) + u8(5) + uvarint(123))
-    emit("can_recv", "req", ["seq=0", "max=11"], uvarint(0) + u8(11))
-    emit("can_recv", "req", ["seq=300", "max=4"], uvarint(300) + u8(4))
+    emit("can_recv", "req", ["seq=0", "max=11", "opts=0"], uvarint(0) + u8(11))
+    emit("can_recv", "req", ["seq=300", "max=4", "opts=0"], uvarint(300) + u8(4))
+    emit("can_recv", "req", ["seq=300", "max=4", "opts=1"], uvarint(300) + u8(4) + u8(1))
     p = uvarint(298) + uvarint(3) + u8(2) + frame_bytes(*frames[0]) + frame_bytes(*frames[2])
     emit(
         "can_recv",
         "rsp",
-        ["seq=298", "dropped=3", frame_text(*frames[0]), frame_text(*frames[2])],
+        ["seq=298", "dropped=3", "opts=0", "t0=0", frame_text(*frames[0]), frame_text(*frames[2])],
         p,
     )
-    emit("can_recv", "rsp", ["seq=5", "dropped=0"], uvarint(5) + uvarint(0) + u8(0))
-    filters = [(0x80000000 | 0x0040A00, 0x00FFFF80), (0x100, 0x700)]
+    emit(
+        "can_recv", "rsp", ["seq=5", "dropped=0", "opts=0", "t0=0"], uvarint(5) + uvarint(0) + u8(0)
+    )
+    own = (0xA0000000 | 0x1401550A, bytes([1, 0, 0, 0, 0, 0x34, 0x12, 0xC0]))  # ours: bit 29
+    p = uvarint(9) + uvarint(0) + u8(2) + u32(4294967000)
+    p += frame_bytes(*own) + uvarint(0) + frame_bytes(*frames[1]) + uvarint(1234)
+    emit(
+        "can_recv",
+        "rsp",
+        [
+            "seq=9",
+            "dropped=0",
+            "opts=1",
+            "t0=4294967000",
+            frame_text(*own),
+            "dt=0",
+            frame_text(*frames[1]),
+            "dt=1234",
+        ],
+        p,
+    )
+    filters = [(0x80000000 | 0x0040A00, 0x00FFFF80), (0x100, 0x700), (0xA0000000, 0)]
     for op in (0, 1, 2):
         p = u8(op) + u8(len(filters)) + b"".join(u32(i) + u32(m) for (i, m) in filters)
         emit("can_filter", "req", ["op=%d" % op] + ["filter=%08X/%08X" % f for f in filters], p)
@@ -285,10 +321,12 @@ def can_vectors():
 
 def main():
     print(HEADER, end="")
+    print("".join("# " + line + "\n" for line in MGMT_DOC.strip().splitlines()[5:]), end="")
     esc_vectors()
     node_vectors()
     tunnel_vectors()
     can_vectors()
+    mgmt_vectors(emit)
 
 
 def crc16_ccitt_false(data):
@@ -317,6 +355,9 @@ def sealed_vectors():
         (0x46, req, b""),  # STATS request
         (0x4A, req, u8(1) + uvarint(0) + uvarint(0) + uvarint(128) + array(b"hello")),
         (0x4D, req, u8(0) + u8(1) + u32(0x100) + u32(0x700)),
+        (0x4E, req, u16(1) + u8(20) + u8(0) + uvarint(0)),  # NODE_CALL: 2nd block rules too
+        (0x52, req, b""),  # HEALTH, the second block
+        (0x52, rsp, bytes([1, 2, 30, 0, 1])),
     ]
     lines = [
         "# Sealed gateway messages (docs/PROTOCOL.md section 7, the seal).",

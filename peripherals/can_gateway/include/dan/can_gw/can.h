@@ -8,6 +8,7 @@
 #define DAN_CAN_EXT 0x01u /* 29-bit identifier (else 11-bit) */
 #define DAN_CAN_RTR 0x02u /* remote transmission request */
 #define DAN_CAN_ERR 0x04u /* error frame reported by the controller */
+#define DAN_CAN_OWN 0x08u /* a frame this node sent (in a capture of the bus) */
 
 /* With DAN_CAN_ERR, id holds the error class; these values are the ones
  * SocketCAN uses (linux/can/error.h), so backends pass them through. */

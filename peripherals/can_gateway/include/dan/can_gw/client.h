@@ -32,6 +32,7 @@
 #define DAN_GATEWAY_H
 
 #include "dan/can_gw/msgs.h"
+#include "dan/can_gw/msgs_mgmt.h"
 #include "dan/master.h"
 
 #ifdef __cplusplus
@@ -71,7 +72,10 @@ typedef struct {
     uint32_t can_rx_resyncs; /* the gateway's sequence jumped (it restarted) */
     uint8_t can_accepted;    /* of the last CAN_SEND */
     uint32_t can_queue_free;
-    uint32_t decode_errors; /* responses that did not decode */
+    uint32_t decode_errors;   /* responses that did not decode */
+    uint8_t recv_opts;        /* of the last CAN_RECV */
+    dan_gw_call_state_t call; /* last NODE_CALL response */
+    dan_gw_health_t health;   /* last HEALTH response */
 } dan_gw_t;
 
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
@@ -127,12 +131,52 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
 int dan_gw_can_recv(dan_gw_t *gw, uint8_t max, uint64_t now_us);
 int dan_gw_can_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_can_recv_t *hdr);
 int dan_gw_can_next(dan_reader_t *r, dan_can_frame_t *f);
+/* CAN_RECV with options (DAN_GW_RECV_TIMES: receive times). Read a timed
+ * response with dan_gw_can_next_timed(): *t_us starts at hdr.t0_us and is
+ * each frame's receive time (gateway clock, low 32 bits, microseconds). */
+int dan_gw_can_recv_opts(dan_gw_t *gw, uint8_t max, uint8_t opts, uint64_t now_us);
+int dan_gw_can_next_timed(dan_reader_t *r, dan_can_frame_t *f, uint32_t *t_us);
 /* Changes the raw receive filter (op DAN_GW_FILTER_*). After completion the
  * table is read with dan_gw_filter_begin() / dan_gw_filter_next(). */
 int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t n,
                       uint64_t now_us);
 int dan_gw_filter_begin(const dan_gw_t *gw, dan_reader_t *r, uint8_t *result, uint8_t *count);
 int dan_gw_filter_next(dan_reader_t *r, dan_gw_filter_t *f);
+
+/* ---- bus management (gw_client_mgmt.c; docs/PROTOCOL.md "Bus management")
+ *
+ * Service calls run in the gateway: start one with a call_id of your
+ * choosing (a new number per call; the master's retries repeat it, and the
+ * gateway never sends a retried call twice), then read its state and
+ * result with dan_gw_call_result() until the state is not PENDING. Several
+ * calls may be in flight (pipelining, e.g. a parameter list). After
+ * completion gw->call holds the NODE_CALL state. */
+int dan_gw_node_call(dan_gw_t *gw, const dan_gw_call_t *c, uint64_t now_us);
+int dan_gw_param_get_index(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint16_t index,
+                           uint64_t now_us);
+/* name: NUL-terminated, 1..92 bytes. */
+int dan_gw_param_get(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
+                     uint64_t now_us);
+int dan_gw_param_set(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
+                     const dan_gw_value_t *value, uint64_t now_us);
+int dan_gw_param_save(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t now_us);
+/* magic: DAN_GW_RESTART_MAGIC, or another 40-bit one with force (the
+ * gateway refuses any other with an error frame). */
+int dan_gw_restart(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t magic, bool force,
+                   uint64_t now_us);
+/* Reads up to max bytes of a call's result from offset; after completion
+ * dan_gw_call_result_get() gives the state, the result length and the
+ * bytes (a view into the response). */
+int dan_gw_call_result(dan_gw_t *gw, uint16_t call_id, uint32_t offset, uint8_t max,
+                       uint64_t now_us);
+int dan_gw_call_result_get(const dan_gw_t *gw, dan_gw_result_t *res);
+/* The health verdict into gw->health. */
+int dan_gw_health(dan_gw_t *gw, uint64_t now_us);
+/* An allocation table page from entry first; then dan_gw_dna_begin() and
+ * dan_gw_dna_next() per entry. */
+int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us);
+int dan_gw_dna_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_dna_hdr_t *hdr);
+int dan_gw_dna_next(dan_reader_t *r, dan_gw_dna_entry_t *e);
 
 #ifdef __cplusplus
 }

@@ -25,6 +25,7 @@
 #include <stdint.h>
 
 #include "dan/can_gw/can.h"
+#include "dan/can_gw/dronecan_limits.h"
 #include "dan/common.h"
 
 #ifdef __cplusplus
@@ -39,7 +40,6 @@ extern "C" {
 
 /* ---- protocol constants ---- */
 
-#define DAN_DC_NODE_ID_MAX      127u
 #define DAN_DC_PRIORITY_MAX     31u /* 0 is the most urgent */
 #define DAN_DC_PRIORITY_HIGH    8u
 #define DAN_DC_PRIORITY_MEDIUM  16u

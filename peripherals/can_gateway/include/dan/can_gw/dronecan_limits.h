@@ -9,6 +9,7 @@
 #ifndef DAN_CAN_GW_DRONECAN_LIMITS_H
 #define DAN_CAN_GW_DRONECAN_LIMITS_H
 
+#define DAN_DC_NODE_ID_MAX              127u    /* node IDs 1..127 */
 #define DAN_DC_ESC_RAW_COMMAND_MAX_CMDS 20u     /* RawCommand.cmd entries */
 #define DAN_DC_ESC_RAW_CMD_MIN          (-8192) /* int14 */
 #define DAN_DC_ESC_RAW_CMD_MAX          8191

@@ -120,16 +120,23 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
 /* ---- CONFIG (0x45) ----
  * Request: uint8 set_mask, then for each set bit in bit order its field:
  *   bit0 uvarint esc_timeout_ms (50..60000), bit1 uvarint arming_rate_hz
- *   (1..50). An empty request or mask 0 only reads.
+ *   (1..50), bit2 uvarint telem_timeout_ms (0 or 100..60000), bit3 uint8
+ *   dna (0/1). An empty request or mask 0 only reads.
  * Response: uint8 node_id, uvarint esc_timeout_ms, uvarint arming_rate_hz,
- *   uint8 gw_flags. Values out of range are malformed (error frame). */
-#define DAN_GW_CFG_ESC_TIMEOUT 0x01u
-#define DAN_GW_CFG_ARMING_RATE 0x02u
-#define DAN_GW_ESC_TIMEOUT_MIN 50u
-#define DAN_GW_ESC_TIMEOUT_MAX 60000u
-#define DAN_GW_ARMING_RATE_MIN 1u
-#define DAN_GW_ARMING_RATE_MAX 50u
-#define DAN_GW_CONFIG_REQ_MAX  11u /* mask + two 5-byte uvarints */
+ *   uint8 gw_flags, uvarint telem_timeout_ms, uint8 dna (the last two
+ *   appended: a response without them decodes with zeros). Values out of
+ *   range are malformed (error frame). */
+#define DAN_GW_CFG_ESC_TIMEOUT   0x01u
+#define DAN_GW_CFG_ARMING_RATE   0x02u
+#define DAN_GW_CFG_TELEM_TIMEOUT 0x04u /* uv ms: 0 (off) or 100..60000 */
+#define DAN_GW_CFG_DNA           0x08u /* u8: allocation server off (0) / on (1) */
+#define DAN_GW_TELEM_TIMEOUT_MIN 100u
+#define DAN_GW_TELEM_TIMEOUT_MAX 60000u
+#define DAN_GW_ESC_TIMEOUT_MIN   50u
+#define DAN_GW_ESC_TIMEOUT_MAX   60000u
+#define DAN_GW_ARMING_RATE_MIN   1u
+#define DAN_GW_ARMING_RATE_MAX   50u
+#define DAN_GW_CONFIG_REQ_MAX    17u /* mask, three 5-byte uvarints, dna */
 
 typedef struct {
     uint8_t set_mask; /* request only */
@@ -137,6 +144,8 @@ typedef struct {
     uint8_t gw_flags; /* response only */
     uint32_t esc_timeout_ms;
     uint32_t arming_rate_hz;
+    uint32_t telem_timeout_ms;
+    uint8_t dna;
 } dan_gw_config_t;
 
 int dan_gw_msg_config_req_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap);
@@ -169,7 +178,13 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(RAW_DROPPED, raw_dropped)         /* raw frames dropped (receive ring full) */      \
     X(NODES, nodes)                     /* nodes in the table */                          \
     X(BAD_CHECKS, bad_checks)           /* requests whose seal did not match (dropped) */ \
-    X(NODES_DROPPED, nodes_dropped)     /* new nodes with no room in the table */
+    X(NODES_DROPPED, nodes_dropped)     /* new nodes with no room in the table */         \
+    X(DNA_ALLOCATIONS, dna_allocations) /* node IDs handed out */                         \
+    X(DNA_BAD, dna_bad)                 /* allocation requests ignored */                 \
+    X(DNA_FOREIGN, dna_foreign)         /* Allocation messages of another allocator */    \
+    X(DUPLICATES, duplicates)           /* nodes flagged as sharing an ID */              \
+    X(CALLS, calls)                     /* service calls started */                       \
+    X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
 enum { DAN_GW_STATS(DAN_GW_STAT_ENUM_) DAN_GW_STAT_COUNT };
@@ -187,11 +202,15 @@ int dan_gw_msg_stats_decode(uint32_t *v, size_t cap, size_t *n, const uint8_t *p
  * (0 at the end), uint8 count, then entries of node_id >= first:
  *   uint8 node_id, uint8 health | mode << 2 | sub_mode << 5,
  *   uvarint uptime_sec, uint16 vendor_status, uvarint age_ms,
- *   uint8 info_state (DAN_GW_INFO_*). */
-#define DAN_GW_INFO_NONE    0u /* not asked yet */
-#define DAN_GW_INFO_PENDING 1u /* GetNodeInfo requested */
-#define DAN_GW_INFO_VALID   2u
-#define DAN_GW_INFO_FAILED  3u /* no answer after the retries */
+ *   uint8 info_state (DAN_GW_INFO_*, bits 0-1) | flags (DAN_GW_NODE_*). */
+#define DAN_GW_INFO_NONE      0u /* not asked yet */
+#define DAN_GW_INFO_PENDING   1u /* GetNodeInfo requested */
+#define DAN_GW_INFO_VALID     2u
+#define DAN_GW_INFO_FAILED    3u    /* no answer after the retries */
+#define DAN_GW_INFO_MASK      0x03u /* the entry's last byte: state | flags */
+#define DAN_GW_NODE_DUPLICATE 0x04u /* two nodes use this ID */
+#define DAN_GW_NODE_OFFLINE   0x08u /* seen, then silent over 3 s */
+#define DAN_GW_NODE_ALLOCATED 0x10u /* its ID came from the gateway's allocator */
 
 typedef struct {
     uint8_t node_id;
@@ -290,6 +309,9 @@ int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_
  * uint8 dlc (0..8), dlc data bytes (none for RTR). */
 #define DAN_GW_CAN_ID_EXT 0x80000000u
 #define DAN_GW_CAN_ID_RTR 0x40000000u
+#define DAN_GW_CAN_ID_OWN \
+    0x20000000u /* CAN_RECV: sent by the gateway itself;
+                                               CAN_FILTER: passes its own frames too */
 
 void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f);
 size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f);
@@ -312,11 +334,20 @@ typedef struct {
     uint32_t seq;     /* req: next_seq; rsp: first_seq */
     uint32_t dropped; /* rsp */
     uint8_t count;    /* req: max; rsp: frames */
+    uint8_t opts;     /* req: DAN_GW_RECV_* (sent when not 0); rsp: as asked */
+    uint32_t t0_us;   /* rsp with DAN_GW_RECV_TIMES: first frame's receive time */
 } dan_gw_can_recv_t;
+/* CAN_RECV request opts (an optional third byte). TIMES: the response has
+ * u32 t0_us after its header and a uv dt_us after each frame (microseconds
+ * since the previous frame of the response; 0 for the first). */
+#define DAN_GW_RECV_TIMES         0x01u
+#define DAN_GW_CAN_RECV_TIME_SIZE 4u
 
 /* CAN_FILTER request: uint8 op (DAN_GW_FILTER_*), uint8 count (<= 16),
- * entries uint32 id_flags (bit 31 extended), uint32 mask. A frame passes
- * when some entry has its ext flag and (id & mask) == (entry id & mask).
+ * entries uint32 id_flags (bit 31 extended, bit 29 own frames too), uint32
+ * mask. A frame passes when some entry has its ext flag and (id & mask) ==
+ * (entry id & mask); the gateway's own frames only through an entry with
+ * bit 29.
  * No entries: nothing passes (the default). ADD of an entry present and
  * REMOVE of one absent do nothing, so retries are harmless.
  * Response: uint8 result (0 OK, 1 table full), uint8 count, the table. */
@@ -336,7 +367,7 @@ void dan_gw_msg_can_send_req_put(dan_writer_t *w, const dan_gw_can_send_t *s);
 int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s);
 int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap);
 int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len);
-#define DAN_GW_CAN_RECV_REQ_MAX 6u /* a 5-byte uvarint + max */
+#define DAN_GW_CAN_RECV_REQ_MAX 7u /* a 5-byte uvarint, max, opts */
 int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap);
 int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_t len);
 void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q);

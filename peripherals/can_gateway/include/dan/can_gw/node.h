@@ -55,7 +55,9 @@
 
 #include "dan/can_gw/dronecan.h"
 #include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/msgs.h"
+#include "dan/can_gw/msgs_mgmt.h"
 #include "dan/peripheral.h"
 
 #ifdef __cplusplus
@@ -63,17 +65,51 @@ extern "C" {
 #endif
 
 /* ---- fixed by the protocols (not settings) ---- */
-#define DAN_GW_NODE_ESC_SLOTS     32u      /* one per esc_index (uint5) */
-#define DAN_GW_NODE_OFFLINE_US    3000000u /* DroneCAN's OFFLINE_TIMEOUT */
-#define DAN_GW_NODE_STATUS_US     1000000u /* our NodeStatus period */
-#define DAN_GW_NODE_KEEPALIVE_US  500000u  /* ArduPilot's tunnel keepalive */
-#define DAN_GW_NODE_INFO_TRIES    3u       /* GetNodeInfo attempts per node */
-#define DAN_GW_NODE_INFO_RETRY_US 1000000u
+#define DAN_GW_NODE_ESC_SLOTS       32u      /* one per esc_index (uint5) */
+#define DAN_GW_NODE_OFFLINE_US      3000000u /* DroneCAN's OFFLINE_TIMEOUT */
+#define DAN_GW_NODE_STATUS_US       1000000u /* our NodeStatus period */
+#define DAN_GW_NODE_KEEPALIVE_US    500000u  /* ArduPilot's tunnel keepalive */
+#define DAN_GW_NODE_INFO_TRIES      3u       /* GetNodeInfo attempts per node */
+#define DAN_GW_NODE_INFO_RETRY_US   1000000u
+#define DAN_GW_NODE_CALL_TIMEOUT_US 1000000u /* per attempt of a service call */
+#define DAN_GW_NODE_CALL_ATTEMPTS   3u
+#define DAN_GW_NODE_FLAP_US         10000000u /* uptime going down 3 times in this: duplicate */
+#define DAN_GW_NODE_FLAP_COUNT      3u
+#define DAN_GW_NODE_FOREIGN_US      60000000u /* HEALTH shows another allocator this long */
 
-#define DAN_GW_NODE_DEFAULT_ID          10u
-#define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT 500u /* ms */
-#define DAN_GW_NODE_DEFAULT_ARMING_RATE 2u   /* Hz */
-#define DAN_GW_NODE_NAME                "org.dan.can_gateway"
+#define DAN_GW_NODE_DEFAULT_ID            10u
+#define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT   500u  /* ms */
+#define DAN_GW_NODE_DEFAULT_ARMING_RATE   2u    /* Hz */
+#define DAN_GW_NODE_DEFAULT_TELEM_TIMEOUT 1000u /* ms; 0: no ESC telemetry check */
+#define DAN_GW_NODE_NAME                  "org.dan.can_gateway"
+
+/* Persistent storage of the allocation table (flash on an MCU gateway, a
+ * file for the daemon). load copies the stored blob into buf (cap bytes)
+ * and returns its length, 0 when nothing is stored, negative on an error;
+ * store replaces it (DAN_OK or negative). load runs in dan_gw_node_init(),
+ * store in dan_gw_node_poll() after the table changed. */
+/* The stored blob: "DNA1", u8 count, count x (u8 node_id, 16 bytes
+ * unique_id), u16 CRC-16/CCITT-FALSE of everything before it (at most
+ * DAN_GW_DNA_BLOB_MAX bytes). dan_gw_dna_blob_check() says why a blob does
+ * not check (the node then starts with an empty table and sets
+ * DAN_GW_DNA_STORE_ERROR); dan_gw_dna_blob_error() names the reason. */
+#define DAN_GW_DNA_BLOB_MAX     (4u + 1u + DAN_GW_NODE_DNA_MAX * DAN_GW_DNA_ENTRY_SIZE + 2u)
+#define DAN_GW_DNA_BLOB_OK      0
+#define DAN_GW_DNA_BLOB_SHORT   1 /* shorter than an empty table */
+#define DAN_GW_DNA_BLOB_MAGIC   2 /* does not start with "DNA1" */
+#define DAN_GW_DNA_BLOB_COUNT   3 /* more entries than DAN_GW_NODE_DNA_MAX */
+#define DAN_GW_DNA_BLOB_LENGTH  4 /* length and count disagree */
+#define DAN_GW_DNA_BLOB_CRC     5
+#define DAN_GW_DNA_BLOB_NODE_ID 6 /* an entry's node ID outside 1..125 */
+#define DAN_GW_DNA_BLOB_TWICE   7 /* a node ID or a unique ID in two entries */
+int dan_gw_dna_blob_check(const uint8_t *b, size_t len);
+const char *dan_gw_dna_blob_error(int r);
+
+typedef struct {
+    int (*load)(void *ctx, uint8_t *buf, size_t cap);
+    int (*store)(void *ctx, const uint8_t *buf, size_t len);
+    void *ctx;
+} dan_gw_storage_t;
 
 typedef struct {
     uint8_t node_id;            /* 1..127 (default 10) */
@@ -84,11 +120,14 @@ typedef struct {
     uint32_t vcs_commit;
     uint8_t hw_major, hw_minor;
     uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
-    const char *name;       /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
-    uint32_t raw_seq_start; /* first raw-frame sequence number: give each boot a
+    const char *name;                    /* GetNodeInfo name (default DAN_GW_NODE_NAME) */
+    uint32_t raw_seq_start;              /* first raw-frame sequence number: give each boot a
                                    different one (the daemon uses the clock), so a
                                    client's acknowledgement from before a restart
                                    never discards new frames */
+    bool dna;                            /* serve dynamic node ID allocation (default true) */
+    const dan_gw_storage_t *dna_storage; /* NULL: the table lives in RAM only */
+    uint32_t telem_timeout_ms;           /* HEALTH: commanded ESC without telemetry (1000; 0 off) */
 } dan_gw_node_config_t;
 
 void dan_gw_node_config_default(dan_gw_node_config_t *c);
@@ -101,12 +140,18 @@ typedef struct {
     uint32_t can_errors;     /* reported by the daemon */
     uint32_t esc_cmds;
     uint32_t failsafes;
-    uint32_t tun_dropped;   /* bytes, both ways */
-    uint32_t raw_dropped;   /* raw receive ring full */
-    uint32_t nodes_dropped; /* node table full */
-    uint32_t info_requests; /* GetNodeInfo requests sent */
-    uint32_t dan_requests;  /* gateway requests handled */
-    uint32_t bad_checks;    /* requests whose seal failed (dropped) */
+    uint32_t tun_dropped;     /* bytes, both ways */
+    uint32_t raw_dropped;     /* raw receive ring full */
+    uint32_t nodes_dropped;   /* node table full */
+    uint32_t info_requests;   /* GetNodeInfo requests sent */
+    uint32_t dan_requests;    /* gateway requests handled */
+    uint32_t bad_checks;      /* requests whose seal failed (dropped) */
+    uint32_t dna_allocations; /* node IDs handed out */
+    uint32_t dna_bad;         /* allocation requests ignored (stage, length, timeout) */
+    uint32_t dna_foreign;     /* Allocation messages of another allocator */
+    uint32_t duplicates;      /* nodes flagged as sharing an ID */
+    uint32_t calls;           /* service calls started */
+    uint32_t call_timeouts;   /* calls no attempt of which was answered */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -130,6 +175,7 @@ typedef struct {
     uint8_t n;     /* channel count last used */
     uint8_t rr;    /* round-robin position of telemetry records */
     uint64_t last_cmd_us;
+    uint64_t start_us; /* commands (re)started flowing */
     dan_gw_node_esc_t slot[DAN_GW_NODE_ESC_SLOTS];
 } dan_gw_node_escs_t;
 
@@ -146,8 +192,45 @@ typedef struct {
     uint64_t info_due_us;
     uint8_t info_tries;
     uint8_t info_tid; /* our GetNodeInfo transfer ID to this node */
+    bool duplicate;   /* two nodes share this ID (until it goes offline) */
+    bool had_uid;     /* prev_uid holds an earlier unique ID */
+    uint8_t drops;    /* uptime decreases in the current window */
+    uint64_t drops_since_us;
+    uint8_t prev_uid[DAN_DC_UNIQUE_ID_SIZE];
     dan_gw_node_info_t info;
 } dan_gw_node_slot_t;
+
+/* The dynamic node ID allocation server (gw_node_dna.c). */
+typedef struct {
+    uint8_t flags;       /* DAN_GW_DNA_LOADED | DAN_GW_DNA_STORE_ERROR */
+    bool dirty;          /* the table changed: store it */
+    bool full;           /* the last request found no free entry */
+    uint8_t n;           /* entries in use */
+    uint8_t foreign;     /* the other allocator last seen (0: none) */
+    uint64_t foreign_us; /* ... when (HEALTH reports it for a minute) */
+    dan_gw_dna_entry_t table[DAN_GW_NODE_DNA_MAX];
+    uint8_t query[DAN_DC_UNIQUE_ID_SIZE]; /* the allocation in progress */
+    uint8_t query_len;
+    uint64_t query_us;
+} dan_gw_node_dna_t;
+
+/* One service call (gw_node_call.c). */
+typedef struct {
+    uint8_t state; /* DAN_GW_CALL_*, or DAN_GW_NODE_CALL_FREE */
+    uint8_t op;    /* DAN_GW_CALL_* op */
+    uint8_t node_id;
+    uint8_t attempts;
+    uint8_t tids[DAN_GW_NODE_CALL_ATTEMPTS];
+    uint16_t call_id;
+    uint16_t digest;  /* of the NODE_CALL request (retry check) */
+    uint64_t due_us;  /* this attempt times out */
+    uint64_t done_us; /* finished at (the oldest makes room) */
+    uint16_t req_len; /* the DroneCAN request, for re-sends */
+    uint16_t result_len;
+    uint8_t req[DAN_DC_PARAM_GETSET_REQ_MAX_SIZE];
+    uint8_t result[DAN_GW_PARAM_RESULT_MAX];
+} dan_gw_node_call_t;
+#define DAN_GW_NODE_CALL_FREE 0xFFu
 
 /* One tunnel port (gw_node_tunnel.c). */
 typedef struct {
@@ -171,7 +254,8 @@ typedef struct {
     uint8_t send_seq;     /* last CAN_SEND seq accepted */
     uint8_t send_accepted;
     dan_can_frame_t ring[DAN_GW_NODE_RAW_RX];
-    uint32_t first; /* sequence number of ring[head] */
+    uint32_t ring_us[DAN_GW_NODE_RAW_RX]; /* receive time, low 32 bits */
+    uint32_t first;                       /* sequence number of ring[head] */
     uint16_t head, len;
 } dan_gw_node_raw_t;
 
@@ -191,12 +275,16 @@ typedef struct {
     dan_gw_node_slot_t nodes[DAN_GW_NODE_MAX_NODES];
     dan_gw_node_tun_t tun[DAN_GW_NODE_TUNNELS];
     dan_gw_node_raw_t raw;
+    dan_gw_node_dna_t dna;
+    dan_gw_node_call_t calls[DAN_GW_NODE_CALLS];
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
         dan_dc_get_node_info_rsp_t info;
         dan_dc_tunnel_targetted_t targetted;
         dan_dc_tunnel_broadcast_t bcast;
+        dan_dc_param_getset_req_t getset_req;
+        dan_dc_param_getset_rsp_t getset_rsp;
     } scratch;
     uint8_t scratch_buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
 } dan_gw_node_t;
@@ -218,8 +306,12 @@ void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us);
 /* Next frame to send (urgent queue first); false if none. */
 bool dan_gw_node_tx_peek(const dan_gw_node_t *g, dan_can_frame_t *f);
-/* Removes the frame dan_gw_node_tx_peek() returned. */
+/* Removes the frame dan_gw_node_tx_peek() returned (not sent: dropped). */
 void dan_gw_node_tx_pop(dan_gw_node_t *g);
+/* The frame dan_gw_node_tx_peek() returned left on the bus: removes it and
+ * keeps a copy in the raw capture (DAN_CAN_OWN) when a filter asks for the
+ * gateway's own frames. */
+void dan_gw_node_tx_sent(dan_gw_node_t *g, uint64_t now_us);
 /* Frames waiting. */
 size_t dan_gw_node_tx_pending(const dan_gw_node_t *g);
 
@@ -235,6 +327,11 @@ uint8_t dan_gw_node_flags(const dan_gw_node_t *g);
 /* Settings that DAN CONFIG can change too (range-checked: DAN_ERR_ARG). */
 int dan_gw_node_set_esc_timeout(dan_gw_node_t *g, uint32_t ms);
 int dan_gw_node_set_arming_rate(dan_gw_node_t *g, uint32_t hz, uint64_t now_us);
+int dan_gw_node_set_telem_timeout(dan_gw_node_t *g, uint32_t ms);
+/* Turns the allocation server on or off. */
+void dan_gw_node_set_dna(dan_gw_node_t *g, bool on);
+/* The health verdict now (docs/PROTOCOL.md, HEALTH). */
+void dan_gw_node_health(dan_gw_node_t *g, dan_gw_health_t *h, uint64_t now_us);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,137 @@
+/* CAN-over-DAN gateway client: bus management (service calls, health,
+ * allocation table). See dan/can_gw/client.h. */
+#include <string.h>
+
+#include "gw_client_internal.h"
+
+int dan_gw_node_call(dan_gw_t *gw, const dan_gw_call_t *c, uint64_t now_us)
+{
+    uint8_t buf[DAN_MAX_PAYLOAD];
+    if (!dan_gwc_idle(gw)) {
+        return DAN_ERR_BUSY;
+    }
+    return dan_gwc_start(gw, DAN_GW_CODE_NODE_CALL, buf, dan_gw_msg_call_encode(c, buf, sizeof buf),
+                         now_us);
+}
+
+static void call_init(dan_gw_call_t *c, uint16_t call_id, uint8_t node_id, uint8_t op)
+{
+    memset(c, 0, sizeof *c);
+    c->call_id = call_id;
+    c->node_id = node_id;
+    c->op = op;
+}
+
+static void call_name(dan_gw_call_t *c, const char *name)
+{
+    size_t n = name != NULL ? strlen(name) : 0u;
+    c->name = name;
+    c->name_len = (uint8_t)(n > DAN_GW_PARAM_NAME_MAX ? DAN_GW_PARAM_NAME_MAX + 1u : n);
+}
+
+int dan_gw_param_get_index(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint16_t index,
+                           uint64_t now_us)
+{
+    dan_gw_call_t c;
+    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_GET_INDEX);
+    c.index = index;
+    return dan_gw_node_call(gw, &c, now_us);
+}
+
+int dan_gw_param_get(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
+                     uint64_t now_us)
+{
+    dan_gw_call_t c;
+    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_GET_NAME);
+    call_name(&c, name);
+    return dan_gw_node_call(gw, &c, now_us);
+}
+
+int dan_gw_param_set(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
+                     const dan_gw_value_t *value, uint64_t now_us)
+{
+    dan_gw_call_t c;
+    if (value == NULL) {
+        return DAN_ERR_ARG;
+    }
+    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_SET);
+    call_name(&c, name);
+    c.value = *value;
+    return dan_gw_node_call(gw, &c, now_us);
+}
+
+int dan_gw_param_save(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t now_us)
+{
+    dan_gw_call_t c;
+    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_SAVE);
+    return dan_gw_node_call(gw, &c, now_us);
+}
+
+int dan_gw_restart(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t magic, bool force,
+                   uint64_t now_us)
+{
+    dan_gw_call_t c;
+    call_init(&c, call_id, node_id, DAN_GW_CALL_RESTART);
+    c.magic = magic;
+    c.force = force ? 1u : 0u;
+    return dan_gw_node_call(gw, &c, now_us);
+}
+
+int dan_gw_call_result(dan_gw_t *gw, uint16_t call_id, uint32_t offset, uint8_t max,
+                       uint64_t now_us)
+{
+    uint8_t buf[DAN_GW_RESULT_REQ_MAX];
+    dan_gw_result_t q;
+    if (!dan_gwc_idle(gw)) {
+        return DAN_ERR_BUSY;
+    }
+    memset(&q, 0, sizeof q);
+    q.call_id = call_id;
+    q.offset = offset;
+    q.max = max;
+    return dan_gwc_start(gw, DAN_GW_CODE_CALL_RESULT, buf,
+                         dan_gw_msg_result_req_encode(&q, buf, sizeof buf), now_us);
+}
+
+int dan_gw_call_result_get(const dan_gw_t *gw, dan_gw_result_t *res)
+{
+    dan_reader_t r;
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_CALL_RESULT, &r);
+    return rc != DAN_OK ? rc : dan_gw_msg_result_rsp_decode(res, r.data, r.len);
+}
+
+int dan_gw_health(dan_gw_t *gw, uint64_t now_us)
+{
+    if (!dan_gwc_idle(gw)) {
+        return DAN_ERR_BUSY;
+    }
+    return dan_gwc_start(gw, DAN_GW_CODE_HEALTH, NULL, 0, now_us);
+}
+
+int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
+{
+    if (!dan_gwc_idle(gw)) {
+        return DAN_ERR_BUSY;
+    }
+    return dan_gwc_start(gw, DAN_GW_CODE_DNA, &first, 1, now_us);
+}
+
+int dan_gw_dna_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_dna_hdr_t *hdr)
+{
+    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_DNA, r);
+    return rc != DAN_OK ? rc : dan_gw_msg_dna_hdr_get(r, hdr);
+}
+
+int dan_gw_dna_next(dan_reader_t *r, dan_gw_dna_entry_t *e)
+{
+    return dan_gw_msg_dna_entry_get(r, e);
+}
+
+int dan_gwc_complete_mgmt(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
+{
+    switch (code) {
+    case DAN_GW_CODE_NODE_CALL: return dan_gw_msg_call_state_decode(&gw->call, p, len);
+    case DAN_GW_CODE_HEALTH: return dan_gw_msg_health_decode(&gw->health, p, len);
+    default: return DAN_OK; /* NODES, NODE_INFO, CAN_FILTER, CALL_RESULT, DNA: read on demand */
+    }
+}

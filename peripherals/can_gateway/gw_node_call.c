@@ -1,0 +1,320 @@
+/* Gateway node: DroneCAN service calls made for the FC (NODE_CALL,
+ * CALL_RESULT): parameters, ExecuteOpcode, RestartNode. Transfer IDs,
+ * response matching, timeouts and retries are kept here; several calls may
+ * be in flight at once, to one node or to several. */
+#include <string.h>
+
+#include "gw_node_internal.h"
+
+typedef struct {
+    uint16_t dtid;
+    uint64_t signature;
+    uint8_t priority;
+} service_t;
+
+static service_t service_of(uint8_t op)
+{
+    service_t s = {DAN_DC_PARAM_GETSET_ID, DAN_DC_PARAM_GETSET_SIGNATURE, DAN_DC_PRIORITY_LOW};
+    if (op == DAN_GW_CALL_PARAM_SAVE || op == DAN_GW_CALL_PARAM_ERASE) {
+        s.dtid = DAN_DC_PARAM_OPCODE_ID;
+        s.signature = DAN_DC_PARAM_OPCODE_SIGNATURE;
+    } else if (op == DAN_GW_CALL_RESTART) {
+        s.dtid = DAN_DC_RESTART_ID;
+        s.signature = DAN_DC_RESTART_SIGNATURE;
+        s.priority = DAN_DC_PRIORITY_MEDIUM;
+    }
+    return s;
+}
+
+static void value_to_dc(dan_dc_param_value_t *d, const dan_gw_value_t *v)
+{
+    memset(d, 0, sizeof *d);
+    d->tag = v->tag;
+    d->boolean = v->boolean;
+    d->integer = v->integer;
+    d->real = v->real;
+    d->string_len = v->string_len;
+    memcpy(d->string, v->string, v->string_len);
+}
+
+static void value_from_dc(dan_gw_value_t *v, const dan_dc_param_value_t *d)
+{
+    memset(v, 0, sizeof *v);
+    v->tag = d->tag;
+    v->boolean = d->boolean;
+    v->integer = d->integer;
+    v->real = d->real;
+    v->string_len = d->string_len;
+    memcpy(v->string, d->string, d->string_len);
+}
+
+/* The DroneCAN request of a call, into k->req. */
+static int build_request(dan_gw_node_t *g, dan_gw_node_call_t *k, const dan_gw_call_t *c)
+{
+    dan_dc_param_getset_req_t *q = &g->scratch.getset_req;
+    dan_dc_param_opcode_t op;
+    int n;
+    switch (c->op) {
+    case DAN_GW_CALL_PARAM_SAVE:
+    case DAN_GW_CALL_PARAM_ERASE:
+        memset(&op, 0, sizeof op);
+        op.opcode = (uint8_t)(c->op == DAN_GW_CALL_PARAM_SAVE ? DAN_DC_PARAM_OPCODE_SAVE
+                                                              : DAN_DC_PARAM_OPCODE_ERASE);
+        n = dan_dc_param_opcode_req_encode(&op, k->req, sizeof k->req);
+        break;
+    case DAN_GW_CALL_RESTART: n = dan_dc_restart_req_encode(c->magic, k->req, sizeof k->req); break;
+    default:
+        memset(q, 0, sizeof *q);
+        if (c->op == DAN_GW_CALL_PARAM_GET_INDEX) {
+            q->index = c->index;
+        } else {
+            memcpy(q->name, c->name, c->name_len);
+            q->name_len = c->name_len;
+        }
+        if (c->op == DAN_GW_CALL_PARAM_SET) {
+            value_to_dc(&q->value, &c->value);
+        }
+        n = dan_dc_param_getset_req_encode(q, k->req, sizeof k->req);
+        break;
+    }
+    if (n < 0) {
+        return n;
+    }
+    k->req_len = (uint16_t)n;
+    return DAN_OK;
+}
+
+/* One attempt: the request again with a new transfer ID. */
+static void send_attempt(dan_gw_node_t *g, dan_gw_node_call_t *k, uint64_t now_us)
+{
+    service_t s = service_of(k->op);
+    dan_dc_transfer_t t;
+    int tid = dan_dc_tid_next(&g->tids, s.dtid, DAN_DC_TRANSFER_REQUEST, k->node_id);
+    k->due_us = now_us + DAN_GW_NODE_CALL_TIMEOUT_US;
+    if (tid < 0) {
+        return; /* no transfer ID: the attempt times out like a lost one */
+    }
+    dan_dc_transfer_init(&t, s.dtid, s.signature, DAN_DC_TRANSFER_REQUEST, k->req, k->req_len);
+    t.priority = s.priority;
+    t.destination_node = k->node_id;
+    t.transfer_id = (uint8_t)tid;
+    k->tids[k->attempts++] = (uint8_t)tid;
+    (void)dan_gwn_send_transfer(g, &g->q_bulk, &t);
+}
+
+dan_gw_node_call_t *dan_gwn_call_find(dan_gw_node_t *g, uint16_t call_id)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        if (g->calls[i].state != DAN_GW_NODE_CALL_FREE && g->calls[i].call_id == call_id) {
+            return &g->calls[i];
+        }
+    }
+    return NULL;
+}
+
+/* A free slot, else the one finished longest ago; NULL while all are in
+ * flight. */
+static dan_gw_node_call_t *slot_for_new(dan_gw_node_t *g)
+{
+    dan_gw_node_call_t *best = NULL;
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        dan_gw_node_call_t *k = &g->calls[i];
+        if (k->state == DAN_GW_NODE_CALL_FREE) {
+            return k;
+        }
+        if (k->state != DAN_GW_CALL_PENDING && (best == NULL || k->done_us < best->done_us)) {
+            best = k;
+        }
+    }
+    return best;
+}
+
+static void state_of(const dan_gw_node_call_t *k, uint16_t call_id, dan_gw_call_state_t *st)
+{
+    st->call_id = call_id;
+    st->state = k != NULL ? k->state : DAN_GW_CALL_BUSY;
+    st->result_len = k != NULL && k->state == DAN_GW_CALL_DONE ? k->result_len : 0u;
+}
+
+int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest,
+                       dan_gw_call_state_t *st, uint64_t now_us)
+{
+    dan_gw_node_call_t *k = dan_gwn_call_find(g, c->call_id);
+    int rc;
+    if (c->op == DAN_GW_CALL_RESTART && c->magic != DAN_DC_RESTART_MAGIC && !c->force) {
+        return DAN_ERR_UNSUPPORTED; /* a bootloader's magic is sent only when forced */
+    }
+    if (k != NULL && k->digest == digest) {
+        state_of(k, c->call_id, st); /* the master's retry: never sent twice */
+        return DAN_OK;
+    }
+    if (k == NULL) {
+        k = slot_for_new(g);
+    }
+    if (k == NULL) {
+        state_of(NULL, c->call_id, st);
+        return DAN_OK;
+    }
+    memset(k, 0, offsetof(dan_gw_node_call_t, req));
+    rc = build_request(g, k, c);
+    if (rc < 0) {
+        k->state = DAN_GW_NODE_CALL_FREE;
+        return rc;
+    }
+    k->call_id = c->call_id;
+    k->digest = digest;
+    k->op = c->op;
+    k->node_id = c->node_id;
+    k->state = DAN_GW_CALL_PENDING;
+    g->stats.calls++;
+    send_attempt(g, k, now_us);
+    state_of(k, c->call_id, st);
+    return DAN_OK;
+}
+
+/* ---- responses ---- */
+
+static bool tid_of_call(const dan_gw_node_call_t *k, uint8_t tid)
+{
+    size_t i;
+    for (i = 0; i < k->attempts; i++) {
+        if (k->tids[i] == tid) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* The GetSet answer as the DAN result: present, value, default, max, min,
+ * name (dan/can_gw/msgs_mgmt.h). */
+static int param_result(dan_gw_node_t *g, dan_gw_node_call_t *k, const uint8_t *p, size_t len)
+{
+    dan_dc_param_getset_rsp_t *r = &g->scratch.getset_rsp;
+    const dan_dc_param_value_t *opt[3];
+    dan_gw_value_t v;
+    dan_writer_t w;
+    uint8_t present = 0;
+    size_t i;
+    int n;
+    if (dan_dc_param_getset_rsp_decode(r, p, len) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
+    }
+    opt[0] = &r->default_value;
+    opt[1] = &r->max_value;
+    opt[2] = &r->min_value;
+    for (i = 0; i < 3u; i++) {
+        present = (uint8_t)(present | (opt[i]->tag != DAN_DC_PARAM_EMPTY ? 1u << i : 0u));
+    }
+    dan_writer_init(&w, k->result, sizeof k->result);
+    dan_put_u8(&w, present);
+    value_from_dc(&v, &r->value);
+    dan_gw_msg_value_put(&w, &v);
+    for (i = 0; i < 3u; i++) {
+        if (opt[i]->tag != DAN_DC_PARAM_EMPTY) {
+            value_from_dc(&v, opt[i]);
+            dan_gw_msg_value_put(&w, &v);
+        }
+    }
+    dan_put_array(&w, r->name, r->name_len);
+    n = dan_writer_finish(&w);
+    if (n < 0) {
+        return n;
+    }
+    k->result_len = (uint16_t)n;
+    return DAN_OK;
+}
+
+static int opcode_result(dan_gw_node_call_t *k, const uint8_t *p, size_t len)
+{
+    dan_dc_param_opcode_t m;
+    dan_gw_opcode_result_t r;
+    int n;
+    if (dan_dc_param_opcode_rsp_decode(&m, p, len) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
+    }
+    r.ok = m.ok ? 1u : 0u;
+    r.argument = m.argument;
+    n = dan_gw_msg_opcode_result_encode(&r, k->result, sizeof k->result);
+    if (n < 0) {
+        return n;
+    }
+    k->result_len = (uint16_t)n;
+    return DAN_OK;
+}
+
+static int restart_result(dan_gw_node_call_t *k, const uint8_t *p, size_t len)
+{
+    bool ok;
+    if (dan_dc_restart_rsp_decode(&ok, p, len) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
+    }
+    k->result[0] = ok ? 1u : 0u;
+    k->result_len = 1;
+    return DAN_OK;
+}
+
+void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
+{
+    size_t i;
+    int rc;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        dan_gw_node_call_t *k = &g->calls[i];
+        if (k->state != DAN_GW_CALL_PENDING || k->node_id != t->source_node ||
+            service_of(k->op).dtid != t->data_type_id || !tid_of_call(k, t->transfer_id)) {
+            continue;
+        }
+        if (k->op == DAN_GW_CALL_RESTART) {
+            rc = restart_result(k, t->payload, t->payload_len);
+        } else if (k->op == DAN_GW_CALL_PARAM_SAVE || k->op == DAN_GW_CALL_PARAM_ERASE) {
+            rc = opcode_result(k, t->payload, t->payload_len);
+        } else {
+            rc = param_result(g, k, t->payload, t->payload_len);
+        }
+        if (rc == DAN_OK) { /* a malformed answer is ignored: the attempt times out */
+            k->state = DAN_GW_CALL_DONE;
+            k->done_us = now_us;
+        }
+        return;
+    }
+}
+
+/* ---- timers ---- */
+
+void dan_gwn_calls_poll(dan_gw_node_t *g, uint64_t now_us)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        dan_gw_node_call_t *k = &g->calls[i];
+        if (k->state != DAN_GW_CALL_PENDING || now_us < k->due_us) {
+            continue;
+        }
+        if (k->attempts < DAN_GW_NODE_CALL_ATTEMPTS) {
+            send_attempt(g, k, now_us);
+        } else {
+            k->state = DAN_GW_CALL_TIMEOUT;
+            k->done_us = now_us;
+            g->stats.call_timeouts++;
+        }
+    }
+}
+
+uint64_t dan_gwn_calls_next_us(const dan_gw_node_t *g, uint64_t t)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        if (g->calls[i].state == DAN_GW_CALL_PENDING && g->calls[i].due_us < t) {
+            t = g->calls[i].due_us;
+        }
+    }
+    return t;
+}
+
+void dan_gwn_calls_init(dan_gw_node_t *g)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        g->calls[i].state = DAN_GW_NODE_CALL_FREE;
+    }
+}

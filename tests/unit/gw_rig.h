@@ -1,0 +1,59 @@
+/* The gateway rig of the unit tests: master + client and the gateway node
+ * + peripheral engine on the simulated DAN wire, a DroneCAN listener on the
+ * CAN side capturing what the node sends, and fake nodes' transfers. */
+#ifndef GW_RIG_H
+#define GW_RIG_H
+
+#include "dan/can_gw/client.h"
+#include "dan/can_gw/node.h"
+#include "simbus.h"
+
+#define LISTEN_NODE 42u
+#define MAX_CAP     512
+
+typedef struct {
+    uint16_t dtid;
+    uint8_t ttype, src, dst, tid;
+    uint8_t payload[DAN_DC_MAX_TRANSFER];
+    size_t len;
+    uint64_t at_us;
+} cap_t;
+
+typedef struct {
+    simbus_t bus;
+    dan_master_t m;
+    dan_periph_t p;
+    sim_node_t *nm, *np;
+    dan_gw_t gw;
+    dan_gw_node_t g;
+    dan_ptype_t pt;
+    dan_dc_rx_t lis;         /* a DroneCAN listener on the far side */
+    dan_dc_tid_table_t tids; /* for fake nodes' transfers */
+    cap_t cap[MAX_CAP];
+    size_t ncap;
+    size_t nframes;
+} rig_t;
+
+extern rig_t *R;
+
+/* Runs the wire, the node's timers and the CAN drain for us microseconds. */
+void advance(uint64_t us);
+/* Sends what the node queued to the listener (captured in R->cap). */
+void drain(void);
+/* Starts a hand-built request, sealed as the client would. */
+int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
+/* Completes the client's transaction in flight. */
+int finish(void);
+/* The payload of the master's request in flight, to send it again. */
+size_t last_req(uint8_t *out);
+/* The next captured transfer of a type from index *from on. */
+cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from);
+/* A transfer from fake node src into the gateway. */
+void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
+            const uint8_t *payload, int len);
+/* An esc.Status from fake node src. */
+void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm);
+int setup(void **state);
+int teardown(void **state);
+
+#endif /* GW_RIG_H */
