@@ -22,16 +22,16 @@ extern "C" {
 #define DAN_DC_ARRAY_COMMAND_SIGNATURE 0xD8A7486238EC3AF3ull
 #define DAN_DC_ARRAY_COMMAND_MAX       15u /* commands per message */
 #define DAN_DC_ARRAY_COMMAND_MAX_SIZE  60u
-#define DAN_DC_ACTUATOR_UNITLESS       0u  /* [-1, 1] */
-#define DAN_DC_ACTUATOR_POSITION       1u  /* m or rad */
-#define DAN_DC_ACTUATOR_FORCE          2u  /* N or N m */
-#define DAN_DC_ACTUATOR_SPEED          3u  /* m/s or rad/s */
-#define DAN_DC_ACTUATOR_PWM            4u  /* microseconds */
+#define DAN_DC_ACTUATOR_UNITLESS       0u /* [-1, 1] */
+#define DAN_DC_ACTUATOR_POSITION       1u /* m or rad */
+#define DAN_DC_ACTUATOR_FORCE          2u /* N or N m */
+#define DAN_DC_ACTUATOR_SPEED          3u /* m/s or rad/s */
+#define DAN_DC_ACTUATOR_PWM            4u /* microseconds */
 
 typedef struct {
     uint8_t actuator_id;
-    uint8_t command_type;   /* DAN_DC_ACTUATOR_* */
-    uint16_t value_f16;     /* the float16 bits */
+    uint8_t command_type; /* DAN_DC_ACTUATOR_* */
+    uint16_t value_f16;   /* the float16 bits */
 } dan_dc_actuator_cmd_t;
 
 typedef struct {
@@ -52,7 +52,7 @@ int dan_dc_array_command_decode(dan_dc_array_command_t *m, const uint8_t *buf, s
 
 typedef struct {
     uint8_t light_id;
-    uint16_t rgb565;        /* red << 11 | green << 5 | blue */
+    uint16_t rgb565; /* red << 11 | green << 5 | blue */
 } dan_dc_light_t;
 
 typedef struct {
