@@ -67,8 +67,7 @@ int dan_gw_msg_servo_fs_encode(const dan_gw_servo_fs_t *s, size_t n, uint8_t *ou
             return DAN_ERR_ARG;
         }
         dan_put_u8(&w, s[i].value.actuator_id);
-        dan_put_u8(&w, s[i].mode);
-        dan_put_u8(&w, s[i].value.command_type);
+        dan_put_u8(&w, (uint8_t)(s[i].value.command_type | (s[i].mode << 7)));
         dan_put_u16(&w, s[i].value.value_f16);
     }
     return dan_writer_finish(&w);
@@ -84,11 +83,13 @@ int dan_gw_msg_servo_fs_decode(dan_gw_servo_fs_t *s, size_t *n, const uint8_t *p
         return DAN_ERR_MALFORMED;
     }
     for (i = 0; i < *n; i++) {
+        uint8_t kind;
         s[i].value.actuator_id = dan_get_u8(&r);
-        s[i].mode = dan_get_u8(&r);
-        s[i].value.command_type = dan_get_u8(&r);
+        kind = dan_get_u8(&r);
         s[i].value.value_f16 = dan_get_u16(&r);
-        if (s[i].mode > DAN_GW_SERVO_VALUE || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
+        s[i].mode = (uint8_t)(kind >> 7);
+        s[i].value.command_type = kind & 0x0Fu;
+        if ((kind & 0x70u) != 0u || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
             return DAN_ERR_MALFORMED;
         }
     }

@@ -191,8 +191,8 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(DNA_FOREIGN, dna_foreign)         /* Allocation messages of another allocator */    \
     X(DUPLICATES, duplicates)           /* nodes flagged as sharing an ID */              \
     X(CALLS, calls)                     /* service calls started */                       \
-    X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */ \
-    X(SERVO_CMDS, servo_cmds)           /* SERVO requests */                                     \
+    X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */                \
+    X(SERVO_CMDS, servo_cmds)           /* SERVO requests */                              \
     X(SERVO_DROPPED, servo_dropped)     /* actuators beyond the node's table */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
@@ -278,7 +278,7 @@ int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t 
 #define DAN_GW_TUN_TARGETTED 1u
 #define DAN_GW_TUN_BROADCAST 2u
 
-#define DAN_GW_TUN_DEFAULT_SERIAL (-1) /* Targetted serial_id: the node's default */
+#define DAN_GW_TUN_DEFAULT_SERIAL (-1)  /* Targetted serial_id: the node's default */
 #define DAN_GW_TUN_ANY_CHANNEL    0x01u /* Broadcast option: replies on any channel */
 
 typedef struct {

@@ -43,9 +43,11 @@ int dan_gw_msg_servo_encode(const dan_gw_servo_t *s, size_t n, uint8_t *out, siz
 int dan_gw_msg_servo_decode(dan_gw_servo_t *s, size_t *n, const uint8_t *p, size_t len);
 
 /* ---- SERVO_FAILSAFE (0x56) ----
- * Request: u8 n (0..DAN_GW_SERVO_MAX), n x (u8 actuator_id, u8 mode
- * (DAN_GW_SERVO_HOLD / DAN_GW_SERVO_VALUE), u8 command_type, u16 value).
- * Replaces the table; an actuator not in it holds. Response: u8 n kept. */
+ * Request: u8 n (0..DAN_GW_SERVO_MAX), n x (u8 actuator_id, u8 kind, u16
+ * value (binary16 bits)); kind bits 0-3 command_type (0..4), bit 7 mode
+ * (0 DAN_GW_SERVO_HOLD, 1 DAN_GW_SERVO_VALUE), bits 4-6 zero.
+ * Replaces the table; an actuator not in it holds. Response: u8 n kept
+ * (entries beyond DAN_GW_NODE_SERVOS distinct actuators are not). */
 #define DAN_GW_SERVO_HOLD  0u /* keep sending the last command */
 #define DAN_GW_SERVO_VALUE 1u /* send this value instead */
 
@@ -74,8 +76,9 @@ int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, siz
  * Request: uv frequency_hz (1..65504), uv duration_ms (0..65504000).
  * The gateway sends BeepCommand with float16 Hz and seconds. Response: u8
  * gw_flags. */
-#define DAN_GW_BEEP_HZ_MAX 65504u
-#define DAN_GW_BEEP_MS_MAX 65504000u
+#define DAN_GW_BEEP_HZ_MAX  65504u
+#define DAN_GW_BEEP_MS_MAX  65504000u
+#define DAN_GW_BEEP_REQ_MAX 10u /* two 5-byte uvarints */
 
 typedef struct {
     uint32_t frequency_hz;
