@@ -129,8 +129,7 @@ def main():
                 except dronecan.transport.TransferError:
                     pass
     finally:
-        for e in escs:
-            e.node.close()
+        pydronecan_nodes.close_nodes([e.node for e in escs])
         if log:
             log.close()
     return 0

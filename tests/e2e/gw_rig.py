@@ -97,8 +97,7 @@ class Rig:
         self.stop.set()
         for t in self.threads:
             t.join(5)
-        for n in self.nodes:
-            n.close()
+        pydronecan_nodes.close_nodes(self.nodes)
 
 
 class TunnelFarEnd:
