@@ -7,7 +7,6 @@
 
 #define BLOB_MAGIC     "DNA1"
 #define BLOB_MAGIC_LEN 4u
-#define BLOB_MAX       (BLOB_MAGIC_LEN + 1u + DAN_GW_NODE_DNA_MAX * DAN_GW_DNA_ENTRY_SIZE + 2u)
 #define UID_STAGES_LEN 12u /* bytes of unique ID after two stages of 6 */
 
 static dan_gw_dna_entry_t *entry_of_uid(dan_gw_node_t *g, const uint8_t *uid)
@@ -51,26 +50,79 @@ static size_t blob_make(const dan_gw_node_t *g, uint8_t *b)
     return len;
 }
 
+static const char *const blob_errors[] = {
+    "ok",
+    "shorter than an empty table",
+    "wrong magic (not a DNA1 table)",
+    "more entries than the table holds",
+    "length does not match the entry count",
+    "CRC mismatch",
+    "node ID out of range 1..125",
+    "a node ID or unique ID appears twice",
+};
+
+const char *dan_gw_dna_blob_error(int r)
+{
+    return r >= 0 && (size_t)r < sizeof blob_errors / sizeof blob_errors[0] ? blob_errors[r]
+                                                                            : "unknown";
+}
+
+static const uint8_t *blob_entry(const uint8_t *b, size_t i)
+{
+    return &b[BLOB_MAGIC_LEN + 1u + i * DAN_GW_DNA_ENTRY_SIZE];
+}
+
+/* Entries: IDs in range, no node ID and no unique ID twice. */
+static int blob_entries_check(const uint8_t *b, size_t n)
+{
+    size_t i, j;
+    for (i = 0; i < n; i++) {
+        const uint8_t *e = blob_entry(b, i);
+        if (e[0] < 1u || e[0] > DAN_DC_ALLOCATION_MAX_NODE_ID) {
+            return DAN_GW_DNA_BLOB_NODE_ID;
+        }
+        for (j = 0; j < i; j++) {
+            const uint8_t *f = blob_entry(b, j);
+            if (f[0] == e[0] || memcmp(f + 1, e + 1, DAN_DC_UNIQUE_ID_SIZE) == 0) {
+                return DAN_GW_DNA_BLOB_TWICE;
+            }
+        }
+    }
+    return DAN_GW_DNA_BLOB_OK;
+}
+
+int dan_gw_dna_blob_check(const uint8_t *b, size_t len)
+{
+    size_t n;
+    if (len < BLOB_MAGIC_LEN + 3u) {
+        return DAN_GW_DNA_BLOB_SHORT;
+    }
+    if (memcmp(b, BLOB_MAGIC, BLOB_MAGIC_LEN) != 0) {
+        return DAN_GW_DNA_BLOB_MAGIC;
+    }
+    n = b[BLOB_MAGIC_LEN];
+    if (n > DAN_GW_NODE_DNA_MAX) {
+        return DAN_GW_DNA_BLOB_COUNT;
+    }
+    if (len != BLOB_MAGIC_LEN + 1u + n * DAN_GW_DNA_ENTRY_SIZE + 2u) {
+        return DAN_GW_DNA_BLOB_LENGTH;
+    }
+    if (dan_crc16_ccitt(0xFFFFu, b, len - 2u) != (uint16_t)(b[len - 2u] | b[len - 1u] << 8)) {
+        return DAN_GW_DNA_BLOB_CRC;
+    }
+    return blob_entries_check(b, n);
+}
+
 /* Takes a stored table only if every byte of it checks. */
 static bool blob_take(dan_gw_node_t *g, const uint8_t *b, size_t len)
 {
     size_t i, n;
-    if (len < BLOB_MAGIC_LEN + 3u || memcmp(b, BLOB_MAGIC, BLOB_MAGIC_LEN) != 0) {
+    if (dan_gw_dna_blob_check(b, len) != DAN_GW_DNA_BLOB_OK) {
         return false;
     }
     n = b[BLOB_MAGIC_LEN];
-    if (n > DAN_GW_NODE_DNA_MAX || len != BLOB_MAGIC_LEN + 1u + n * DAN_GW_DNA_ENTRY_SIZE + 2u ||
-        dan_crc16_ccitt(0xFFFFu, b, len - 2u) != (uint16_t)(b[len - 2u] | b[len - 1u] << 8)) {
-        return false;
-    }
     for (i = 0; i < n; i++) {
-        const uint8_t *e = &b[BLOB_MAGIC_LEN + 1u + i * DAN_GW_DNA_ENTRY_SIZE];
-        if (e[0] < 1u || e[0] > DAN_DC_ALLOCATION_MAX_NODE_ID) {
-            return false;
-        }
-    }
-    for (i = 0; i < n; i++) {
-        const uint8_t *e = &b[BLOB_MAGIC_LEN + 1u + i * DAN_GW_DNA_ENTRY_SIZE];
+        const uint8_t *e = blob_entry(b, i);
         g->dna.table[i].node_id = e[0];
         memcpy(g->dna.table[i].unique_id, e + 1, DAN_DC_UNIQUE_ID_SIZE);
     }
@@ -81,7 +133,7 @@ static bool blob_take(dan_gw_node_t *g, const uint8_t *b, size_t len)
 void dan_gwn_dna_load(dan_gw_node_t *g)
 {
     const dan_gw_storage_t *st = g->cfg.dna_storage;
-    uint8_t b[BLOB_MAX];
+    uint8_t b[DAN_GW_DNA_BLOB_MAX];
     int len;
     if (st == NULL || st->load == NULL) {
         return;
@@ -97,7 +149,7 @@ void dan_gwn_dna_load(dan_gw_node_t *g)
 static void store(dan_gw_node_t *g)
 {
     const dan_gw_storage_t *st = g->cfg.dna_storage;
-    uint8_t b[BLOB_MAX];
+    uint8_t b[DAN_GW_DNA_BLOB_MAX];
     g->dna.dirty = false;
     if (st == NULL || st->store == NULL) {
         return;
@@ -117,10 +169,16 @@ static bool occupied(dan_gw_node_t *g, unsigned id)
 }
 
 /* The specification's findFreeNodeID: up from the preferred ID, then down;
- * without a preference, the highest free one. 0 if none. */
+ * without a preference, the highest free one. 0 if none. A preference of
+ * 126 or 127 (reserved for maintenance tools, never allocated) counts as
+ * 125: the pseudocode's downward search would start at it and grant it
+ * (found by the dna fuzz target). */
 static uint8_t free_id(dan_gw_node_t *g, uint8_t preferred)
 {
-    unsigned start = preferred > 0u ? preferred : DAN_DC_ALLOCATION_MAX_NODE_ID, id;
+    unsigned start = DAN_DC_ALLOCATION_MAX_NODE_ID, id;
+    if (preferred > 0u && preferred < start) {
+        start = preferred;
+    }
     for (id = start; id <= DAN_DC_ALLOCATION_MAX_NODE_ID; id++) {
         if (!occupied(g, id)) {
             return (uint8_t)id;
@@ -149,22 +207,36 @@ static void answer(dan_gw_node_t *g, uint8_t node_id)
                             dan_dc_allocation_encode(&m, buf, sizeof buf));
 }
 
-/* All 16 bytes arrived: the same ID again for a known unique ID, else a
- * free one, stored. */
+/* The ID the table holds for a unique ID is given again unless it became
+ * the gateway's own (its node ID changed) or another device uses it now:
+ * a node of the node table whose GetNodeInfo gave another unique ID
+ * (found by the dna fuzz target: the same ID went to two devices). */
+static bool entry_usable(dan_gw_node_t *g, const dan_gw_dna_entry_t *e)
+{
+    const dan_gw_node_slot_t *n = dan_gwn_find_node(g, e->node_id);
+    return e->node_id != g->cfg.node_id &&
+           (n == NULL || n->info.info_state != DAN_GW_INFO_VALID ||
+            memcmp(n->info.unique_id, e->unique_id, DAN_DC_UNIQUE_ID_SIZE) == 0);
+}
+
+/* All 16 bytes arrived: the same ID again for a known unique ID (while
+ * usable), else a free one, stored. */
 static void allocate(dan_gw_node_t *g, uint8_t preferred)
 {
     dan_gw_dna_entry_t *e = entry_of_uid(g, g->dna.query);
     uint8_t id;
-    if (e == NULL) {
+    if (e == NULL || !entry_usable(g, e)) {
         id = free_id(g, preferred);
-        if (id == 0u || g->dna.n >= DAN_GW_NODE_DNA_MAX) {
+        if (id == 0u || (e == NULL && g->dna.n >= DAN_GW_NODE_DNA_MAX)) {
             g->dna.full = true;
             g->dna.query_len = 0;
             return;
         }
-        e = &g->dna.table[g->dna.n++];
+        if (e == NULL) {
+            e = &g->dna.table[g->dna.n++];
+            memcpy(e->unique_id, g->dna.query, DAN_DC_UNIQUE_ID_SIZE);
+        }
         e->node_id = id;
-        memcpy(e->unique_id, g->dna.query, DAN_DC_UNIQUE_ID_SIZE);
         g->dna.dirty = true;
     }
     g->dna.full = false;

@@ -3,6 +3,7 @@ Rig (dan-vbus, an SLCAN hub, dan-gatewayd, pydronecan nodes) and the far
 end of a Targetted serial tunnel."""
 
 import json
+import random
 import threading
 import time
 
@@ -141,3 +142,145 @@ class TunnelFarEnd:
                     buffer=list(chunk),
                 )
             )
+
+
+# ---- dynamic node ID allocation: an allocatee from the specification ----
+
+ALLOCATION_DTID = 1  # uavcan.protocol.dynamic_node_id.Allocation
+ANON_PRIORITY = 30  # any priority will do; a low one, as a request is not urgent
+
+
+def anonymous_can_id(dtid, discriminator, priority=ANON_PRIORITY):
+    """The 29-bit CAN ID of an anonymous message transfer: priority (bits
+    24-28), a 14-bit discriminator (10-23), the data type ID's two low bits
+    (8-9), message (bit 7 clear), source node 0 (0-6)."""
+    return (priority & 0x1F) << 24 | (discriminator & 0x3FFF) << 10 | (dtid & 3) << 8
+
+
+def allocation_request(uid_part, preferred, first, transfer_id):
+    """An anonymous Allocation request as the data of one CAN frame: node_id
+    (uint7) and first_part_of_unique_id (bool) in the first byte, most
+    significant bit first; the unique ID bytes (a tail array: no length);
+    the tail byte (start and end of transfer, toggle 0, transfer ID). At
+    most 6 bytes of unique ID, so always one frame, without a transfer CRC."""
+    assert 0 < len(uid_part) <= 6
+    head = (preferred & 0x7F) << 1 | (1 if first else 0)
+    return bytes([head]) + bytes(uid_part) + bytes([0xC0 | transfer_id & 0x1F])
+
+
+class Allocatee:
+    """A dynamic node ID allocatee written from the DroneCAN specification
+    (the comments of uavcan.protocol.dynamic_node_id.Allocation, rules A-E)
+    as a state machine: send(can_id, data) puts a raw 29-bit frame on the
+    bus (pydronecan cannot send anonymous transfers); the caller calls
+    poll() often (every 10 ms) and on_allocation() for every Allocation
+    message heard, all from one thread (AllocateeHost does this).
+
+    Rule A: the request timer starts at 600-1000 ms (random each time).
+    B: when it expires, it restarts and the first stage goes out (6 bytes,
+    first_part_of_unique_id set, node_id = the preferred ID or 0). C: any
+    Allocation message restarts the timer. D: an Allocation from a
+    non-anonymous node whose unique_id (under 16 bytes) is the start of
+    ours: after 0-400 ms, unless another Allocation arrives meanwhile, the
+    next stage (up to 6 bytes from the offset the answer reached). E: one
+    with all 16 bytes of ours and a node ID other than 0: granted
+    (.node_id; .granted is set); it reacts to nothing after that.
+
+    .answers lists every Allocation heard (source node, node_id, unique ID
+    bytes); .stages counts the requests sent."""
+
+    REQUEST_PERIOD = (0.6, 1.0)
+    FOLLOWUP_DELAY = (0.0, 0.4)
+
+    def __init__(self, send, unique_id, preferred=0, seed=0):
+        assert len(unique_id) == 16
+        self.send, self.uid, self.preferred = send, bytes(unique_id), preferred
+        self.rng = random.Random(seed)
+        self.discriminator = self.rng.getrandbits(14)
+        self.node_id = None
+        self.granted = threading.Event()
+        self.answers = []
+        self.stages = 0
+        self._tid = 0
+        self._followup = None  # (due, offset) of a pending rule D
+        self._request_due = self._later(self.REQUEST_PERIOD)  # rule A
+
+    def _later(self, span):
+        return time.monotonic() + self.rng.uniform(*span)
+
+    def _send(self, offset, first):
+        data = allocation_request(self.uid[offset : offset + 6], self.preferred, first, self._tid)
+        self._tid = (self._tid + 1) & 0x1F
+        self.send(anonymous_can_id(ALLOCATION_DTID, self.discriminator), data)
+        self.stages += 1
+
+    def poll(self):
+        if self.node_id is not None:
+            return
+        now = time.monotonic()
+        if self._followup is not None and now >= self._followup[0]:
+            offset = self._followup[1]
+            self._followup = None
+            self._send(offset, first=False)
+        if now >= self._request_due:  # rule B
+            self._request_due = self._later(self.REQUEST_PERIOD)
+            self._send(0, first=True)
+
+    def on_allocation(self, src, node_id, uid):
+        self.answers.append((src, node_id, uid))
+        if self.node_id is not None:
+            return
+        self._request_due = self._later(self.REQUEST_PERIOD)  # rule C
+        self._followup = None  # rule D.1: another Allocation ends the wait
+        if not src:
+            return  # another allocatee's request
+        if uid == self.uid and node_id:  # rule E
+            self.node_id = node_id
+            self.granted.set()
+        elif len(uid) < 16 and self.uid.startswith(uid):  # rule D
+            self._followup = (self._later(self.FOLLOWUP_DELAY), len(uid))
+
+    def wait(self, timeout=30):
+        """The node ID granted; fails the test after timeout seconds."""
+        if not self.granted.wait(timeout):
+            pytest.fail(f"no node ID for {self.uid.hex()} in {timeout} s: heard {self.answers}")
+        return self.node_id
+
+
+class AllocateeHost:
+    """A pydronecan node without a node ID on hub port k of a Rig, in a spin
+    thread of the rig, running the Allocatees added to it (as devices
+    behind one adapter): their requests leave through the node's driver as
+    raw frames, and the Allocation messages it hears go to each of them."""
+
+    def __init__(self, rig, k):
+        self.node = pydronecan_nodes.make_node(rig.tmp / f"can{k}", None)
+        rig.nodes.append(self.node)
+        self.lock = threading.Lock()
+        self.allocatees = []
+        self.node.add_handler(U.protocol.dynamic_node_id.Allocation, self._on_allocation)
+        rig.spin(self.node, self._poll, 0.01)
+
+    def _send(self, can_id, data):
+        self.node.can_driver.send(can_id, data, extended=True)
+
+    def _each(self):
+        with self.lock:
+            return list(self.allocatees)
+
+    def _poll(self):
+        for a in self._each():
+            a.poll()
+
+    def _on_allocation(self, e):
+        m = e.message
+        for a in self._each():
+            a.on_allocation(e.transfer.source_node_id, m.node_id, bytes(m.unique_id))
+
+    def add(self, unique_id, preferred=0, seed=0):
+        """A new Allocatee for unique_id (16 bytes), preferring node ID
+        preferred (0: none); seed makes its random intervals repeatable."""
+        a = Allocatee(self._send, unique_id, preferred, seed)
+        with self.lock:
+            self.allocatees.append(a)
+        return a

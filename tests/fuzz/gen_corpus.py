@@ -28,7 +28,15 @@ GW_CODES = {
     "can_send": 0x4B,
     "can_recv": 0x4C,
     "can_filter": 0x4D,
+    "node_call": 0x4E,
+    "call_result": 0x4F,
+    "health": 0x52,
+    "dna": 0x53,
 }
+# call result blobs (read through CALL_RESULT), not messages of their own
+GW_RESULTS = {"opcode", "param"}
+SEALED_OP = 1  # gw_handlers: op % 4 == 1 seals the request as a client would
+SEALED_SEED = 0x80  # gw_client: seed bit 7 seals the response as the gateway would
 DSDL_SEL = {
     "node_status": 0,
     "get_node_info_rsp": 1,
@@ -59,6 +67,50 @@ def can_frames(spec):
 
 def can_record(fid, ext, data, flags_hi=0):
     return struct.pack("<IBB", fid, (1 if ext else 0) | flags_hi, len(data)) + data.ljust(8, b"\0")
+
+
+def handler_op(code):
+    """gw_handlers' op byte for a request code (targets.c fz_code)."""
+    k = code - 0x40 if code < 0x50 else 16 + code - 0x50
+    return k << 2
+
+
+def client_sel(code):
+    """gw_client's first byte for a response code."""
+    return code - 0x42 if code <= 0x4F else 14 + code - 0x52
+
+
+def dna_scripts(calls):
+    """Sessions for the allocation server target (targets.c dan_fuzz_dna):
+    allocations, a restart that loads the table, static nodes with their
+    GetNodeInfo answers, service calls answered, another allocator."""
+
+    def stages(k, pref=0x80, gap=5):
+        out = b""
+        for st in range(3):
+            out += bytes([0, k | st << 4, pref, 3, gap, 0])
+        return out
+
+    health, dna = bytes([4 | 2 << 3, 0]), bytes([4 | 3 << 3, 1, 0])
+    yield stages(0) + dna + health + bytes([6, 0, 0]) + dna + stages(0) + stages(1, 10)
+    yield (
+        bytes([1, 125, 5, 3, 5, 0, 2, 125, 2, 3, 5, 0, 1, 50, 9, 3, 250, 0])
+        + stages(3)
+        + stages(4, 50)
+        + bytes([1 | 2 << 3, 50, 10])
+        + health
+        + bytes([2, 50, 0x80])
+    )
+    for c in calls:
+        yield (
+            bytes([1, c[2], 5, 3, 5, 0, 4, len(c)])
+            + c
+            + bytes([3, 5, 0, 5, 4, 1, 0, 3, 60, 0])
+            + bytes([4 | 1 << 3, 4])
+            + c[:2]
+            + b"\x00\x40"
+        )
+    yield stages(2) + bytes([7, 0, 0]) + stages(5) + bytes([7, 3, 42]) + health + stages(4)
 
 
 def main():
@@ -98,19 +150,31 @@ def main():
     for line in lines("gateway.txt"):
         head, hx = line.split(" : ")
         msg, d = head.split()[:2]
+        if msg in GW_RESULTS:
+            continue
         payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
         code = GW_CODES[msg]
         if d == "req":
-            req = bytes([((code - 0x40) << 2), len(payload)]) + payload
+            req = bytes([handler_op(code), len(payload)]) + payload
             add("gw_handlers", req)
+            add("gw_handlers", bytes([req[0] | SEALED_OP]) + req[1:])
             script += req
         else:
-            add("gw_client", bytes([code - 0x42, 0]) + payload)
+            add("gw_client", bytes([client_sel(code), 0]) + payload)
+            add("gw_client", bytes([client_sel(code), SEALED_SEED]) + payload)
     # a session: identify, configure, the requests, CAN traffic, time passing
     dc = [can_frames(line.split(" : ")[1]) for line in lines("dronecan.txt")]
     can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
+    # the allocation server and the node table
+    calls = [
+        bytes.fromhex(line.split(" : ")[1].strip())
+        for line in lines("gateway.txt")
+        if line.startswith("node_call req")
+    ]
+    for script_ in dna_scripts(calls):
+        add("dna", script_)
     # DroneCAN reassembly: each vector's frames, and all of them interleaved
     for fr in dc:
         add("dronecan_rx", b"\x0a" + b"".join(can_record(i, e, d) for (i, e, d) in fr))
@@ -121,6 +185,8 @@ def main():
     # DSDL payloads (transfer CRC and tail bytes removed)
     for line in lines("dronecan.txt"):
         name = line.split()[0]
+        if name not in DSDL_SEL:
+            continue  # the bus-management types: dronecan_rx and dna reach them
         fr = can_frames(line.split(" : ")[1])
         payload = b"".join(d[:-1] for (_, _, d) in fr)
         if len(fr) > 1:

@@ -222,7 +222,8 @@ static void check_replies(fuzz_sink_t *s)
             break;
         }
         FUZZ_CHECK(f.code == 0u ||
-                   (f.code >= DAN_TYPE_CAN_GW_FIRST && f.code <= DAN_TYPE_CAN_GW_LAST));
+                   (f.code >= DAN_TYPE_CAN_GW_FIRST && f.code <= DAN_TYPE_CAN_GW_LAST) ||
+                   (f.code >= DAN_TYPE_CAN_GW_BLOCK2 && f.code <= DAN_TYPE_CAN_GW_BLOCK2_LAST));
     }
     FUZZ_CHECK(d.stats.crc_errors == 0u && d.stats.garbage == 0u && d.stats.oversize == 0u &&
                d.stats.bad_varint == 0u);
@@ -243,84 +244,115 @@ static void drain_can(dan_gw_node_t *g)
 
 static dan_gw_node_t fz_node; /* large: static storage */
 static dan_periph_t fz_periph;
+static fuzz_sink_t fz_sink;
+static dan_port_t fz_port;
+static dan_ptype_t fz_ptype;
+
+/* The gateway node (cfg: NULL for the defaults) behind a peripheral engine
+ * whose replies land in fz_sink. */
+static void fz_gateway_start(const dan_gw_node_config_t *cfg, uint64_t now)
+{
+    memset(&fz_sink, 0, sizeof fz_sink);
+    memset(&fz_port, 0, sizeof fz_port);
+    fz_port.write = sink_write;
+    fz_port.set_baud = sink_baud;
+    fz_port.ctx = &fz_sink;
+    fz_port.echo = false;
+    FUZZ_CHECK(dan_gw_node_init(&fz_node, cfg, now) == DAN_OK);
+    dan_gw_node_ptype(&fz_node, &fz_ptype);
+    FUZZ_CHECK(dan_periph_init(&fz_periph, &fz_port, &fz_ptype, 1, NULL, 9600, now) == DAN_OK);
+    dan_gw_node_attach(&fz_node, &fz_periph);
+    dan_gw_node_can_state(&fz_node, true);
+}
+
+/* The code of a request op: 0x40..0x4F, then the second block 0x50..0x5F
+ * (0x50 and 0x51 unused there: unknown codes). */
+static uint32_t fz_code(uint8_t op)
+{
+    uint32_t k = (uint32_t)(op >> 2) % 32u;
+    return k < 16u ? DAN_TYPE_CAN_GW_FIRST + k : DAN_TYPE_CAN_GW_BLOCK2 + (k - 16u);
+}
+
+/* One DAN request to the gateway, sealed as a client would seal it (so the
+ * handlers behind the seal are reached) or as is (the seal check); the
+ * line idles first, so any earlier reply has left. */
+static void fz_request(uint32_t code, const uint8_t *payload, size_t plen, bool seal, uint64_t *now)
+{
+    uint8_t frame[DAN_MAX_FRAME], body[DAN_MAX_PAYLOAD];
+    int bl = (int)plen, n;
+    memcpy(body, payload, plen);
+    if (seal && dan_gw_sealed_code(code)) {
+        bl = dan_gw_seal(code, DAN_GW_REQUEST, body, plen, sizeof body);
+        if (bl < 0) {
+            bl = (int)plen;
+        }
+    }
+    n = dan_frame_encode(code, body, (size_t)bl, frame, sizeof frame);
+    FUZZ_CHECK(n > 0);
+    *now += 200000u;
+    dan_periph_poll(&fz_periph, *now);
+    dan_periph_rx(&fz_periph, frame, (size_t)n, *now);
+    *now += 3000u; /* past the turnaround, inside the reply window */
+    dan_periph_poll(&fz_periph, *now);
+    dan_gw_node_poll(&fz_node, *now);
+}
+
+/* Takes a length byte (% (max + 1)) and that many bytes (fewer at the end)
+ * from data at *i; returns the length, *p the bytes. */
+static size_t fz_take(const uint8_t *data, size_t len, size_t *i, size_t max, const uint8_t **p)
+{
+    size_t n = 0;
+    if (*i < len) {
+        n = data[(*i)++] % (max + 1u);
+    }
+    if (n > len - *i) {
+        n = len - *i;
+    }
+    *p = data + *i;
+    *i += n;
+    return n;
+}
+
+/* A CAN frame from 14 bytes at data[*i..]: u32 id LE, flags, dlc, 8 data. */
+static void fz_can_frame(const uint8_t *data, size_t len, size_t *i, dan_can_frame_t *f)
+{
+    uint8_t b[14];
+    size_t n = len - *i < sizeof b ? len - *i : sizeof b;
+    memset(b, 0, sizeof b);
+    memcpy(b, data + *i, n);
+    *i += n;
+    memset(f, 0, sizeof *f);
+    f->id = (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+    f->flags = (uint8_t)(b[4] & (DAN_CAN_EXT | DAN_CAN_RTR | DAN_CAN_ERR));
+    f->id &= (f->flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK;
+    f->dlc = (uint8_t)(b[5] % 9u);
+    memcpy(f->data, b + 6, 8);
+}
 
 /* A script of operations, each starting with an op byte:
- *   op % 4 == 0, 1: a DAN request, code 0x40 + (op >> 2) % 16, then a
- *                   length byte (% 161) and that many payload bytes
+ *   op % 4 == 0, 1: a DAN request, code fz_code(op) (both blocks), then a
+ *                   length byte (% 161) and that many payload bytes; op 1
+ *                   sealed, op 0 as is
  *   op % 4 == 2:    a CAN frame: u32 id LE, flags, dlc, 8 data bytes
  *   op % 4 == 3:    time passes: (op >> 2) * 25 ms (timers fire) */
 int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
 {
-    fuzz_sink_t sink;
-    dan_ptype_t t;
-    dan_port_t port;
     uint64_t now = 1000000u;
     size_t i = 0;
-    memset(&sink, 0, sizeof sink);
-    memset(&port, 0, sizeof port);
-    port.write = sink_write;
-    port.set_baud = sink_baud;
-    port.ctx = &sink;
-    port.echo = false;
-    FUZZ_CHECK(dan_gw_node_init(&fz_node, NULL, now) == DAN_OK);
-    dan_gw_node_ptype(&fz_node, &t);
-    FUZZ_CHECK(dan_periph_init(&fz_periph, &port, &t, 1, NULL, 9600, now) == DAN_OK);
-    dan_gw_node_attach(&fz_node, &fz_periph);
-    dan_gw_node_can_state(&fz_node, true);
+    fz_gateway_start(NULL, now);
     while (i < len) {
         uint8_t op = data[i++];
         switch (op % 4u) {
         case 0:
         case 1: {
-            uint8_t frame[DAN_MAX_FRAME];
-            size_t plen = 0;
-            int n;
-            if (i < len) {
-                plen = data[i++] % (DAN_MAX_PAYLOAD + 1u);
-            }
-            if (plen > len - i) {
-                plen = len - i;
-            }
-            {
-                /* op 1: sealed as a client would, so the handlers behind
-                 * the seal are reached; op 0: as is (the seal check). */
-                uint32_t code = DAN_TYPE_CAN_GW_FIRST + (uint32_t)((op >> 2) % 16u);
-                uint8_t body[DAN_MAX_PAYLOAD];
-                int bl = (int)plen;
-                memcpy(body, data + i, plen);
-                if (op % 4u == 1u && dan_gw_sealed_code(code)) {
-                    bl = dan_gw_seal(code, DAN_GW_REQUEST, body, plen, sizeof body);
-                    if (bl < 0) {
-                        bl = (int)plen;
-                    }
-                }
-                n = dan_frame_encode(code, body, (size_t)bl, frame, sizeof frame);
-            }
-            FUZZ_CHECK(n > 0);
-            i += plen;
-            /* the line was idle long enough for any reply to have left */
-            now += 200000u;
-            dan_periph_poll(&fz_periph, now);
-            dan_periph_rx(&fz_periph, frame, (size_t)n, now);
-            now += 3000u; /* past the turnaround, inside the reply window */
-            dan_periph_poll(&fz_periph, now);
-            dan_gw_node_poll(&fz_node, now);
+            const uint8_t *p;
+            size_t plen = fz_take(data, len, &i, DAN_MAX_PAYLOAD, &p);
+            fz_request(fz_code(op), p, plen, op % 4u == 1u, &now);
             break;
         }
         case 2: {
             dan_can_frame_t f;
-            uint8_t b[14];
-            size_t n = len - i < sizeof b ? len - i : sizeof b;
-            memset(b, 0, sizeof b);
-            memcpy(b, data + i, n);
-            i += n;
-            memset(&f, 0, sizeof f);
-            f.id =
-                (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
-            f.flags = (uint8_t)(b[4] & (DAN_CAN_EXT | DAN_CAN_RTR | DAN_CAN_ERR));
-            f.id &= (f.flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK;
-            f.dlc = (uint8_t)(b[5] % 9u);
-            memcpy(f.data, b + 6, 8);
+            fz_can_frame(data, len, &i, &f);
             now += 100u;
             dan_gw_node_rx_can(&fz_node, &f, now);
             break;
@@ -333,14 +365,381 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
         }
         FUZZ_CHECK(dan_gw_node_next_us(&fz_node, now) > 0u);
         drain_can(&fz_node);
-        check_replies(&sink);
+        check_replies(&fz_sink);
     }
     now += 1000000u;
     dan_periph_poll(&fz_periph, now);
     dan_gw_node_poll(&fz_node, now);
     dan_gw_node_failsafe(&fz_node, now);
     drain_can(&fz_node);
-    check_replies(&sink);
+    check_replies(&fz_sink);
+    return 0;
+}
+
+/* ---- gateway node: the allocation server and the node table ---------- */
+
+#define FZ_UIDS     6u  /* unique IDs of the allocatees and nodes */
+#define FZ_REQS     16u /* service requests of the gateway remembered */
+#define FZ_LISTENER 127u
+#define FZ_PRIO     16u
+
+typedef struct {
+    uint8_t dst, tid, ttype;
+    uint16_t dtid;
+} fz_req_t;
+
+/* A node of the node table before an operation. */
+typedef struct {
+    uint8_t id;
+    bool uid_known;
+    uint8_t uid[DAN_DC_UNIQUE_ID_SIZE];
+} fz_seen_t;
+
+static struct {
+    dan_gw_node_config_t cfg;
+    dan_gw_storage_t st;
+    uint8_t blob[DAN_GW_DNA_BLOB_MAX]; /* the "flash" */
+    size_t blob_len;
+    fz_req_t reqs[FZ_REQS]; /* ring: the gateway's service requests */
+    size_t nreq;
+    dan_dc_rx_t lis; /* the gateway's broadcasts, reassembled */
+    dan_dc_tid_table_t tids;
+    /* the state before the operation */
+    dan_gw_dna_entry_t table[DAN_GW_NODE_DNA_MAX];
+    uint8_t n;
+    fz_seen_t seen[DAN_GW_NODE_MAX_NODES];
+} fzd;
+
+static int fzd_load(void *ctx, uint8_t *buf, size_t cap)
+{
+    (void)ctx;
+    FUZZ_CHECK(fzd.blob_len <= cap);
+    memcpy(buf, fzd.blob, fzd.blob_len);
+    return (int)fzd.blob_len;
+}
+
+static int fzd_store(void *ctx, const uint8_t *buf, size_t len)
+{
+    (void)ctx;
+    FUZZ_CHECK(len <= sizeof fzd.blob && dan_gw_dna_blob_check(buf, len) == DAN_GW_DNA_BLOB_OK);
+    memcpy(fzd.blob, buf, len);
+    fzd.blob_len = len;
+    return DAN_OK;
+}
+
+/* Unique ID k of the pool: pairs share the first stage's 6 bytes. */
+static void fz_uid(unsigned k, uint8_t *uid)
+{
+    memset(uid, (int)(k / 2u + 1u), DAN_DC_ALLOCATION_UID_PER_REQUEST);
+    memset(uid + DAN_DC_ALLOCATION_UID_PER_REQUEST, (int)(0x40u + k),
+           DAN_DC_UNIQUE_ID_SIZE - DAN_DC_ALLOCATION_UID_PER_REQUEST);
+}
+
+static bool fz_accept_any(void *user, uint16_t dtid, uint8_t tt, uint8_t src, uint64_t *sig)
+{
+    (void)user;
+    (void)src;
+    return dan_dc_dsdl_signature(tt, dtid, sig);
+}
+
+/* A transfer from node src (0: anonymous) into the gateway. */
+static void fz_inject(uint8_t src, uint8_t tt, uint16_t dtid, uint8_t dst, uint8_t tid,
+                      const uint8_t *payload, int plen, uint64_t now)
+{
+    dan_dc_transfer_t t;
+    dan_can_frame_t f[40];
+    uint64_t sig = 0;
+    int n, i;
+    if (plen < 0) {
+        return;
+    }
+    (void)dan_dc_dsdl_signature(tt, dtid, &sig);
+    dan_dc_transfer_init(&t, dtid, sig, (dan_dc_transfer_type_t)tt, payload, (size_t)plen);
+    t.priority = FZ_PRIO;
+    t.source_node = src;
+    t.destination_node = dst;
+    t.transfer_id = tid;
+    n = dan_dc_tx_build(&t, f, sizeof f / sizeof f[0]);
+    for (i = 0; i < n; i++) {
+        dan_gw_node_rx_can(&fz_node, &f[i], now);
+    }
+}
+
+static uint8_t fz_next_tid(uint16_t dtid, uint8_t tt, uint8_t dst)
+{
+    int tid = dan_dc_tid_next(&fzd.tids, dtid, tt, dst);
+    return tid >= 0 ? (uint8_t)tid : 0u;
+}
+
+/* An Allocation request stage of allocatee k (b: k, stage; pref: the
+ * preferred ID, bit7 none). Stage 3 is garbage: a length the protocol
+ * does not expect. */
+static void fz_alloc_stage(uint8_t b, uint8_t pref, uint64_t now)
+{
+    static const uint8_t off[3] = {0, 6, 12}, cnt[3] = {6, 6, 4};
+    dan_dc_allocation_t m;
+    uint8_t uid[DAN_DC_UNIQUE_ID_SIZE], buf[DAN_DC_ALLOCATION_MAX_SIZE];
+    unsigned stage = (unsigned)(b >> 4) % 4u;
+    fz_uid(b % FZ_UIDS, uid);
+    memset(&m, 0, sizeof m);
+    m.node_id = (pref & 0x80u) ? 0u : (uint8_t)(pref & 0x7Fu);
+    m.first_part = stage == 0u || (stage == 3u && (pref & 1u));
+    m.uid_len = stage < 3u ? cnt[stage] : (uint8_t)(pref % 7u);
+    memcpy(m.uid, uid + (stage < 3u ? off[stage] : 0u), m.uid_len);
+    fz_inject(0, DAN_DC_TRANSFER_BROADCAST, DAN_DC_ALLOCATION_ID, 0,
+              fz_next_tid(DAN_DC_ALLOCATION_ID, DAN_DC_TRANSFER_BROADCAST, 0), buf,
+              dan_dc_allocation_encode(&m, buf, sizeof buf), now);
+}
+
+static void fz_node_status(uint8_t src, uint8_t uptime, uint8_t health, uint64_t now)
+{
+    dan_dc_node_status_t ns;
+    uint8_t buf[DAN_DC_NODE_STATUS_MAX_SIZE];
+    memset(&ns, 0, sizeof ns);
+    ns.uptime_sec = uptime;
+    ns.health = (uint8_t)(health & 3u);
+    fz_inject(src, DAN_DC_TRANSFER_BROADCAST, DAN_DC_NODE_STATUS_ID, 0,
+              fz_next_tid(DAN_DC_NODE_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, src), buf,
+              dan_dc_node_status_encode(&ns, buf, sizeof buf), now);
+}
+
+/* The newest remembered request of data type dtid to node dst; NULL if none. */
+static const fz_req_t *fz_find_req(uint16_t dtid, uint8_t dst)
+{
+    size_t k;
+    for (k = 0; k < FZ_REQS && k < fzd.nreq; k++) {
+        const fz_req_t *q = &fzd.reqs[(fzd.nreq - 1u - k) % FZ_REQS];
+        if (q->dtid == dtid && q->dst == dst) {
+            return q;
+        }
+    }
+    return NULL;
+}
+
+/* Node src answers GetNodeInfo with pool unique ID b % FZ_UIDS, or (b bit7)
+ * with the one the allocation table holds for src (an honest node). */
+static void fz_node_info(uint8_t src, uint8_t b, uint64_t now)
+{
+    static dan_dc_get_node_info_rsp_t rsp;
+    uint8_t buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
+    const fz_req_t *q = fz_find_req(DAN_DC_GET_NODE_INFO_ID, src);
+    size_t k;
+    memset(&rsp, 0, sizeof rsp);
+    fz_uid(b % FZ_UIDS, rsp.hardware_version.unique_id);
+    for (k = 0; (b & 0x80u) != 0u && k < fz_node.dna.n; k++) {
+        if (fz_node.dna.table[k].node_id == src) {
+            memcpy(rsp.hardware_version.unique_id, fz_node.dna.table[k].unique_id,
+                   DAN_DC_UNIQUE_ID_SIZE);
+        }
+    }
+    fz_inject(src, DAN_DC_TRANSFER_RESPONSE, DAN_DC_GET_NODE_INFO_ID, fz_node.cfg.node_id,
+              q != NULL ? q->tid : (uint8_t)(b & DAN_DC_TRANSFER_ID_MASK), buf,
+              dan_dc_get_node_info_rsp_encode(&rsp, buf, sizeof buf), now);
+}
+
+/* A response of any bytes to a remembered service request (b picks it). */
+static void fz_service_response(uint8_t b, const uint8_t *p, size_t plen, uint64_t now)
+{
+    const fz_req_t *q;
+    if (fzd.nreq == 0u) {
+        return;
+    }
+    q = &fzd.reqs[(fzd.nreq - 1u - b % (fzd.nreq < FZ_REQS ? fzd.nreq : FZ_REQS)) % FZ_REQS];
+    fz_inject(q->dst, DAN_DC_TRANSFER_RESPONSE, q->dtid, fz_node.cfg.node_id, q->tid, p, (int)plen,
+              now);
+}
+
+/* The state the next operation is judged against. */
+static void fzd_snapshot(void)
+{
+    size_t k;
+    memcpy(fzd.table, fz_node.dna.table, sizeof fzd.table);
+    fzd.n = fz_node.dna.n;
+    for (k = 0; k < DAN_GW_NODE_MAX_NODES; k++) {
+        const dan_gw_node_slot_t *n = &fz_node.nodes[k];
+        fzd.seen[k].id = n->e.node_id;
+        fzd.seen[k].uid_known = n->info.info_state == DAN_GW_INFO_VALID;
+        memcpy(fzd.seen[k].uid, n->info.unique_id, DAN_DC_UNIQUE_ID_SIZE);
+    }
+}
+
+/* The table never holds an ID out of range, nor a node ID or unique ID
+ * twice. */
+static void fzd_check_table(void)
+{
+    size_t a, b;
+    FUZZ_CHECK(fz_node.dna.n <= DAN_GW_NODE_DNA_MAX);
+    for (a = 0; a < fz_node.dna.n; a++) {
+        const dan_gw_dna_entry_t *x = &fz_node.dna.table[a];
+        FUZZ_CHECK(x->node_id >= 1u && x->node_id <= DAN_DC_ALLOCATION_MAX_NODE_ID);
+        for (b = 0; b < a; b++) {
+            const dan_gw_dna_entry_t *y = &fz_node.dna.table[b];
+            FUZZ_CHECK(x->node_id != y->node_id &&
+                       memcmp(x->unique_id, y->unique_id, DAN_DC_UNIQUE_ID_SIZE) != 0);
+        }
+    }
+}
+
+/* An allocation the gateway granted (id for uid): never its own ID; never
+ * an ID the table held for another unique ID; an ID of a node in the node
+ * table only when it is this device again (the table held this ID for
+ * this unique ID, and the node's own unique ID, if known, is this one);
+ * and the table holds it now. */
+static void fzd_check_grant(uint8_t id, const uint8_t *uid)
+{
+    size_t k;
+    bool held = false, found = false;
+    FUZZ_CHECK(id != fz_node.cfg.node_id && id >= 1u && id <= DAN_DC_ALLOCATION_MAX_NODE_ID);
+    for (k = 0; k < fzd.n; k++) {
+        if (fzd.table[k].node_id == id) {
+            FUZZ_CHECK(memcmp(fzd.table[k].unique_id, uid, DAN_DC_UNIQUE_ID_SIZE) == 0);
+            held = true;
+        }
+    }
+    for (k = 0; k < DAN_GW_NODE_MAX_NODES; k++) {
+        const fz_seen_t *n = &fzd.seen[k];
+        if (n->id == id) {
+            FUZZ_CHECK(held);
+            FUZZ_CHECK(!n->uid_known || memcmp(n->uid, uid, DAN_DC_UNIQUE_ID_SIZE) == 0);
+        }
+    }
+    for (k = 0; k < fz_node.dna.n; k++) {
+        found |= fz_node.dna.table[k].node_id == id &&
+                 memcmp(fz_node.dna.table[k].unique_id, uid, DAN_DC_UNIQUE_ID_SIZE) == 0;
+    }
+    FUZZ_CHECK(found);
+}
+
+/* What the gateway sent: service requests remembered, its Allocation
+ * grants checked. */
+static void fzd_drain(uint64_t now)
+{
+    dan_can_frame_t f;
+    dan_dc_transfer_t t, id;
+    dan_dc_allocation_t m;
+    size_t guard = 0;
+    while (dan_gw_node_tx_peek(&fz_node, &f)) {
+        FUZZ_CHECK(++guard <= 2u * DAN_GW_NODE_TXQ);
+        dan_gw_node_tx_sent(&fz_node, now);
+        if (f.dlc > 0u && (f.data[f.dlc - 1u] & DAN_DC_TAIL_SOT) != 0u &&
+            dan_dc_parse_id(f.id, &id) == DAN_OK && id.transfer_type == DAN_DC_TRANSFER_REQUEST) {
+            fz_req_t *q = &fzd.reqs[fzd.nreq++ % FZ_REQS];
+            q->dst = id.destination_node;
+            q->dtid = id.data_type_id;
+            q->ttype = id.transfer_type;
+            q->tid = (uint8_t)(f.data[f.dlc - 1u] & DAN_DC_TRANSFER_ID_MASK);
+        }
+        if (dan_dc_rx_frame(&fzd.lis, &f, now, &t) == 1 && t.data_type_id == DAN_DC_ALLOCATION_ID &&
+            t.source_node == fz_node.cfg.node_id &&
+            dan_dc_allocation_decode(&m, t.payload, t.payload_len) == DAN_OK && m.node_id != 0u) {
+            FUZZ_CHECK(m.uid_len == DAN_DC_UNIQUE_ID_SIZE);
+            fzd_check_grant(m.node_id, m.uid);
+        }
+    }
+}
+
+static void fzd_check_health(uint64_t now)
+{
+    dan_gw_health_t h;
+    dan_gw_node_health(&fz_node, &h, now);
+    FUZZ_CHECK((h.verdict == DAN_GW_HEALTH_FAIL) == (h.problems > 0u));
+    FUZZ_CHECK(h.verdict <= DAN_GW_HEALTH_FAIL && dan_gw_reason_name(h.reason) != NULL);
+}
+
+/* op 6: the gateway restarts (b1 bit7: with node ID b1 % 127 + 1), after
+ * b2 bit0 flipped a bit of the stored table. */
+static void fz_reboot(uint8_t b1, uint8_t b2, uint64_t now)
+{
+    if ((b1 & 0x80u) != 0u) {
+        fzd.cfg.node_id = (uint8_t)((b1 & 0x7Fu) % DAN_DC_NODE_ID_MAX + 1u);
+    }
+    if ((b2 & 1u) != 0u && fzd.blob_len > 0u) {
+        fzd.blob[(b2 >> 1) % fzd.blob_len] ^= (uint8_t)(1u << (b2 % 8u));
+    }
+    fz_gateway_start(&fzd.cfg, now);
+}
+
+/* Operation op with its argument bytes at data[*i..]. */
+static void fz_dna_op(uint8_t op, const uint8_t *data, size_t len, size_t *i, uint64_t *now)
+{
+    static const uint32_t codes[6] = {DAN_GW_CODE_NODE_CALL, DAN_GW_CODE_CALL_RESULT,
+                                      DAN_GW_CODE_HEALTH,    DAN_GW_CODE_DNA,
+                                      DAN_GW_CODE_CONFIG,    DAN_GW_CODE_NODES};
+    uint8_t b[3] = {0, 0, 0};
+    const uint8_t *p;
+    size_t k, plen;
+    for (k = 0; k < 2u && *i < len && op % 8u != 4u && op % 8u != 5u; k++) {
+        b[k] = data[(*i)++];
+    }
+    switch (op % 8u) {
+    case 0: fz_alloc_stage(b[0], b[1], *now); break;
+    case 1: fz_node_status((uint8_t)(b[0] % 128u), b[1], (uint8_t)(op >> 3), *now); break;
+    case 2: fz_node_info((uint8_t)(b[0] % 128u), b[1], *now); break;
+    case 3:
+        *now += (uint64_t)b[0] * 20000u + b[1];
+        dan_gw_node_poll(&fz_node, *now);
+        break;
+    case 4:
+        plen = fz_take(data, len, i, DAN_MAX_PAYLOAD, &p);
+        fz_request(codes[(op >> 3) % 6u], p, plen, true, now);
+        break;
+    case 5:
+        plen = fz_take(data, len, i, 64, &p);
+        fz_service_response((uint8_t)(op >> 3), p, plen, *now);
+        break;
+    case 6: fz_reboot(b[0], b[1], *now); break;
+    default:
+        dan_gw_node_set_dna(&fz_node, (b[0] & 1u) != 0u);
+        if ((b[0] & 2u) != 0u) { /* an Allocation from another allocator */
+            uint8_t src = (uint8_t)(b[1] % 127u + 1u), buf[DAN_DC_ALLOCATION_MAX_SIZE];
+            dan_dc_allocation_t m;
+            memset(&m, 0, sizeof m);
+            m.node_id = (uint8_t)(b[0] >> 2);
+            fz_inject(src, DAN_DC_TRANSFER_BROADCAST, DAN_DC_ALLOCATION_ID, 0,
+                      fz_next_tid(DAN_DC_ALLOCATION_ID, 0, src), buf,
+                      dan_dc_allocation_encode(&m, buf, sizeof buf), *now);
+        }
+        break;
+    }
+}
+
+/* A script of operations on the allocation server and the node table,
+ * each an op byte and its arguments:
+ *   op % 8 == 0  a stage of an allocatee's request (b1: allocatee of the
+ *                pool and stage, b2: preferred ID)
+ *            1  NodeStatus (b1: node ID, b2: uptime; health op >> 3)
+ *            2  a GetNodeInfo answer (b1: node, b2: its unique ID)
+ *            3  time passes: b1 * 20 ms + b2 us
+ *            4  a sealed DAN request (op >> 3: NODE_CALL, CALL_RESULT,
+ *               HEALTH, DNA, CONFIG, NODES), length byte, payload
+ *            5  a response to a service request the gateway sent, length
+ *               byte, payload
+ *            6  the gateway restarts, loading the table it stored (b1:
+ *               another node ID, b2: a bit of the stored table flipped)
+ *            7  the server off/on (b1 bit0), another allocator (b1 bit1)
+ * Checked after each: the table (IDs in range, none twice), every grant
+ * (fzd_check_grant), the health verdict. */
+int dan_fuzz_dna(const uint8_t *data, size_t len)
+{
+    uint64_t now = 1000000u;
+    size_t i = 0;
+    memset(&fzd, 0, sizeof fzd);
+    dan_gw_node_config_default(&fzd.cfg);
+    fzd.st.load = fzd_load;
+    fzd.st.store = fzd_store;
+    fzd.cfg.dna_storage = &fzd.st;
+    dan_dc_rx_init(&fzd.lis, FZ_LISTENER, fz_accept_any, NULL);
+    dan_dc_tid_table_init(&fzd.tids);
+    fz_gateway_start(&fzd.cfg, now);
+    fzd_snapshot();
+    while (i < len) {
+        fz_dna_op(data[i++], data, len, &i, &now);
+        fzd_drain(now);
+        fzd_check_table();
+        fzd_check_health(now);
+        fz_sink.len = 0; /* the DAN replies are the gw_handlers target's business */
+        fzd_snapshot();
+    }
     return 0;
 }
 
@@ -530,8 +929,9 @@ int dan_fuzz_slcan(const uint8_t *data, size_t len)
 
 static dan_master_t fz_master;
 
-/* data[0] % 12: response code 0x42 + k; data[1]: tunnel port and client
- * offsets seed; the rest is the response payload. */
+/* data[0] % 16: response code 0x42 + k up to 0x4F, then HEALTH (0x52) and
+ * DNA (0x53); data[1]: tunnel port and client offsets seed; the rest is
+ * the response payload. */
 int dan_fuzz_gw_client(const uint8_t *data, size_t len)
 {
     dan_gw_t gw;
@@ -542,7 +942,10 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     if (len < 2u) {
         return 0;
     }
-    code = DAN_GW_CODE_ESC_CMD + (uint32_t)(data[0] % 12u);
+    code = DAN_GW_CODE_ESC_CMD + (uint32_t)(data[0] % 16u);
+    if (code > DAN_GW_CODE_CALL_RESULT) {
+        code = DAN_GW_CODE_HEALTH + (code - DAN_GW_CODE_CALL_RESULT - 1u);
+    }
     seed = data[1];
     data += 2;
     len -= 2;
@@ -613,6 +1016,24 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
         }
         break;
     }
+    case DAN_GW_CODE_CALL_RESULT: {
+        dan_gw_result_t res;
+        if (dan_gw_call_result_get(&gw, &res) == DAN_OK && res.len > 0u) {
+            FUZZ_CHECK(res.len <= DAN_GW_RESULT_CHUNK_MAX);
+            FUZZ_CHECK(res.data >= fz_master.resp &&
+                       res.data + res.len <= fz_master.resp + fz_master.resp_len);
+        }
+        break;
+    }
+    case DAN_GW_CODE_DNA: {
+        dan_gw_dna_hdr_t h;
+        dan_gw_dna_entry_t e;
+        if (dan_gw_dna_begin(&gw, &r, &h) == DAN_OK) {
+            for (i = 0; i < h.count && dan_gw_dna_next(&r, &e) == DAN_OK; i++) {
+            }
+        }
+        break;
+    }
     default: break;
     }
     return 0;
@@ -626,5 +1047,6 @@ const dan_fuzz_target_t dan_fuzz_targets[] = {
     {"dsdl", dan_fuzz_dsdl},
     {"slcan", dan_fuzz_slcan},
     {"gw_client", dan_fuzz_gw_client},
+    {"dna", dan_fuzz_dna},
 };
 const size_t dan_fuzz_ntargets = sizeof dan_fuzz_targets / sizeof dan_fuzz_targets[0];

@@ -24,6 +24,7 @@ int dan_fuzz_dronecan_rx(const uint8_t *data, size_t len); /* reassembly + DSDL 
 int dan_fuzz_dsdl(const uint8_t *data, size_t len);        /* DSDL decoders */
 int dan_fuzz_slcan(const uint8_t *data, size_t len);       /* dan_slcan_parse_line */
 int dan_fuzz_gw_client(const uint8_t *data, size_t len);   /* client response decoders */
+int dan_fuzz_dna(const uint8_t *data, size_t len);         /* allocation server and node table */
 
 extern const dan_fuzz_target_t dan_fuzz_targets[];
 extern const size_t dan_fuzz_ntargets;

@@ -9,7 +9,15 @@
  *   discover                      find the gateway (9600 first, then the others)
  *   configure[:BAUD]              move the bus to BAUD (default: best common)
  *   arm | disarm
- *   config[:timeout=MS][:rate=HZ] read / change gateway settings
+ *   config[:timeout=MS][:rate=HZ][:telem=MS][:dna=0|1]
+ *                                 read / change gateway settings
+ *   config-dna:0|1                the allocation server off / on (CONFIG)
+ *   telem-timeout:MS              HEALTH's ESC telemetry timeout (0: off)
+ *   health                        the bus health verdict: verdict, reason
+ *                                 (and its name), subject, detail, problems
+ *   dna                           the allocation table (every page): flags
+ *                                 (and as server_on, loaded, storage_error),
+ *                                 entries, capacity, table [{id, uid}]
  *   esc:V1,V2,..[@MS[@HZ]]        ESC commands for MS ms (default one) at HZ
  *                                 (0: back to back); prints exchanges/s and
  *                                 the telemetry received
@@ -390,12 +398,25 @@ static int step_arm(const char *name, const char *step, char *args)
     return 0;
 }
 
+/* Sends CONFIG (c: what to change; nothing set: a read) and prints the
+ * settings it returns. */
+static int config_run(const char *name, const char *step, const dan_gw_config_t *c)
+{
+    int rc = finish(dan_gw_config(&g_gw, c, dan_posix_now_us()));
+    if (rc != DAN_OK) {
+        return fail(step, rc);
+    }
+    printf("{\"step\": \"%s\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
+           "\"arming_rate_hz\": %u, \"flags\": %u, \"telem_timeout_ms\": %u, \"dna\": %u}\n",
+           name, g_gw.config.node_id, g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz,
+           g_gw.config.gw_flags, g_gw.config.telem_timeout_ms, g_gw.config.dna);
+    return 0;
+}
+
 static int step_config(const char *name, const char *step, char *args)
 {
     dan_gw_config_t c;
     char *tok, *save = NULL;
-    int rc;
-    (void)name;
     memset(&c, 0, sizeof c);
     for (tok = args ? strtok_r(args, ":", &save) : NULL; tok; tok = strtok_r(NULL, ":", &save)) {
         if (!strncmp(tok, "timeout=", 8)) {
@@ -404,16 +425,98 @@ static int step_config(const char *name, const char *step, char *args)
         } else if (!strncmp(tok, "rate=", 5)) {
             c.set_mask |= DAN_GW_CFG_ARMING_RATE;
             c.arming_rate_hz = (uint32_t)strtoul(tok + 5, NULL, 0);
+        } else if (!strncmp(tok, "telem=", 6)) {
+            c.set_mask |= DAN_GW_CFG_TELEM_TIMEOUT;
+            c.telem_timeout_ms = (uint32_t)strtoul(tok + 6, NULL, 0);
+        } else if (!strncmp(tok, "dna=", 4)) {
+            c.set_mask |= DAN_GW_CFG_DNA;
+            c.dna = (uint8_t)strtoul(tok + 4, NULL, 0);
         }
     }
-    rc = finish(dan_gw_config(&g_gw, &c, dan_posix_now_us()));
+    return config_run(name, step, &c);
+}
+
+/* config-dna:0|1 and telem-timeout:MS: one CONFIG field each. */
+static int step_config_field(const char *name, const char *step, char *args)
+{
+    dan_gw_config_t c;
+    memset(&c, 0, sizeof c);
+    if (args == NULL) {
+        return fail(step, DAN_ERR_ARG);
+    }
+    if (!strcmp(name, "config-dna")) {
+        c.set_mask = DAN_GW_CFG_DNA;
+        c.dna = (uint8_t)strtoul(args, NULL, 0);
+    } else {
+        c.set_mask = DAN_GW_CFG_TELEM_TIMEOUT;
+        c.telem_timeout_ms = (uint32_t)strtoul(args, NULL, 0);
+    }
+    return config_run(name, step, &c);
+}
+
+static int step_health(const char *name, const char *step, char *args)
+{
+    const dan_gw_health_t *h = &g_gw.health;
+    const char *reason;
+    int rc = finish(dan_gw_health(&g_gw, dan_posix_now_us()));
+    (void)args;
     if (rc != DAN_OK) {
         return fail(step, rc);
     }
-    printf("{\"step\": \"config\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
-           "\"arming_rate_hz\": %u, \"flags\": %u}\n",
-           g_gw.config.node_id, g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz,
-           g_gw.config.gw_flags);
+    reason = dan_gw_reason_name(h->reason);
+    printf("{\"step\": \"%s\", \"ok\": true, \"verdict\": %u, \"verdict_name\": \"%s\", "
+           "\"reason\": %u, \"reason_name\": \"%s\", \"subject\": %u, \"detail\": %u, "
+           "\"problems\": %u}\n",
+           name, h->verdict, h->verdict == DAN_GW_HEALTH_OK ? "ok" : "fail", h->reason,
+           reason ? reason : "unknown", h->subject, h->detail, h->problems);
+    return 0;
+}
+
+/* One page of the allocation table from entry first, printed as JSON
+ * objects after *printed others; the next entry to ask for (DAN_GW_NONE:
+ * the end), or -1 after a failure (rc in *rc). */
+static int dna_page(uint8_t first, dan_gw_dna_hdr_t *h, size_t *printed, int *rc)
+{
+    dan_reader_t r;
+    dan_gw_dna_entry_t e;
+    size_t i, k;
+    *rc = finish(dan_gw_dna(&g_gw, first, dan_posix_now_us()));
+    if (*rc == DAN_OK) {
+        *rc = dan_gw_dna_begin(&g_gw, &r, h);
+    }
+    if (*rc != DAN_OK) {
+        return -1;
+    }
+    for (i = 0; i < h->count && dan_gw_dna_next(&r, &e) == DAN_OK; i++) {
+        printf("%s{\"id\": %u, \"uid\": \"", (*printed)++ ? ", " : "", e.node_id);
+        for (k = 0; k < sizeof e.unique_id; k++) {
+            printf("%02x", e.unique_id[k]);
+        }
+        printf("\"}");
+    }
+    return h->next;
+}
+
+static int step_dna(const char *name, const char *step, char *args)
+{
+    dan_gw_dna_hdr_t h;
+    size_t printed = 0;
+    int next = 0, rc = DAN_OK;
+    (void)step; /* a failure still ends the line as valid JSON */
+    (void)args;
+    printf("{\"step\": \"%s\", \"table\": [", name);
+    while (next != DAN_GW_NONE && next >= 0) {
+        next = dna_page((uint8_t)next, &h, &printed, &rc);
+    }
+    if (rc != DAN_OK) {
+        printf("], \"ok\": false, \"error\": \"%s\"}\n", dan_strerror(rc));
+        return 1;
+    }
+    printf("], \"ok\": true, \"flags\": %u, \"server_on\": %s, \"loaded\": %s, "
+           "\"storage_error\": %s, \"entries\": %u, \"capacity\": %u}\n",
+           h.flags, (h.flags & DAN_GW_DNA_ON) ? "true" : "false",
+           (h.flags & DAN_GW_DNA_LOADED) ? "true" : "false",
+           (h.flags & DAN_GW_DNA_STORE_ERROR) ? "true" : "false", h.entries, h.capacity);
     return 0;
 }
 
@@ -715,12 +818,27 @@ static const struct {
     const char *name;
     step_fn fn;
 } steps[] = {
-    {"stop", step_stop},           {"sleep", step_sleep},     {"discover", step_discover},
-    {"configure", step_configure}, {"arm", step_arm},         {"disarm", step_arm},
-    {"config", step_config},       {"esc", step_esc},         {"esc-ramp", step_esc_ramp},
-    {"telemetry", step_telemetry}, {"nodes", step_nodes},     {"stats", step_stats},
-    {"tunnel", step_tunnel},       {"xfer", step_xfer_args},  {"filter", step_filter},
-    {"cansend", step_cansend},     {"candump", step_candump},
+    {"stop", step_stop},
+    {"sleep", step_sleep},
+    {"discover", step_discover},
+    {"configure", step_configure},
+    {"arm", step_arm},
+    {"disarm", step_arm},
+    {"config", step_config},
+    {"esc", step_esc},
+    {"esc-ramp", step_esc_ramp},
+    {"telemetry", step_telemetry},
+    {"nodes", step_nodes},
+    {"stats", step_stats},
+    {"tunnel", step_tunnel},
+    {"xfer", step_xfer_args},
+    {"filter", step_filter},
+    {"cansend", step_cansend},
+    {"candump", step_candump},
+    {"config-dna", step_config_field},
+    {"telem-timeout", step_config_field},
+    {"health", step_health},
+    {"dna", step_dna},
 };
 
 static int do_step(char *step)

@@ -49,7 +49,7 @@ static bool answer(size_t *from, dan_dc_allocation_t *m)
     if (last == NULL) {
         return false;
     }
-    assert_int_equal(last->src, 10);
+    assert_int_equal(last->src, R->g.cfg.node_id);
     assert_int_equal(dan_dc_allocation_decode(m, last->payload, last->len), DAN_OK);
     return true;
 }
@@ -100,8 +100,10 @@ static void test_dna_ids(void **state)
     memcpy(uid_c, UID_A, 16);
     uid_c[15] ^= 0xFF;
     assert_int_equal(allocate(uid_c, 10), 11); /* preferred 10 is the gateway's own */
-    assert_int_equal(R->g.stats.dna_allocations, 4);
-    assert_int_equal(R->g.dna.n, 3);
+    uid_c[14] ^= 0xFF;
+    assert_int_equal(allocate(uid_c, 127), 123); /* 126, 127: never; from 125 down */
+    assert_int_equal(R->g.stats.dna_allocations, 5);
+    assert_int_equal(R->g.dna.n, 4);
 }
 
 static void test_dna_skips_ids_in_use(void **state)
@@ -237,6 +239,90 @@ static void test_dna_storage(void **state)
     restart_node();
     assert_int_equal(R->g.dna.flags, DAN_GW_DNA_STORE_ERROR);
     assert_int_equal(R->g.dna.n, 0);
+}
+
+/* Each way a stored table can fail to check has its reason; none is
+ * taken. */
+static void test_dna_blob_reasons(void **state)
+{
+    uint8_t b[64];
+    size_t len;
+    uint16_t crc;
+    (void)state;
+    stored_len = 0;
+    restart_node();
+    advance(1000);
+    assert_int_equal(allocate(UID_A, 0), 125);
+    assert_int_equal(allocate(UID_B, 0), 124);
+    advance(1000);
+    len = (size_t)stored_len;
+    assert_int_equal(len, 4 + 1 + 2 * 17 + 2);
+    memcpy(b, stored, len);
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_OK);
+    assert_int_equal(dan_gw_dna_blob_check(b, 6), DAN_GW_DNA_BLOB_SHORT);
+    assert_int_equal(dan_gw_dna_blob_check(b, len - 1), DAN_GW_DNA_BLOB_LENGTH);
+    b[20] ^= 1;
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_CRC);
+    memcpy(b, stored, len);
+    b[0] = 'X';
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_MAGIC);
+    memcpy(b, stored, len);
+    b[4] = 200;
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_COUNT);
+    /* a well-sealed table whose content is wrong: re-sealed after the edit */
+    memcpy(b, stored, len);
+    b[5] = 126;
+    crc = dan_crc16_ccitt(0xFFFFu, b, len - 2);
+    b[len - 2] = (uint8_t)crc;
+    b[len - 1] = (uint8_t)(crc >> 8);
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_NODE_ID);
+    b[5] = 124; /* the second entry's ID again */
+    crc = dan_crc16_ccitt(0xFFFFu, b, len - 2);
+    b[len - 2] = (uint8_t)crc;
+    b[len - 1] = (uint8_t)(crc >> 8);
+    assert_int_equal(dan_gw_dna_blob_check(b, len), DAN_GW_DNA_BLOB_TWICE);
+    assert_string_equal(dan_gw_dna_blob_error(DAN_GW_DNA_BLOB_CRC), "CRC mismatch");
+    assert_string_equal(dan_gw_dna_blob_error(99), "unknown");
+    memcpy(stored, b, len);
+    restart_node();
+    assert_int_equal(R->g.dna.flags, DAN_GW_DNA_STORE_ERROR);
+    assert_int_equal(R->g.dna.n, 0);
+}
+
+/* The ID the table holds for a unique ID is given again only while no one
+ * else has it: not after it became the gateway's own, not while a node
+ * whose GetNodeInfo gave another unique ID uses it (found by the dna fuzz
+ * target). */
+static void test_dna_table_id_taken(void **state)
+{
+    dan_dc_get_node_info_rsp_t rsp;
+    uint8_t buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
+    dan_gw_node_config_t gc;
+    (void)state;
+    stored_len = 0;
+    restart_node();
+    advance(1000);
+    assert_int_equal(allocate(UID_A, 0), 125);
+    advance(1000);
+    gc = R->g.cfg; /* the gateway restarts as node 125 */
+    gc.node_id = 125;
+    assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);
+    assert_int_equal(R->g.dna.n, 1);
+    advance(1000);
+    assert_int_equal(allocate(UID_A, 0), 124);
+    assert_int_equal(R->g.dna.n, 1); /* the entry moved */
+    assert_int_equal(allocate(UID_A, 0), 124);
+    /* a static node takes 124 and says it is UID_B */
+    node_status(124, 5, DAN_DC_HEALTH_OK);
+    advance(100000);
+    memset(&rsp, 0, sizeof rsp);
+    memcpy(rsp.hardware_version.unique_id, UID_B, 16);
+    inject(124, DAN_DC_GET_NODE_INFO_ID, DAN_DC_GET_NODE_INFO_SIGNATURE, DAN_DC_TRANSFER_RESPONSE,
+           125, buf, dan_dc_get_node_info_rsp_encode(&rsp, buf, sizeof buf));
+    assert_int_equal(R->g.nodes[0].info.info_state, DAN_GW_INFO_VALID);
+    advance(1000);
+    assert_int_equal(allocate(UID_A, 0), 123);
+    assert_int_equal(R->g.dna.n, 1);
 }
 
 static void test_dna_table_full(void **state)
@@ -539,6 +625,8 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_dna_off, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_foreign_allocator, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_storage, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_dna_blob_reasons, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_dna_table_id_taken, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_table_full, setup, teardown),
         cmocka_unit_test_setup_teardown(test_param_get_pipelined, setup, teardown),
         cmocka_unit_test_setup_teardown(test_param_set_retry_sent_once, setup, teardown),

@@ -50,11 +50,11 @@ int dan_canif_errf(char *err, size_t errlen, int code, const char *kind, const c
 
 int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen)
 {
-    return dan_canif_open_ms(c, spec, DAN_SLCAN_OPEN_TIMEOUT_MS, err, errlen);
+    return dan_canif_open_opts(c, spec, NULL, err, errlen);
 }
 
-int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, char *err,
-                      size_t errlen)
+int dan_canif_open_opts(dan_canif_t *c, const char *spec, const dan_canif_opts_t *o, char *err,
+                        size_t errlen)
 {
     if (err && errlen) {
         err[0] = '\0';
@@ -64,12 +64,19 @@ int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, cha
     }
     memset(c, 0, sizeof *c);
     c->fd = -1;
-    c->open_timeout_ms = timeout_ms ? timeout_ms : DAN_SLCAN_OPEN_TIMEOUT_MS;
+    c->open_timeout_ms = o && o->timeout_ms ? o->timeout_ms : DAN_SLCAN_OPEN_TIMEOUT_MS;
+    c->bitrate = o ? o->bitrate : 0u;
 
     if (strncmp(spec, SOCKETCAN_PREFIX, sizeof SOCKETCAN_PREFIX - 1) == 0) {
         const char *ifname = spec + sizeof SOCKETCAN_PREFIX - 1;
         if (*ifname == '\0') {
             return set_err(err, errlen, DAN_ERR_ARG, "missing interface name (socketcan:can0)",
+                           spec);
+        }
+        if (c->bitrate != 0u) {
+            return set_err(err, errlen, DAN_ERR_ARG,
+                           "a SocketCAN interface's bitrate is set with ip link "
+                           "(ip link set IF type can bitrate N)",
                            spec);
         }
         return dan_canif_socketcan_open(c, ifname, err, errlen);

@@ -64,7 +64,8 @@ typedef struct {
     int line_overflow; /* dropping bytes until the next terminator */
     uint8_t rxbuf[256];
     size_t rx_pos, rx_len;    /* unparsed bytes: rxbuf[rx_pos..rx_len) */
-    unsigned open_timeout_ms; /* SLCAN handshake bound (dan_canif_open_ms) */
+    unsigned open_timeout_ms; /* SLCAN handshake bound (dan_canif_open_opts) */
+    uint32_t bitrate;         /* SLCAN CAN bitrate, bit/s (0: 1 Mbit/s) */
     char txbuf[2 * DAN_SLCAN_FORMAT_MAX];
     size_t tx_len; /* bytes of a partly written line */
     char name[64]; /* device or interface, for messages */
@@ -81,11 +82,25 @@ typedef struct {
  * DAN_ERR_IO, DAN_ERR_TIMEOUT (no answer), DAN_ERR_REMOTE (BEL).
  * c is overwritten: it must not hold an open interface (close it first). */
 int dan_canif_open(dan_canif_t *c, const char *spec, char *err, size_t errlen);
-/* The same with the SLCAN handshake bounded by timeout_ms instead of
- * DAN_SLCAN_OPEN_TIMEOUT_MS: a daemon retrying a silent adapter from its
- * poll loop keeps the loop responsive with a short one. */
-int dan_canif_open_ms(dan_canif_t *c, const char *spec, unsigned timeout_ms, char *err,
-                      size_t errlen);
+
+/* dan_canif_open() with options. */
+typedef struct {
+    /* The SLCAN handshake's bound instead of DAN_SLCAN_OPEN_TIMEOUT_MS (0:
+     * that): a daemon retrying a silent adapter from its poll loop keeps
+     * the loop responsive with a short one. */
+    unsigned timeout_ms;
+    /* SLCAN: the CAN bitrate in bit/s, one of the Lawicel S0..S8 rates
+     * (dan_slcan_bitrate_code; 0: 1 Mbit/s). SocketCAN: must be 0 (the
+     * interface's bitrate is set with `ip link`). */
+    uint32_t bitrate;
+} dan_canif_opts_t;
+int dan_canif_open_opts(dan_canif_t *c, const char *spec, const dan_canif_opts_t *o, char *err,
+                        size_t errlen);
+
+/* The Lawicel code k of S<k> for a CAN bitrate in bit/s: 10000 -> 0, 20000,
+ * 50000, 100000, 125000, 250000, 500000, 800000, 1000000 -> 8; DAN_ERR_ARG
+ * for any other rate. */
+int dan_slcan_bitrate_code(uint32_t bitrate);
 
 /* File descriptor to poll, or -1 when closed. */
 int dan_canif_fd(const dan_canif_t *c);

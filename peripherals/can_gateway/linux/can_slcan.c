@@ -1,7 +1,8 @@
 /*
  * SLCAN (Lawicel ASCII) backend: a USB-CAN adapter on a tty.
  *
- * Host -> adapter: "C\r" close, "S8\r" 1 Mbit/s, "O\r" open,
+ * Host -> adapter: "C\r" close, "S0\r".."S8\r" bitrate (10 kbit/s..1 Mbit/s,
+ *   default S8), "O\r" open,
  *   "tIIILDD..\r" / "TIIIIIIIILDD..\r" data frames, "rIIIL\r" / "RIIIIIIIIL\r"
  *   remote frames.
  * Adapter -> host: "\r" ACK, "\a" (BEL) error, "z\r" / "Z\r" transmit ACK,
@@ -389,7 +390,25 @@ static int open_tty(dan_canif_t *c, const char *path, speed_t speed, char *err, 
     return 0;
 }
 
-/* The handshake's commands, in order, and what to say when one fails. */
+/* The Lawicel bitrate commands: S<k> sets slcan_bitrates[k] bit/s. */
+static const uint32_t slcan_bitrates[] = {10000u,  20000u,  50000u,  100000u, 125000u,
+                                          250000u, 500000u, 800000u, 1000000u};
+#define SLCAN_DEFAULT_CODE 8 /* S8: 1 Mbit/s */
+
+int dan_slcan_bitrate_code(uint32_t bitrate)
+{
+    size_t k;
+    for (k = 0; k < sizeof slcan_bitrates / sizeof slcan_bitrates[0]; k++) {
+        if (slcan_bitrates[k] == bitrate) {
+            return (int)k;
+        }
+    }
+    return DAN_ERR_ARG;
+}
+
+/* The handshake's commands, in order, and what to say when one fails
+ * (NULL cmd: the bitrate command, "S<k>\r"; its messages get the command
+ * and the rate appended). */
 static const struct {
     const char *cmd;
     const char *refused;   /* answered with BEL; NULL: a BEL is fine too */
@@ -400,12 +419,49 @@ static const struct {
      * (some adapters refuse C when closed). */
     {"C\r", NULL, "no answer from adapter to C in time (not an SLCAN adapter, or wrong baud?)",
      "I/O error during C (close channel)"},
-    {"S8\r", "adapter refused S8 (1 Mbit/s) with BEL",
-     "no answer from adapter to S8 in time (not an SLCAN adapter, or wrong baud?)",
-     "I/O error during S8 (set bitrate)"},
+    {NULL, "adapter refused the bitrate with BEL",
+     "no answer from adapter to the bitrate command in time (not an SLCAN adapter, or wrong "
+     "baud?)",
+     "I/O error while setting the bitrate"},
     {"O\r", "adapter refused O (open channel) with BEL", "no answer from adapter to O",
      "I/O error during O (open channel)"},
 };
+
+/* Sends handshake step i and waits for its answer; closes and reports on
+ * a failure. */
+static int handshake_step(dan_canif_t *c, size_t i, const char *path, uint64_t deadline, char *err,
+                          size_t errlen)
+{
+    int code = c->bitrate ? dan_slcan_bitrate_code(c->bitrate) : SLCAN_DEFAULT_CODE;
+    char cmd[8], what[192];
+    const char *msg;
+    int r;
+    if (handshake[i].cmd != NULL) {
+        snprintf(cmd, sizeof cmd, "%s", handshake[i].cmd);
+    } else {
+        snprintf(cmd, sizeof cmd, "S%d\r", code);
+    }
+    r = write_all(c->fd, cmd, strlen(cmd), deadline);
+    if (r == 0) {
+        r = wait_ack(c, deadline);
+    }
+    if (r == DAN_ERR_REMOTE && handshake[i].refused == NULL) {
+        r = 0;
+    }
+    if (r >= 0) {
+        return 0;
+    }
+    msg = r == DAN_ERR_REMOTE    ? handshake[i].refused
+          : r == DAN_ERR_TIMEOUT ? handshake[i].no_answer
+                                 : handshake[i].io;
+    if (handshake[i].cmd != NULL) {
+        snprintf(what, sizeof what, "%s", msg);
+    } else {
+        snprintf(what, sizeof what, "%s (S%d, %lu bit/s)", msg, code,
+                 (unsigned long)slcan_bitrates[code]);
+    }
+    return close_fail(c, err, errlen, r, path, what, 0);
+}
 
 int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *err, size_t errlen)
 {
@@ -418,25 +474,21 @@ int dan_canif_slcan_open(dan_canif_t *c, const char *path, unsigned baud, char *
         return fail(err, errlen, DAN_ERR_UNSUPPORTED, path,
                     "unsupported serial baud (use 9600..4000000, a standard rate)", 0);
     }
+    if (c->bitrate != 0u && dan_slcan_bitrate_code(c->bitrate) < 0) {
+        return fail(err, errlen, DAN_ERR_ARG, path,
+                    "unsupported CAN bitrate (SLCAN: 10000, 20000, 50000, 100000, 125000, "
+                    "250000, 500000, 800000 or 1000000)",
+                    0);
+    }
     r = open_tty(c, path, speed, err, errlen);
     if (r < 0) {
         return r;
     }
     deadline = dan_posix_now_us() + (uint64_t)c->open_timeout_ms * US_PER_MS;
     for (i = 0; i < sizeof handshake / sizeof handshake[0]; i++) {
-        r = write_all(c->fd, handshake[i].cmd, strlen(handshake[i].cmd), deadline);
-        if (r == 0) {
-            r = wait_ack(c, deadline);
-        }
-        if (r == DAN_ERR_REMOTE && handshake[i].refused == NULL) {
-            r = 0;
-        }
+        r = handshake_step(c, i, path, deadline, err, errlen);
         if (r < 0) {
-            return close_fail(c, err, errlen, r, path,
-                              r == DAN_ERR_REMOTE    ? handshake[i].refused
-                              : r == DAN_ERR_TIMEOUT ? handshake[i].no_answer
-                                                     : handshake[i].io,
-                              0);
+            return r;
         }
         if (i == 0) {
             /* Drop whatever frames were still arriving on the old channel. */

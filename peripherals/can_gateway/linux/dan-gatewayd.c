@@ -9,6 +9,12 @@
  * flag. SIGTERM/SIGINT: failsafe (zero throttle + DISARMED, flushed to
  * CAN), then exit 0. A lost CAN adapter is reported and reopened every
  * second. Exit 2: bad arguments or a device that cannot be opened.
+ *
+ * The dynamic node ID allocation server runs unless --no-dna; --dna-db
+ * keeps its table in a file (dna_file.h: written to PATH.tmp, synced,
+ * renamed; a file that does not check is renamed to PATH.bad and the
+ * table starts empty). The GetNodeInfo unique ID is --uid or derived from
+ * /etc/machine-id (node_uid.h).
  */
 #include <errno.h>
 #include <getopt.h>
@@ -26,6 +32,8 @@
 #include "dan/can_gw/node.h"
 #include "can_backend.h"
 #include "dan_tool.h"
+#include "dna_file.h"
+#include "node_uid.h"
 
 #define REOPEN_US           1000000u /* a lost CAN adapter is tried again once a second */
 #define REOPEN_HANDSHAKE_MS 100u     /* a reopen's SLCAN handshake: DAN waits at most this */
@@ -78,6 +86,10 @@ static void usage(FILE *o)
                "  --can SPEC            socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
                "  --node-id N           DroneCAN node id, 1..127 (default 10)\n"
                "  --uart-baud B         start baud (default 9600, the DAN power-up baud)\n"
+               "  --can-bitrate N       SLCAN adapters: CAN bitrate in bit/s, one of 10000 20000\n"
+               "                        50000 100000 125000 250000 500000 800000 1000000 (S0..S8;\n"
+               "                        default 1000000); SocketCAN: set it with ip link\n"
+               "                        (ip link set can0 type can bitrate 1000000)\n"
                "  --no-echo             the UART does not hear its own bytes\n"
                "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod)\n"
                "  --de-active-low       the pin is active low\n"
@@ -86,6 +98,15 @@ static void usage(FILE *o)
                "  --arming-rate-hz N    ArmingStatus rate, 1..50 (default 2)\n"
                "  --gap-ms N            DAN inter-byte gap (default 20; ptys and USB add latency)\n"
                "  --reply-window-ms N   DAN reply window (default 50)\n"
+               "  --dna-db PATH         keep the dynamic node ID allocation table in PATH\n"
+               "                        (written to PATH.tmp, synced, renamed; a file that does\n"
+               "                        not check is renamed to PATH.bad and the table starts\n"
+               "                        empty; default: in memory only)\n"
+               "  --no-dna              no allocation server (the bus has its own allocator)\n"
+               "  --uid HEX32           GetNodeInfo unique ID, 32 hex digits, not all zeros\n"
+               "                        (default: derived from /etc/machine-id, FNV-1a of\n"
+               "                        \"dan-gatewayd:K:\" + the ID for K=0..3; without one,\n"
+               "                        of \"host:\" + the host name)\n"
                "  --stats-file PATH     write counters as JSON every second\n"
                "  --syslog              log to syslog instead of stderr\n"
                "  --verbose             more log lines\n"
@@ -103,16 +124,22 @@ typedef struct {
     const char *can_spec;
     bool can_up;
     uint64_t reopen_us;
+    dan_canif_opts_t can_opts;
     const char *stats_file;
     uint64_t stats_due_us;
     uint32_t failsafes_logged;
+    const char *dna_db; /* --dna-db, or NULL */
+    dan_dna_file_t dna_file;
+    uint32_t dna_stores_logged, dna_errors_logged;
 } gwd_t;
 
-/* The UART side of the command line. */
+/* The UART side of the command line, and what is checked after it. */
 typedef struct {
     const char *de_gpio;
     uint32_t baud, gap_ms, window_ms, node_id;
     bool no_echo, de_low;
+    const char *uid;         /* --uid, or NULL: derived */
+    const char *can_bitrate; /* --can-bitrate, or NULL: 1 Mbit/s */
 } opts_t;
 
 static void can_down(gwd_t *d, const char *why, uint64_t now)
@@ -125,8 +152,9 @@ static void can_down(gwd_t *d, const char *why, uint64_t now)
     d->reopen_us = now + REOPEN_US;
 }
 
-/* Sends queued frames; while the CAN side is down they are dropped (stale
- * ESC commands must not go out late). */
+/* Sends queued frames (dan_gw_node_tx_sent: the raw capture may include
+ * them); while the CAN side is down they are dropped (stale ESC commands
+ * must not go out late). */
 static void can_drain(gwd_t *d, uint64_t now)
 {
     dan_can_frame_t f;
@@ -156,8 +184,10 @@ static void can_drain(gwd_t *d, uint64_t now)
             can_down(d, "write failed", now);
             return;
         }
-        dan_gw_node_tx_pop(&d->node);
-        if (r != DAN_OK) {
+        if (r == DAN_OK) {
+            dan_gw_node_tx_sent(&d->node, now); /* on its way: the capture may see it */
+        } else {
+            dan_gw_node_tx_pop(&d->node); /* a frame the backend refused */
             dan_gw_node_can_error(&d->node);
         }
         if (dan_canif_tx_pending(&d->can)) {
@@ -247,6 +277,35 @@ static int number_option(int c, const char *arg, opts_t *o, dan_gw_node_config_t
     return -1;
 }
 
+/* The options checked against each other and the system once all are
+ * read: the CAN bitrate, the unique ID, the DNA table's path. -1 to go on,
+ * else 2 after a message. */
+static int check_options(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
+{
+    char err[DAN_DNA_FILE_ERR_MAX];
+    if (o->can_bitrate != NULL &&
+        (tool_parse_u32(o->can_bitrate, 1, UINT32_MAX, &d->can_opts.bitrate) != 0 ||
+         dan_slcan_bitrate_code(d->can_opts.bitrate) < 0)) {
+        tool_error("--can-bitrate must be one of the SLCAN rates 10000 20000 50000 100000 "
+                   "125000 250000 500000 800000 1000000 (bit/s: S0..S8)");
+        return 2;
+    }
+    if (o->can_bitrate != NULL && strncmp(d->can_spec, "slcan:", 6) != 0) {
+        tool_error("--can-bitrate is for slcan: adapters; set a SocketCAN interface's bitrate "
+                   "with ip link (ip link set can0 type can bitrate N)");
+        return 2;
+    }
+    if (o->uid != NULL && dan_uid_parse(o->uid, nc->unique_id) != 0) {
+        tool_error("--uid must be 32 hex digits (16 bytes), not all zeros (DroneCAN: undefined)");
+        return 2;
+    }
+    if (d->dna_db != NULL && dan_dna_file_check_path(d->dna_db, err, sizeof err) != 0) {
+        tool_error("--dna-db %s", err);
+        return 2;
+    }
+    return -1;
+}
+
 /* Returns -1 to go on, else the exit code. */
 static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node_config_t *nc)
 {
@@ -262,6 +321,10 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
                                          {"gap-ms", required_argument, NULL, 'G'},
                                          {"reply-window-ms", required_argument, NULL, 'W'},
                                          {"stats-file", required_argument, NULL, 's'},
+                                         {"can-bitrate", required_argument, NULL, 'B'},
+                                         {"dna-db", required_argument, NULL, 'D'},
+                                         {"no-dna", no_argument, NULL, 'N'},
+                                         {"uid", required_argument, NULL, 'U'},
                                          {"syslog", no_argument, NULL, 'S'},
                                          {"verbose", no_argument, NULL, 'v'},
                                          {"help", no_argument, NULL, 'h'},
@@ -282,6 +345,10 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
         case 'g': o->de_gpio = optarg; break;
         case 'L': o->de_low = true; break;
         case 's': d->stats_file = optarg; break;
+        case 'D': d->dna_db = optarg; break;
+        case 'N': nc->dna = false; break;
+        case 'U': o->uid = optarg; break;
+        case 'B': o->can_bitrate = optarg; break;
         case 'S': g_syslog = 1; break;
         case 'v': g_verbose = 1; break;
         case 'h': usage(stdout); return 0;
@@ -297,7 +364,7 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
         return 2;
     }
     nc->node_id = (uint8_t)o->node_id;
-    return -1;
+    return check_options(d, o, nc);
 }
 
 /* Opens the UART (and its direction pin) and the CAN interface; 0 or 2. */
@@ -316,13 +383,75 @@ static int open_devices(gwd_t *d, const opts_t *o)
         dan_posix_close(&d->uart);
         return 2;
     }
-    if (dan_canif_open(&d->can, d->can_spec, err, sizeof err) != DAN_OK) {
+    if (dan_canif_open_opts(&d->can, d->can_spec, &d->can_opts, err, sizeof err) != DAN_OK) {
         logmsg(LOG_ERR, "%s", err);
         dan_posix_close(&d->uart);
         return 2;
     }
     d->can_up = true;
     return 0;
+}
+
+/* The unique ID: --uid (parsed into nc already), else derived from the
+ * machine ID, or from the host name with a warning. */
+static void set_unique_id(const opts_t *o, dan_gw_node_config_t *nc)
+{
+    char hex[2u * DAN_UID_SIZE + 1u];
+    int derived = o->uid == NULL ? dan_uid_derive(DAN_MACHINE_ID, nc->unique_id) : 0;
+    size_t i;
+    for (i = 0; i < DAN_UID_SIZE; i++) {
+        snprintf(hex + 2u * i, 3, "%02x", nc->unique_id[i]);
+    }
+    if (derived == 1) {
+        logmsg(LOG_WARNING,
+               "no usable %s: DroneCAN unique ID %s derived from the host name (a gateway "
+               "with the same host name would share it; give --uid)",
+               DAN_MACHINE_ID, hex);
+    } else {
+        logmsg(LOG_INFO, "DroneCAN unique ID %s (%s)", hex,
+               o->uid != NULL ? "--uid" : "derived from " DAN_MACHINE_ID);
+    }
+}
+
+/* --dna-db: the file is read before the node starts, which loads it; 0,
+ * or 2 when it exists but cannot be read (it must not be overwritten). */
+static int open_dna_db(gwd_t *d, dan_gw_node_config_t *nc)
+{
+    char err[DAN_DNA_FILE_ERR_MAX];
+    if (d->dna_db == NULL) {
+        return 0;
+    }
+    dan_dna_file_init(&d->dna_file, d->dna_db);
+    if (dan_dna_file_read(&d->dna_file, err, sizeof err) != 0) {
+        logmsg(LOG_ERR, "%s (not overwritten: fix its permissions or move it away)", err);
+        return 2;
+    }
+    nc->dna_storage = &d->dna_file.storage;
+    return 0;
+}
+
+/* After the node loaded the table: a file that did not check is never
+ * used silently: renamed to PATH.bad and reported; 0, or 2 when it cannot
+ * be moved away (the next store would overwrite it). */
+static int check_dna_db(gwd_t *d)
+{
+    char msg[2 * DAN_DNA_FILE_ERR_MAX];
+    int r;
+    if (!d->node.cfg.dna) {
+        logmsg(LOG_INFO, "dynamic node ID allocation off (--no-dna)");
+    }
+    if (d->dna_db == NULL) {
+        return 0;
+    }
+    if ((d->node.dna.flags & DAN_GW_DNA_STORE_ERROR) == 0u) {
+        logmsg(LOG_INFO, "DNA table %s: %u entries%s", d->dna_db, d->node.dna.n,
+               d->dna_file.exists ? "" : " (no file yet)");
+        return 0;
+    }
+    r = dan_dna_file_quarantine(&d->dna_file, msg, sizeof msg);
+    logmsg(LOG_ERR, "DNA table %s; %s", msg,
+           r == 0 ? "starting with an empty table" : "not starting");
+    return r == 0 ? 0 : 2;
 }
 
 /* The DroneCAN node and the DAN peripheral engine on the UART; 0 or 2. */
@@ -334,8 +463,15 @@ static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     /* a different raw-frame sequence each boot (see raw_seq_start) */
     clock_gettime(CLOCK_REALTIME, &ts);
     nc->raw_seq_start = (uint32_t)ts.tv_sec * SEQ_HASH ^ (uint32_t)ts.tv_nsec ^ (uint32_t)getpid();
+    set_unique_id(o, nc);
+    if (open_dna_db(d, nc) != 0) {
+        return 2;
+    }
     if (dan_gw_node_init(&d->node, nc, now) != DAN_OK) {
         logmsg(LOG_ERR, "bad node configuration");
+        return 2;
+    }
+    if (check_dna_db(d) != 0) {
         return 2;
     }
     dan_gw_node_ptype(&d->node, &d->ptype);
@@ -428,13 +564,29 @@ static void can_reopen(gwd_t *d, uint64_t now)
     char err[256];
     /* A short handshake: DAN requests wait meanwhile (at most
      * REOPEN_HANDSHAKE_MS a second while an adapter is present but silent). */
-    if (dan_canif_open_ms(&d->can, d->can_spec, REOPEN_HANDSHAKE_MS, err, sizeof err) == DAN_OK) {
+    dan_canif_opts_t co = d->can_opts;
+    co.timeout_ms = REOPEN_HANDSHAKE_MS;
+    if (dan_canif_open_opts(&d->can, d->can_spec, &co, err, sizeof err) == DAN_OK) {
         d->can_up = true;
         dan_gw_node_can_state(&d->node, true);
         logmsg(LOG_INFO, "CAN %s reopened", d->can_spec);
     } else {
         logmsg(LOG_DEBUG, "%s", err);
         d->reopen_us = now + REOPEN_US;
+    }
+}
+
+/* The DNA table's saves since the last call, in the log. */
+static void log_dna_saves(gwd_t *d)
+{
+    const dan_dna_file_t *f = &d->dna_file;
+    if (f->store_errors != d->dna_errors_logged) {
+        d->dna_errors_logged = f->store_errors;
+        logmsg(LOG_ERR, "%s", f->err);
+    }
+    if (f->stores != d->dna_stores_logged) {
+        d->dna_stores_logged = f->stores;
+        logmsg(LOG_INFO, "DNA table saved to %s: %u entries", d->dna_db, d->node.dna.n);
     }
 }
 
@@ -448,6 +600,9 @@ static void housekeeping(gwd_t *d, uint64_t now)
     }
     if (!d->can_up && now >= d->reopen_us) {
         can_reopen(d, now);
+    }
+    if (d->dna_db != NULL) {
+        log_dna_saves(d);
     }
     if (d->stats_file && now >= d->stats_due_us) {
         write_stats(d);
@@ -506,7 +661,7 @@ int main(int argc, char **argv)
 {
     gwd_t *d = &g_d;
     dan_gw_node_config_t nc;
-    opts_t o = {NULL, DEFAULT_BAUD, DEFAULT_GAP_MS, DEFAULT_WINDOW_MS, 0, false, false};
+    opts_t o = {NULL, DEFAULT_BAUD, DEFAULT_GAP_MS, DEFAULT_WINDOW_MS, 0, false, false, NULL, NULL};
     int r;
 
     tool_prog = "dan-gatewayd";

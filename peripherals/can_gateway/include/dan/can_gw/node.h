@@ -93,6 +93,23 @@ extern "C" {
  * and returns its length, 0 when nothing is stored, negative on an error;
  * store replaces it (DAN_OK or negative). load runs in dan_gw_node_init(),
  * store in dan_gw_node_poll() after the table changed. */
+/* The stored blob: "DNA1", u8 count, count x (u8 node_id, 16 bytes
+ * unique_id), u16 CRC-16/CCITT-FALSE of everything before it (at most
+ * DAN_GW_DNA_BLOB_MAX bytes). dan_gw_dna_blob_check() says why a blob does
+ * not check (the node then starts with an empty table and sets
+ * DAN_GW_DNA_STORE_ERROR); dan_gw_dna_blob_error() names the reason. */
+#define DAN_GW_DNA_BLOB_MAX     (4u + 1u + DAN_GW_NODE_DNA_MAX * DAN_GW_DNA_ENTRY_SIZE + 2u)
+#define DAN_GW_DNA_BLOB_OK      0
+#define DAN_GW_DNA_BLOB_SHORT   1 /* shorter than an empty table */
+#define DAN_GW_DNA_BLOB_MAGIC   2 /* does not start with "DNA1" */
+#define DAN_GW_DNA_BLOB_COUNT   3 /* more entries than DAN_GW_NODE_DNA_MAX */
+#define DAN_GW_DNA_BLOB_LENGTH  4 /* length and count disagree */
+#define DAN_GW_DNA_BLOB_CRC     5
+#define DAN_GW_DNA_BLOB_NODE_ID 6 /* an entry's node ID outside 1..125 */
+#define DAN_GW_DNA_BLOB_TWICE   7 /* a node ID or a unique ID in two entries */
+int dan_gw_dna_blob_check(const uint8_t *b, size_t len);
+const char *dan_gw_dna_blob_error(int r);
+
 typedef struct {
     int (*load)(void *ctx, uint8_t *buf, size_t cap);
     int (*store)(void *ctx, const uint8_t *buf, size_t len);
