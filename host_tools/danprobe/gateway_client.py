@@ -14,6 +14,14 @@ number is never mistaken for a retry of someone else's), and frames the
 first CAN_RECV skips are not counted as lost (they were before our time).
 A CAN_SEND whose transaction failed is sent again with the same sequence
 number by can_send_again(), so a lost response never duplicates frames.
+
+Bus management (gw_client_mgmt.c): node service calls carry a call_id the
+client picks, a new one per call (from a random start, so a new run never
+reuses the ids a previous one left in the gateway): the master's retries
+repeat it and the gateway never sends a retried call twice. A first
+attempt answered with a finished state is a call of someone else's with
+our id and content (a fresh call is always PENDING or BUSY): node_call()
+then starts it again with the next id. gateway_calls.py pipelines calls.
 """
 
 import random
@@ -24,6 +32,7 @@ from typing import Callable, Optional
 from danprobe import registry
 from danprobe.codec import MalformedError
 from danprobe.gateway_can import (
+    RECV_TIMES,
     CanFrame,
     CanRecvRequest,
     CanRecvResponse,
@@ -32,17 +41,42 @@ from danprobe.gateway_can import (
     Filter,
     FilterTable,
 )
+from danprobe.gateway_mgmt import (
+    CALL_DONE,
+    CALL_PARAM_ERASE,
+    CALL_PARAM_GET_INDEX,
+    CALL_PARAM_GET_NAME,
+    CALL_PARAM_SAVE,
+    CALL_PARAM_SET,
+    CALL_RESTART,
+    CALL_TIMEOUT,
+    DNA_END,
+    RESTART_MAGIC,
+    RESULT_CHUNK_MAX,
+    CallResultRequest,
+    CallResultResponse,
+    CallState,
+    DnaEntry,
+    DnaPage,
+    Health,
+    NodeCall,
+    Value,
+)
 from danprobe.gateway_msgs import (
     ARM_FULLY_ARMED,
     CAN_FRAMES_MAX,
     CAN_RESYNC,
     CODE_ARM,
+    CODE_CALL_RESULT,
     CODE_CAN_FILTER,
     CODE_CAN_RECV,
     CODE_CAN_SEND,
     CODE_CONFIG,
+    CODE_DNA,
     CODE_ESC_CMD,
     CODE_ESC_TELEM,
+    CODE_HEALTH,
+    CODE_NODE_CALL,
     CODE_NODE_INFO,
     CODE_NODES,
     CODE_STATS,
@@ -94,9 +128,18 @@ def _describer(code: int, direction: int, fn: Callable) -> Callable[[bytes], dic
 
 
 def register_names():
-    """Names codes 0x42..0x4D in the registry, with describers of the sealed
-    payloads, so sniff shows and decodes them (the CLI calls this at start)."""
+    """Names codes 0x42..0x4F, 0x52 and 0x53 in the registry, with describers
+    of the sealed payloads, so sniff shows and decodes them (the CLI calls
+    this at start). A CAN_RECV response is decoded with the opts of the last
+    CAN_RECV request described (its layout depends on them)."""
     u8 = decode_u8
+    recv_opts = [0]
+
+    def recv_req(p):
+        q = CanRecvRequest.decode(p)
+        recv_opts[0] = q.opts
+        return q
+
     for code, name, req, rsp in (
         (CODE_ESC_CMD, "ESC_CMD", lambda p: {"values": decode_esc_cmd(p)}, Telemetry.decode),
         (CODE_ESC_TELEM, "ESC_TELEM", lambda p: {"first": u8(p)}, Telemetry.decode),
@@ -108,8 +151,12 @@ def register_names():
         (CODE_TUN_OPEN, "TUN_OPEN", TunOpen.decode, TunOpenResult.decode),
         (CODE_TUN_XFER, "TUN_XFER", TunXferRequest.decode, TunXferResponse.decode),
         (CODE_CAN_SEND, "CAN_SEND", CanSendRequest.decode, CanSendResponse.decode),
-        (CODE_CAN_RECV, "CAN_RECV", CanRecvRequest.decode, CanRecvResponse.decode),
+        (CODE_CAN_RECV, "CAN_RECV", recv_req, lambda p: CanRecvResponse.decode(p, recv_opts[0])),
         (CODE_CAN_FILTER, "CAN_FILTER", FilterTable.decode, FilterTable.decode),
+        (CODE_NODE_CALL, "NODE_CALL", NodeCall.decode, CallState.decode),
+        (CODE_CALL_RESULT, "CALL_RESULT", CallResultRequest.decode, CallResultResponse.decode),
+        (CODE_HEALTH, "HEALTH", registry.describe_empty, Health.decode),
+        (CODE_DNA, "DNA", lambda p: {"first": u8(p)}, DnaPage.decode),
     ):
         registry.register_message(
             code,
@@ -155,8 +202,14 @@ class GatewayClient:
         self.can_rx_dropped = 0
         self.can_rx_lost = 0
         self.can_rx_resyncs = 0
+        self.recv_opts = 0  # of the last CAN_RECV
+        self.recv_times: list[int] = []  # its frames' receive times (gateway clock, us)
         self.decode_errors = 0
         self._rng = random.Random(seed)
+        self.call_id = self._rng.randrange(1 << 16)  # the last call_id used
+        self.call: Optional[CallState] = None  # the last NODE_CALL response
+        self.stale_calls = 0  # our call_id and content were someone else's call
+        self.health_state: Optional[Health] = None  # the last HEALTH response
 
     def _call(self, code: int, payload: bytes, decode: Callable):
         """One transaction: the request sealed, the reply unsealed (the
@@ -318,12 +371,18 @@ class GatewayClient:
             raise ValueError("no failed CAN_SEND to repeat")
         return self._can_send(self._unsent)
 
-    def can_recv(self, max_frames: int = CAN_FRAMES_MAX) -> list[CanFrame]:
+    def can_recv(self, max_frames: int = CAN_FRAMES_MAX, opts: int = 0) -> list[CanFrame]:
         """The next frames that passed the filter (acknowledging the ones
-        received before)."""
+        received before). opts RECV_TIMES: their receive times (the
+        gateway's microsecond clock, low 32 bits, t0 not unwrapped) land in
+        .recv_times."""
         first = self.can_rx_next is None
-        req = CanRecvRequest(0 if first else self.can_rx_next, min(max_frames, CAN_FRAMES_MAX))
-        q = self._call(CODE_CAN_RECV, req.encode(), CanRecvResponse.decode)
+        req = CanRecvRequest(
+            0 if first else self.can_rx_next, min(max_frames, CAN_FRAMES_MAX), opts
+        )
+        q = self._call(CODE_CAN_RECV, req.encode(), lambda p: CanRecvResponse.decode(p, opts))
+        self.recv_opts = opts
+        self.recv_times = q.times_us() if opts & RECV_TIMES else []
         if not first:
             skip = off_diff(q.first_seq, self.can_rx_next)
             if skip < 0 or skip > CAN_RESYNC:
@@ -355,3 +414,93 @@ class GatewayClient:
         return self._call(
             CODE_CAN_FILTER, FilterTable(op, list(filters)).encode(), FilterTable.decode
         )
+
+    # ---- bus management: service calls, health, allocation table ----
+
+    def new_call_id(self) -> int:
+        self.call_id = (self.call_id + 1) & 0xFFFF
+        return self.call_id
+
+    def node_call(self, call: NodeCall, fresh: bool = True) -> CallState:
+        """Starts a service call (call.call_id: from new_call_id()); returns
+        the gateway's state of it (PENDING, or BUSY: nothing was sent). A
+        fresh call (fresh: this call_id was never sent before; not so when
+        a failed transaction is repeated) found finished at the first
+        attempt was someone else's: it is started again under a new id."""
+        for _ in range(4):
+            stats = getattr(self.m, "stats", None)
+            retries = stats.retries if stats is not None else 0
+            st = self._call(CODE_NODE_CALL, call.encode(), CallState.decode)
+            if st.call_id != call.call_id:
+                raise self._malformed(
+                    CODE_NODE_CALL, f"answer for call {st.call_id}, not {call.call_id}"
+                )
+            first_attempt = stats is None or stats.retries == retries
+            if not fresh or st.state not in (CALL_DONE, CALL_TIMEOUT) or not first_attempt:
+                self.call = st
+                return st
+            self.stale_calls += 1  # a fresh call is never finished at once
+            call.call_id = self.new_call_id()
+        raise self._malformed(CODE_NODE_CALL, "every call_id tried was finished already")
+
+    def _start(self, node_id: int, op: int, **kw) -> CallState:
+        return self.node_call(NodeCall(self.new_call_id(), node_id, op, **kw))
+
+    def param_get_index(self, node_id: int, index: int) -> CallState:
+        return self._start(node_id, CALL_PARAM_GET_INDEX, index=index)
+
+    def param_get(self, node_id: int, name) -> CallState:
+        return self._start(node_id, CALL_PARAM_GET_NAME, name=_name(name))
+
+    def param_set(self, node_id: int, name, value: Value) -> CallState:
+        return self._start(node_id, CALL_PARAM_SET, name=_name(name), value=value)
+
+    def param_save(self, node_id: int) -> CallState:
+        return self._start(node_id, CALL_PARAM_SAVE)
+
+    def param_erase(self, node_id: int) -> CallState:
+        return self._start(node_id, CALL_PARAM_ERASE)
+
+    def restart(self, node_id: int, magic: int = RESTART_MAGIC, force: bool = False) -> CallState:
+        """RestartNode; the gateway refuses (RemoteError) a magic other than
+        RESTART_MAGIC unless force."""
+        return self._start(node_id, CALL_RESTART, magic=magic, force=force)
+
+    def call_result(
+        self, call_id: int, offset: int = 0, max_bytes: int = RESULT_CHUNK_MAX
+    ) -> CallResultResponse:
+        """A call's state and up to max_bytes of its result from offset (a
+        call the gateway does not hold: RemoteError)."""
+        q = self._call(
+            CODE_CALL_RESULT,
+            CallResultRequest(call_id, offset, min(max_bytes, RESULT_CHUNK_MAX)).encode(),
+            CallResultResponse.decode,
+        )
+        if q.call_id != call_id or (q.state == CALL_DONE and q.offset != offset):
+            raise self._malformed(
+                CODE_CALL_RESULT, f"answer for call {q.call_id} at {q.offset}, not {call_id}"
+            )
+        return q
+
+    def health(self) -> Health:
+        self.health_state = self._call(CODE_HEALTH, b"", Health.decode)
+        return self.health_state
+
+    def dna_page(self, first: int = 0) -> DnaPage:
+        return self._call(CODE_DNA, bytes([first]), DnaPage.decode)
+
+    def dna(self) -> tuple[DnaPage, list[DnaEntry]]:
+        """The allocation table, page by page: (the last page's header, every entry)."""
+        out, first = [], 0
+        while True:
+            p = self.dna_page(first)
+            out += p.items
+            if p.next == DNA_END:
+                return p, out
+            if p.next <= first:
+                raise self._malformed(CODE_DNA, f"next page {p.next} does not advance")
+            first = p.next
+
+
+def _name(name) -> bytes:
+    return name.encode("utf-8") if isinstance(name, str) else bytes(name)

@@ -1,8 +1,9 @@
 """The CAN-over-DAN gateway's messages (docs/PROTOCOL.md section 7): the
 payload codec of codes 0x42..0x4A, the limits and codes of all of them,
 and the seal. The raw CAN messages (0x4B..0x4D) are in gateway_can.py,
-the client in gateway_client.py; together they mirror libdan's
-peripherals/can_gateway (gw_msgs.c, gw_client.c).
+the bus-management ones (0x4E, 0x4F, 0x52, 0x53) in gateway_mgmt.py, the
+client in gateway_client.py; together they mirror libdan's
+peripherals/can_gateway (gw_msgs*.c, gw_client*.c).
 
 The codec follows the document byte for byte (tests/vectors/gateway.txt
 pins it, as it pins libdan's dan/can_gw/msgs.h): decoders never
@@ -36,6 +37,11 @@ CODE_CAN_SEND = 0x4B
 CODE_CAN_RECV = 0x4C
 CAN_RESYNC = 4096  # a CAN_RECV sequence jump beyond this: the gateway restarted
 CODE_CAN_FILTER = 0x4D
+CODE_NODE_CALL = 0x4E
+CODE_CALL_RESULT = 0x4F
+# the second block (0x50..0x5F; 0x50 and 0x51 never used)
+CODE_HEALTH = 0x52
+CODE_DNA = 0x53
 
 # ---- limits ----
 ESC_MAX = 20
@@ -61,8 +67,11 @@ TELEM_EXT = 0x02
 # CONFIG set mask
 CFG_ESC_TIMEOUT = 0x01
 CFG_ARMING_RATE = 0x02
+CFG_TELEM_TIMEOUT = 0x04
+CFG_DNA = 0x08
 ESC_TIMEOUT_RANGE = (50, 60000)
 ARMING_RATE_RANGE = (1, 50)
+TELEM_TIMEOUT_RANGE = (100, 60000)  # or 0: the ESC telemetry check off
 
 # STATS counters, in wire order (later versions append)
 STAT_NAMES = (
@@ -86,11 +95,27 @@ STAT_NAMES = (
     "nodes",
     "bad_checks",
     "nodes_dropped",
+    "dna_allocations",
+    "dna_bad",
+    "dna_foreign",
+    "duplicates",
+    "calls",
+    "call_timeouts",
 )
 
 # node table info_state
 INFO_NONE, INFO_PENDING, INFO_VALID, INFO_FAILED = 0, 1, 2, 3
 INFO_STATE_NAMES = ("not asked", "requested", "valid", "no answer")
+# the NODES entry's last byte: info_state (bits 0-1) | these flags
+INFO_MASK = 0x03
+NODE_DUPLICATE = 0x04  # two nodes use this ID
+NODE_OFFLINE = 0x08  # seen, then silent over 3 s
+NODE_ALLOCATED = 0x10  # its ID came from the gateway's allocator
+NODE_FLAG_NAMES = (
+    (NODE_DUPLICATE, "duplicate"),
+    (NODE_OFFLINE, "offline"),
+    (NODE_ALLOCATED, "allocated"),
+)
 HEALTH_NAMES = ("OK", "WARNING", "ERROR", "CRITICAL")
 MODE_NAMES = {
     0: "OPERATIONAL",
@@ -108,6 +133,7 @@ PROTOCOL_UNDEFINED = 255  # uavcan.tunnel.Protocol, as ArduPilot's Targetted sen
 # raw CAN
 CAN_ID_EXT = 0x80000000
 CAN_ID_RTR = 0x40000000
+CAN_ID_OWN = 0x20000000  # CAN_RECV: a frame the gateway sent; CAN_FILTER: pass those too
 SFF_MASK = 0x7FF
 EFF_MASK = 0x1FFFFFFF
 FILTER_REPLACE, FILTER_ADD, FILTER_REMOVE, FILTER_READ = 0, 1, 2, 3
@@ -123,6 +149,7 @@ FILTER_REPLACE, FILTER_ADD, FILTER_REMOVE, FILTER_READ = 0, 1, 2, 3
 SEAL_SIZE = 2
 REQUEST, RESPONSE = 0, 1
 CODE_FIRST, CODE_LAST = CODE_ESC_CMD, 0x4F
+CODE2_FIRST, CODE2_LAST = 0x52, 0x5F  # the second block's
 
 
 _CRC16_TABLE = crc_table(0x1021, 16)
@@ -136,7 +163,7 @@ def crc16_ccitt_false(data, crc: int = 0xFFFF) -> int:
 
 
 def sealed_code(code: int) -> bool:
-    return CODE_FIRST <= code <= CODE_LAST
+    return CODE_FIRST <= code <= CODE_LAST or CODE2_FIRST <= code <= CODE2_LAST
 
 
 def check(code: int, direction: int, inner: bytes) -> int:
@@ -390,18 +417,53 @@ decode_u8 = _u8_payload("value")
 # ---- CONFIG (0x45) ----
 
 
+def _telem_timeout(v: int) -> int:
+    if v != 0:
+        check_range(v, *TELEM_TIMEOUT_RANGE, "telem_timeout_ms")
+    return v
+
+
+def _dna_setting(v: int) -> int:
+    return check_range(v, 0, 1, "dna")
+
+
+# set_mask bit, field, check of each settable field, in wire order
+_CONFIG_FIELDS = (
+    (
+        CFG_ESC_TIMEOUT,
+        "esc_timeout_ms",
+        lambda v: check_range(v, *ESC_TIMEOUT_RANGE, "esc_timeout_ms"),
+    ),
+    (
+        CFG_ARMING_RATE,
+        "arming_rate_hz",
+        lambda v: check_range(v, *ARMING_RATE_RANGE, "arming_rate_hz"),
+    ),
+    (CFG_TELEM_TIMEOUT, "telem_timeout_ms", _telem_timeout),
+    (CFG_DNA, "dna", _dna_setting),
+)
+
+
 @dataclass
 class ConfigRequest:
+    """set_mask, then the fields it names: uv esc_timeout_ms, uv
+    arming_rate_hz, uv telem_timeout_ms (0 or 100..60000), u8 dna (0/1)."""
+
     set_mask: int = 0
     esc_timeout_ms: int = 0
     arming_rate_hz: int = 0
+    telem_timeout_ms: int = 0
+    dna: int = 0
 
     def encode(self) -> bytes:
         w = Writer().u8(self.set_mask)
-        if self.set_mask & CFG_ESC_TIMEOUT:
-            w.uvarint(check_range(self.esc_timeout_ms, *ESC_TIMEOUT_RANGE, "esc_timeout_ms"))
-        if self.set_mask & CFG_ARMING_RATE:
-            w.uvarint(check_range(self.arming_rate_hz, *ARMING_RATE_RANGE, "arming_rate_hz"))
+        for bit, name, ok in _CONFIG_FIELDS:
+            if self.set_mask & bit:
+                v = ok(getattr(self, name))
+                if bit == CFG_DNA:
+                    w.u8(v)
+                else:
+                    w.uvarint(v)
         return w.bytes()
 
     @classmethod
@@ -409,14 +471,9 @@ class ConfigRequest:
         r = Reader(payload)
         c = cls(r.u8("set_mask") if r.remaining() else 0)
         try:
-            if c.set_mask & CFG_ESC_TIMEOUT:
-                c.esc_timeout_ms = check_range(
-                    r.uvarint("esc_timeout_ms"), *ESC_TIMEOUT_RANGE, "esc_timeout_ms"
-                )
-            if c.set_mask & CFG_ARMING_RATE:
-                c.arming_rate_hz = check_range(
-                    r.uvarint("arming_rate_hz"), *ARMING_RATE_RANGE, "arming_rate_hz"
-                )
+            for bit, name, ok in _CONFIG_FIELDS:
+                if c.set_mask & bit:
+                    setattr(c, name, ok(r.u8(name) if bit == CFG_DNA else r.uvarint(name)))
         except ValueError as e:
             if isinstance(e, MalformedError):
                 raise
@@ -429,10 +486,15 @@ class ConfigRequest:
 
 @dataclass
 class ConfigResponse:
+    """u8 node_id, uv esc_timeout_ms, uv arming_rate_hz, u8 flags, then (a
+    gateway with bus management appends them) uv telem_timeout_ms, u8 dna."""
+
     node_id: int = 0
     esc_timeout_ms: int = 0
     arming_rate_hz: int = 0
     flags: int = 0
+    telem_timeout_ms: int = 0
+    dna: int = 0
 
     def encode(self) -> bytes:
         return (
@@ -441,21 +503,28 @@ class ConfigResponse:
             .uvarint(self.esc_timeout_ms)
             .uvarint(self.arming_rate_hz)
             .u8(self.flags)
+            .uvarint(self.telem_timeout_ms)
+            .u8(self.dna)
             .bytes()
         )
 
     @classmethod
     def decode(cls, payload) -> "ConfigResponse":
         r = Reader(payload)
-        return cls(
+        c = cls(
             r.u8("node_id"), r.uvarint("esc_timeout_ms"), r.uvarint("arming_rate_hz"), r.u8("flags")
         )
+        if r.remaining():
+            c.telem_timeout_ms, c.dna = r.uvarint("telem_timeout_ms"), r.u8("dna")
+        return c
 
     def as_dict(self) -> dict:
         return {
             "node_id": self.node_id,
             "esc_timeout_ms": self.esc_timeout_ms,
             "arming_rate_hz": self.arming_rate_hz,
+            "telem_timeout_ms": self.telem_timeout_ms,
+            "dna": self.dna,
             **flags_dict(self.flags),
         }
 
@@ -498,7 +567,8 @@ class NodeEntry:
     uptime_sec: int = 0
     vendor_status: int = 0
     age_ms: int = 0
-    info_state: int = 0
+    info_state: int = 0  # INFO_* (bits 0-1 of the entry's last byte)
+    node_flags: int = 0  # NODE_* (the other bits)
 
     def put(self, w: Writer):
         (
@@ -507,13 +577,13 @@ class NodeEntry:
             .uvarint(self.uptime_sec)
             .u16(self.vendor_status)
             .uvarint(self.age_ms)
-            .u8(self.info_state)
+            .u8((self.info_state & INFO_MASK) | (self.node_flags & ~INFO_MASK & 0xFF))
         )
 
     @classmethod
     def get(cls, r: Reader) -> "NodeEntry":
         nid, hm = r.u8("node_id"), r.u8("health/mode")
-        return cls(
+        e = cls(
             nid,
             hm & 3,
             (hm >> 2) & 7,
@@ -521,13 +591,20 @@ class NodeEntry:
             r.uvarint("uptime_sec"),
             r.u16("vendor_status"),
             r.uvarint("age_ms"),
-            r.u8("info_state"),
         )
+        last = r.u8("info_state")
+        e.info_state, e.node_flags = last & INFO_MASK, last & ~INFO_MASK
+        return e
+
+    @property
+    def flag_names(self) -> list[str]:
+        return [n for bit, n in NODE_FLAG_NAMES if self.node_flags & bit]
 
     def as_dict(self) -> dict:
         d = asdict(self)
         d["health_name"] = HEALTH_NAMES[self.health]
         d["mode_name"] = MODE_NAMES.get(self.mode, str(self.mode))
+        d.update({n: bool(self.node_flags & bit) for bit, n in NODE_FLAG_NAMES})
         return d
 
 

@@ -25,6 +25,7 @@ class PeripheralType:
     name: str  # short name for command lines ("can-gw")
     first: int  # first code of the block (IDENTIFY)
     title: str
+    more_blocks: tuple[int, ...] = ()  # first codes of further blocks (their first two unused)
 
     @property
     def identify(self) -> int:
@@ -37,7 +38,7 @@ class PeripheralType:
 
 TYPES = (
     PeripheralType("vtx", 0x20, "video transmitter (DAN draft)"),
-    PeripheralType("can-gw", 0x40, "CAN-over-DAN gateway"),
+    PeripheralType("can-gw", 0x40, "CAN-over-DAN gateway", (0x50,)),
     PeripheralType("test-a", 0x60, "test type A"),
     PeripheralType("test-b", 0x70, "test type B"),
 )
@@ -56,8 +57,11 @@ def lookup(name_or_code: str) -> Optional[PeripheralType]:
 
 
 def type_of_code(code: int) -> Optional[PeripheralType]:
-    """The type whose block holds code."""
-    return next((t for t in TYPES if 0 <= code - t.first < BLOCK_SIZE), None)
+    """The type whose block (or further block) holds code."""
+    return next(
+        (t for t in TYPES if any(0 <= code - b < BLOCK_SIZE for b in (t.first, *t.more_blocks))),
+        None,
+    )
 
 
 # ---- messages ----

@@ -248,7 +248,6 @@ static void on_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t 
 
 void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us)
 {
-    dan_dc_transfer_t t;
     g->stats.can_rx++;
     if (f->flags & DAN_CAN_ERR) {
         g->stats.can_errors++;
@@ -261,6 +260,12 @@ void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now
         return;
     }
     dan_gwn_raw_in(g, f, now_us);
+    dan_gwn_hear(g, f, now_us);
+}
+
+void dan_gwn_hear(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us)
+{
+    dan_dc_transfer_t t;
     if (dan_dc_rx_frame(&g->rx, f, now_us, &t) != 1) {
         return;
     }

@@ -298,8 +298,9 @@ void dan_gwn_on_allocation(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_
         return;
     }
     if (t->source_node != 0u) {
-        if (t->source_node != g->cfg.node_id) {
-            g->dna.foreign = t->source_node; /* another allocator: a configuration error */
+        /* another allocator is a configuration error only while ours runs */
+        if (t->source_node != g->cfg.node_id && g->cfg.dna) {
+            g->dna.foreign = t->source_node;
             g->dna.foreign_us = now_us;
             g->stats.dna_foreign++;
         }

@@ -86,6 +86,8 @@ uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_
 /* ---- raw frames (gw_node_raw.c) ---- */
 /* A frame for the capture (received, or ours with DAN_CAN_OWN). */
 void dan_gwn_raw_in(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
+/* The DroneCAN side of a received frame (also the FC's own frames once sent). */
+void dan_gwn_hear(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
 /* CAN_SEND: all or nothing; a retry (same seq and digest) is not sent
  * again. Fills s->count (accepted) and s->queue_free. */
 void dan_gwn_raw_send(dan_gw_node_t *g, dan_gw_can_send_t *s, const dan_can_frame_t *f,

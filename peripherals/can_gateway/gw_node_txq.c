@@ -36,8 +36,17 @@ void dan_gw_node_tx_pop(dan_gw_node_t *g)
 void dan_gw_node_tx_sent(dan_gw_node_t *g, uint64_t now_us)
 {
     dan_can_frame_t f;
+    dan_dc_transfer_t id;
     if (dan_gw_node_tx_peek(g, &f)) {
         dan_gw_node_tx_pop(g);
+        /* A frame the FC sent (CAN_SEND) is on the bus now, and the bus
+         * does not hand a controller its own frames: the node hears it
+         * here, as every other node did (a GetNodeInfo from a node behind
+         * the FC gets its answer; its NodeStatus enters the table). */
+        if ((f.flags & DAN_CAN_EXT) != 0u && dan_dc_parse_id(f.id, &id) == DAN_OK &&
+            id.source_node != g->cfg.node_id) {
+            dan_gwn_hear(g, &f, now_us);
+        }
         f.flags |= DAN_CAN_OWN;
         dan_gwn_raw_in(g, &f, now_us);
     }

@@ -18,6 +18,10 @@ Rows:
   gateway    callgrind instructions per ESC exchange, gateway side and FC side
   latency    ESC_CMD last byte on the wire -> RawCommand out of the hub, against
              a bare vbus pty hop plus a bare hub hop measured the same way
+  params     listing the 100 parameters of tests/tools/param_node.py (pydronecan,
+             behind the hub) with danprobe's client through the DAN wire at
+             115200 (NODE_CALL / CALL_RESULT, 5 calls in flight), against the
+             goal of 3 s
 Results: OUT/results.json (+ results-YYYYmmdd-HHMMSS.json); the delta against
 the previous results.json is printed. --soak N: the ESC loop for N seconds
 with dan-gatewayd's RSS and counters sampled (also in the JSON).
@@ -37,14 +41,19 @@ import tempfile
 import time
 from pathlib import Path
 
-from danprobe.codec import encode_frame  # the host tool's codec (same venv)
-from danprobe.gateway_msgs import REQUEST, seal
-
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "host_tools"))
+sys.path.insert(0, str(ROOT / "host_tools"))  # this checkout's danprobe, whatever the venv's
 import procgroup  # noqa: E402
+from danprobe import gateway_calls, registry  # noqa: E402
+from danprobe.codec import encode_frame  # noqa: E402  (the host tool's codec)
+from danprobe.gateway_client import GatewayClient  # noqa: E402
+from danprobe.gateway_msgs import REQUEST, seal  # noqa: E402
+from danprobe.master import Master  # noqa: E402
+from danprobe.port import SerialPort  # noqa: E402
 
 CAN_FLOOD = ROOT / "tests" / "tools" / "can_flood.py"
+PARAM_NODE = ROOT / "tests" / "tools" / "param_node.py"
+PARAMS_GOAL_S = 3.0
 
 BAUD = 115200
 C_US = (10_000_000 + BAUD - 1) // BAUD  # one character, as libdan rounds it
@@ -538,6 +547,50 @@ def bench_latency(build, samples=60):
     }
 
 
+def bench_params(build, runs=3, count=100):
+    """param list of a 100-parameter pydronecan node: the median of runs."""
+    with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
+        tmp = Path(tmp)
+        st = Stack(tmp)
+        try:
+            gw_rig(st, build, tmp, n_esc=0, extra_can=1)
+            node = st.start(
+                [PY, PARAM_NODE, "--port", tmp / "can1", "--node-id", 50, "--count", count],
+                "param_node",
+            )
+            st.ready(node)
+            with SerialPort(str(tmp / "dan0"), 9600) as port:
+                m = Master(port, [registry.lookup("can-gw")])
+                m.discover()
+                m.configure()
+                if m.baud != BAUD:
+                    raise RuntimeError(f"the bus is at {m.baud}, not {BAUD}")
+                gw = GatewayClient(m)
+                gateway_calls.param_list(gw, 50)  # warm: the node's first answers
+                times, n, tx = [], 0, 0
+                for _ in range(runs):
+                    before = m.stats.transactions
+                    t0 = time.monotonic()
+                    n = len(gateway_calls.param_list(gw, 50))
+                    times.append(time.monotonic() - t0)
+                    tx = m.stats.transactions - before
+                    if n != count:
+                        raise RuntimeError(f"listed {n} of {count} parameters")
+                retries = m.stats.retries
+        finally:
+            st.close()
+    secs = statistics.median(times)
+    return {
+        "seconds": secs,
+        "params": n,
+        "transactions": tx,
+        "retries": retries,
+        "goal_s": PARAMS_GOAL_S,
+        "ratio": secs / PARAMS_GOAL_S,
+        "runs": times,
+    }
+
+
 def rss_kb(pid):
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
@@ -670,6 +723,16 @@ def table(r):
                 f"{lat['ratio']:.2f}",
             )
         )
+    pr = r.get("params")
+    if pr:
+        rows.append(
+            (
+                f"param list ({pr['params']} params)",
+                f"{pr['seconds']:.2f} s",
+                f"goal {pr['goal_s']:.0f} s ({pr['transactions']} transactions)",
+                f"{pr['ratio']:.2f}",
+            )
+        )
     w0 = max(len(x[0]) for x in rows)
     w1 = max(len(x[1]) for x in rows)
     w2 = max(len(x[2]) for x in rows)
@@ -694,6 +757,7 @@ KEYS = [
     ("gateway", "fc_instr"),
     ("latency", "gw_us"),
     ("latency", "ratio"),
+    ("params", "seconds"),
 ]
 
 
@@ -716,7 +780,8 @@ def main():
     ap.add_argument("--soak", type=float, default=0)
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
     ap.add_argument(
-        "--only", help="comma-separated rows (esc,raw_can,discovery,parser,gateway,latency)"
+        "--only",
+        help="comma-separated rows (esc,raw_can,discovery,parser,gateway,latency,params)",
     )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
@@ -753,6 +818,7 @@ def main():
             ("parser", lambda: bench_parser(build)),
             ("gateway", lambda: bench_gateway_instr(build)),
             ("latency", lambda: bench_latency(build)),
+            ("params", lambda: bench_params(build)),
         ]
         for name, fn in todo:
             if only and name not in only:

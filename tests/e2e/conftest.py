@@ -5,6 +5,7 @@ in its own process group and kills the group at teardown, so no test leaves
 a process behind whatever happens.
 """
 
+import os
 import signal
 import sys
 import time
@@ -14,6 +15,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))
+# Programs the tests start (python -m danprobe, the tools) import this
+# checkout's host_tools too: worktrees may share one venv, whose editable
+# install points at another checkout.
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    filter(None, (str(ROOT / "host_tools"), os.environ.get("PYTHONPATH")))
+)
 import procgroup  # noqa: E402
 import pydronecan_nodes  # noqa: E402
 

@@ -4,6 +4,7 @@ end of a Targetted serial tunnel."""
 
 import json
 import random
+import sys
 import threading
 import time
 
@@ -142,6 +143,26 @@ class TunnelFarEnd:
                     buffer=list(chunk),
                 )
             )
+
+
+def start_danprobe(procs, *args, name="danprobe"):
+    """A long-running danprobe command (--json added) in its own process
+    group; returns (proc, its "ready" event)."""
+    p = procs.start([sys.executable, "-m", "danprobe", *map(str, args), "--json"], name=name)
+    line = p.stdout.readline().decode()
+    assert line, f"{name} ended: {p.log_path.read_text()}"
+    ev = json.loads(line)
+    assert ev.get("event") == "ready", ev
+    return p, ev
+
+
+def finish_danprobe(procs, p):
+    """Stops a long-running danprobe command (SIGTERM): exit 0 and its
+    summary document, returned."""
+    assert procs.stop(p, timeout=30) == 0, p.log_path.read_text()
+    lines = [json.loads(x) for x in p.stdout.read().decode().splitlines() if x.strip()]
+    assert lines and lines[-1]["event"] == "summary" and lines[-1]["result"] == 0, lines
+    return lines[-1]
 
 
 # ---- dynamic node ID allocation: an allocatee from the specification ----

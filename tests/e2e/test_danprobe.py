@@ -205,7 +205,8 @@ def test_code_names():
     assert registry.code_name(0x60) == "test-a IDENTIFY"
     assert registry.code_name(0x41) == "can-gw CONFIGURE"
     assert registry.code_name(0x42) == "can-gw 0x42"
-    assert registry.code_name(0x50) == "0x50"
+    assert registry.code_name(0x50) == "can-gw 0x50"  # the gateway's second block
+    assert registry.code_name(0x30) == "0x30"  # no type's
     assert registry.lookup("0x40").name == "can-gw" and registry.lookup("nope") is None
 
 

@@ -11,6 +11,7 @@ import json
 import os
 import re
 import select
+import struct
 import sys
 import threading
 import time
@@ -21,12 +22,13 @@ import pytest
 from bus_util import control, danprobe
 from conftest import BIN, ROOT, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
+from danprobe import gateway_mgmt as M
 from danprobe import gateway_msgs as G
 from danprobe.codec import encode_frame
 from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
-from gw_rig import GW_NODE, Rig, TunnelFarEnd
+from gw_rig import GW_NODE, Rig, TunnelFarEnd, finish_danprobe, start_danprobe
 
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
 
@@ -56,12 +58,79 @@ def frame_of(text):
         bool(idf & G.CAN_ID_EXT),
         rtr,
         int(dlc) if rtr else 0,
+        bool(idf & G.CAN_ID_OWN),
     )
 
 
 def filter_of(text):
     i, m = (int(x, 16) for x in text.split("/"))
-    return GC.Filter(i & G.EFF_MASK, m, bool(i & G.CAN_ID_EXT))
+    return GC.Filter(i & G.EFF_MASK, m, bool(i & G.CAN_ID_EXT), bool(i & G.CAN_ID_OWN))
+
+
+def node_entry_of(text):
+    v = list(map(int, text.split("/")))
+    return G.NodeEntry(*v[:7], v[7] & G.INFO_MASK, v[7] & ~G.INFO_MASK)
+
+
+def value_of(text):
+    """A param value as the vectors write it: <tag>[/<v>]."""
+    tag, _, v = text.partition("/")
+    tag = int(tag)
+    if tag == M.VALUE_INTEGER:
+        return M.Value.integer(int(v))
+    if tag == M.VALUE_REAL:
+        return M.Value(tag, struct.unpack("<f", int(v, 16).to_bytes(4, "little"))[0])
+    if tag == M.VALUE_BOOLEAN:
+        return M.Value(tag, int(v))
+    if tag == M.VALUE_STRING:
+        return M.Value.string(unhex(v))
+    return M.Value()
+
+
+# messages whose fields are all integers: their class and the fields' keys
+INT_MESSAGES = {
+    ("node_call", "rsp"): (M.CallState, "id state len"),
+    ("call_result", "req"): (M.CallResultRequest, "id offset max"),
+    ("health", "rsp"): (M.Health, "verdict reason subject detail problems"),
+}
+
+
+def mgmt_vector_object(msg, d, f, rep):
+    """vector_object() of the bus-management messages."""
+    i = lambda k: int(f[k])  # noqa: E731
+    opt = lambda k: value_of(f[k]) if k in f else None  # noqa: E731
+    key = (msg, d)
+    if key in INT_MESSAGES:
+        cls, keys = INT_MESSAGES[key]
+        obj = cls(*(i(k) for k in keys.split()))
+        return obj.encode(), cls.decode, obj
+    if key == ("node_call", "req"):
+        c = M.NodeCall(i("id"), i("node"), i("op"))
+        c.index = int(f.get("index", 0))
+        c.name = unhex(f.get("name", "-"))
+        c.value = value_of(f.get("value", "0"))
+        c.magic, c.force = int(f.get("magic", M.RESTART_MAGIC)), bool(int(f.get("force", 0)))
+        return c.encode(), M.NodeCall.decode, c
+    if key == ("call_result", "rsp"):
+        q = M.CallResultResponse(i("id"), i("state"), i("len"), i("offset"), unhex(f["data"]))
+        return q.encode(), M.CallResultResponse.decode, q
+    if key == ("param", "rsp"):
+        p = M.ParamResult(value_of(f["value"]), opt("default"), opt("max"), opt("min"))
+        p.name = unhex(f["name"])
+        assert p.present == i("present")
+        return p.encode(), M.ParamResult.decode, p
+    if key == ("opcode", "rsp"):
+        o = M.OpcodeResult(bool(i("ok")), i("arg"))
+        return o.encode(), M.OpcodeResult.decode, o
+    if key == ("health", "req"):
+        return b"", lambda p: b"", b""
+    if key == ("dna", "req"):
+        return bytes([i("first")]), G.decode_u8, i("first")
+    if key == ("dna", "rsp"):
+        items = [M.DnaEntry(int(n), unhex(u)) for n, u in (e.split("/") for e in rep("entry"))]
+        p = M.DnaPage(i("flags"), i("entries"), i("capacity"), i("next"), items)
+        return p.encode(), M.DnaPage.decode, p
+    raise AssertionError(f"no codec for {msg} {d}")
 
 
 def ints(text):
@@ -87,15 +156,15 @@ def vector_object(msg, d, fields):
     if key == ("arm", "rsp"):
         return bytes([i("flags")]), G.decode_u8, i("flags")
     if key == ("config", "req"):
-        c = G.ConfigRequest(i("mask"), i("timeout"), i("rate"))
+        c = G.ConfigRequest(i("mask"), i("timeout"), i("rate"), i("telem"), i("dna"))
         return c.encode(), G.ConfigRequest.decode, c
     if key == ("config", "rsp"):
-        c = G.ConfigResponse(i("node"), i("timeout"), i("rate"), i("flags"))
+        c = G.ConfigResponse(i("node"), i("timeout"), i("rate"), i("flags"), i("telem"), i("dna"))
         return c.encode(), G.ConfigResponse.decode, c
     if key == ("stats", "rsp"):
         return G.encode_stats(ints(f["values"])), G.decode_stats, ints(f["values"])
     if key == ("nodes", "rsp"):
-        p = G.NodesPage(i("next"), [G.NodeEntry(*map(int, n.split("/"))) for n in rep("node")])
+        p = G.NodesPage(i("next"), [node_entry_of(n) for n in rep("node")])
         return p.encode(), G.NodesPage.decode, p
     if key == ("node_info", "rsp"):
         n = G.NodeInfo(
@@ -131,17 +200,18 @@ def vector_object(msg, d, fields):
         s = GC.CanSendResponse(i("seq"), i("accepted"), i("free"))
         return s.encode(), GC.CanSendResponse.decode, s
     if key == ("can_recv", "req"):
-        s = GC.CanRecvRequest(i("seq"), i("max"))
+        s = GC.CanRecvRequest(i("seq"), i("max"), i("opts"))
         return s.encode(), GC.CanRecvRequest.decode, s
     if key == ("can_recv", "rsp"):
         s = GC.CanRecvResponse(i("seq"), i("dropped"), [frame_of(v) for v in rep("frame")])
-        return s.encode(), GC.CanRecvResponse.decode, s
+        s.opts, s.t0_us, s.dt_us = i("opts"), i("t0"), [int(v) for v in rep("dt")]
+        return s.encode(), lambda p: GC.CanRecvResponse.decode(p, s.opts), s
     if msg == "can_filter":
         t = GC.FilterTable(
             i("op") if d == "req" else i("result"), [filter_of(v) for v in rep("filter")]
         )
         return t.encode(), GC.FilterTable.decode, t
-    raise AssertionError(f"no codec for {msg} {d}")
+    return mgmt_vector_object(msg, d, f, rep)
 
 
 def test_codec_every_vector():
@@ -160,7 +230,60 @@ def test_codec_every_vector():
         assert decode(payload + b"\x00\x7f") == got, line
         kinds.add((msg, d))
         n += 1
-    assert n >= 47 and len(kinds) >= 22  # every message of the header
+    assert n >= 80 and len(kinds) >= 32  # every message of the header
+
+
+def test_codec_mgmt_details():
+    # values, as pydronecan would see them
+    assert M.Value.real(0.1).value == struct.unpack("<f", struct.pack("<f", 0.1))[0]
+    assert M.Value.real(1.5) == M.Value(M.VALUE_REAL, 1.5) != M.Value.integer(1)
+    nan = M.Value(M.VALUE_REAL, float("nan"))
+    assert nan == M.Value.get(G.Reader(bytes([2]) + struct.pack("<I", nan.real_bits)))
+    assert M.Value.boolean(True).plain() is True and M.Value.string("é").plain() == "é"
+    assert M.Value.integer(-(1 << 63)).text() == str(-(1 << 63))
+    for bad in (lambda: M.Value.integer(1 << 63), lambda: M.Value.string(b"x" * 129)):
+        with pytest.raises(ValueError):
+            bad()
+    for bad in (
+        M.NodeCall(1, 0),
+        M.NodeCall(1, 128),
+        M.NodeCall(1, 20, M.CALL_PARAM_GET_INDEX, index=8192),
+        M.NodeCall(1, 20, M.CALL_PARAM_GET_NAME, name=b""),
+        M.NodeCall(1, 20, M.CALL_PARAM_SET, name=b"x" * 93, value=M.Value.integer(1)),
+        M.NodeCall(1, 20, M.CALL_RESTART, magic=1 << 40),
+        M.NodeCall(1 << 16, 20),
+    ):
+        with pytest.raises(ValueError):
+            bad.encode()
+    c = M.NodeCall(7, 20, M.CALL_RESTART, magic=0xBEEFCAFE, force=True)
+    assert M.NodeCall.decode(c.encode()) == c and c.as_dict()["magic"] == "0xBEEFCAFE"
+    # health names: libdan's dan_gw_reason_name()
+    assert M.REASON_NAMES[M.REASON_DNA_FULL] == "dna_full" and M.reason_name(9) == "reason 9"
+    h = M.Health(1, M.REASON_UNHEALTHY, 31, 2, 3)
+    assert h.text() == "FAIL: unhealthy node 31 (health ERROR), 3 problem(s)"
+    assert M.Health().text() == "OK" and M.Health().as_dict()["ok"]
+    assert M.Health(1, M.REASON_ESC_TELEMETRY, 1, 0, 1).as_dict()["reason"] == "esc_telemetry"
+    # node flags and DNA flags
+    page = G.NodesPage.decode(bytes.fromhex("00017d002a0000ac1b1e"))
+    e = page.entries[0]
+    assert (e.info_state, e.flag_names) == (2, ["duplicate", "offline", "allocated"])
+    assert e.as_dict()["duplicate"] and page.encode().hex() == "00017d002a0000ac1b1e"
+    assert M.dna_flag_names(3) == ["server on", "loaded"]
+    # own frames: never sent, passed only by a filter with bit 29
+    own = GC.CanFrame(0x1401550A, b"\x01", True, own=True)
+    assert own.id_flags == 0xB401550A and own.same_frame(GC.CanFrame(0x1401550A, b"\x01", True))
+    with pytest.raises(ValueError):
+        GC.CanSendRequest(1, [own]).encode()
+    assert not GC.PASS_ALL[1].matches(own) and GC.PASS_ALL_OWN[1].matches(own)
+    assert GC.PASS_ALL_OWN[1].text() == "0:0:ext:own"
+    # receive times
+    q = GC.CanRecvResponse(9, 0, [own, own], GC.RECV_TIMES, 0xFFFFFF00, [0, 0x200])
+    assert GC.CanRecvResponse.decode(q.encode(), GC.RECV_TIMES).times_us() == [
+        0xFFFFFF00,
+        0x100000100,
+    ]
+    with pytest.raises(PayloadError):  # the times are not optional once asked for
+        GC.CanRecvResponse.decode(GC.CanRecvResponse(9, 0, [own]).encode(), GC.RECV_TIMES)
 
 
 def test_codec_details_and_malformed_payloads():
@@ -171,7 +294,8 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 21)["counter_20"] == 0  # later versions append counters
+    assert G.stats_dict([0] * 27)["counter_26"] == 0  # later versions append counters
+    assert G.stats_dict(list(range(26)))["call_timeouts"] == 25
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
     # cansend syntax
     assert GC.parse_cansend("123#DEADBEEF") == GC.CanFrame(0x123, bytes.fromhex("deadbeef"))
@@ -210,8 +334,24 @@ def test_codec_details_and_malformed_payloads():
         (GC.CanSendRequest.decode, "070c"),  # 12 frames
         (GC.CanRecvResponse.decode, "0000012301000009"),  # dlc 9
         (GC.CanRecvResponse.decode, "000001000800000100"),  # 11-bit id 0x800
-        (GC.FilterTable.decode, "0001000000200000ff00"),  # reserved id bit
+        (GC.FilterTable.decode, "0001000000400000ff00"),  # reserved id bit (RTR)
         (G.NodesPage.decode, "0001140000"),  # entry cut short
+        (G.ConfigRequest.decode, "0432"),  # telem_timeout 50
+        (G.ConfigRequest.decode, "0802"),  # dna 2
+        (M.NodeCall.decode, "0100000000"),  # node 0
+        (M.NodeCall.decode, "0100140600"),  # op 6
+        (M.NodeCall.decode, "01001400ff7f"),  # index 16383
+        (M.NodeCall.decode, "0100140100"),  # empty name
+        (M.NodeCall.decode, "01001401" + "5d" + "61" * 93),  # 93-byte name
+        (M.NodeCall.decode, "060017051e1b55ceac02"),  # force 2
+        (M.NodeCall.decode, "03001502016105"),  # value tag 5
+        (M.CallState.decode, "010004"),  # state 4
+        (M.CallState.decode, "010001"),  # DONE without result_len
+        (M.CallResultResponse.decode, "0200018101008101" + "00" * 129),  # 129 bytes
+        (M.ParamResult.decode, "02010300000000000000030100"),  # max is a boolean
+        (M.ParamResult.decode, "0000"),  # name missing
+        (M.Health.decode, "00000000"),
+        (M.DnaPage.decode, "030240ff017da0a1"),  # entry cut short
     ]
     for decode, hexs in malformed:
         with pytest.raises(PayloadError):
@@ -427,21 +567,11 @@ class Stack(Rig):
 
     def start_danprobe(self, *args, name="danprobe"):
         """A long-running danprobe command (--json); returns (proc, ready event)."""
-        p = self.procs.start(
-            [sys.executable, "-m", "danprobe", *map(str, args), "--json"], name=name
-        )
-        line = p.stdout.readline().decode()
-        assert line, f"{name} ended: {p.log_path.read_text()}"
-        ev = json.loads(line)
-        assert ev.get("event") == "ready", ev
-        return p, ev
+        return start_danprobe(self.procs, *args, name=name)
 
     def finish(self, p):
         """SIGTERM, exit 0, and the summary document."""
-        assert self.procs.stop(p, timeout=30) == 0, p.log_path.read_text()
-        lines = [json.loads(x) for x in p.stdout.read().decode().splitlines() if x.strip()]
-        assert lines and lines[-1]["event"] == "summary" and lines[-1]["result"] == 0, lines
-        return lines[-1]
+        return finish_danprobe(self.procs, p)
 
     def close(self):
         super().close()
@@ -811,7 +941,8 @@ def test_slcan_pty_for_pydronecan(stack):
 
 def test_slcan_protocol_answers(stack):
     s = stack(escs=0)
-    p, ev = s.start_danprobe("slcan", "--port", s.dan, "-q", name="danprobe-slcan")
+    # --no-own: only what the test sends comes back (not the gateway's NodeStatus)
+    p, ev = s.start_danprobe("slcan", "--port", s.dan, "--no-own", "-q", name="danprobe-slcan")
     fd = pty_open(ev["pty"])
 
     def cmd(c, want_len=1):

@@ -186,6 +186,61 @@ static void test_dna_foreign_allocator(void **state)
     assert_int_equal(R->gw.health.verdict, DAN_GW_HEALTH_FAIL);
     assert_int_equal(R->gw.health.reason, DAN_GW_REASON_DNA_CONFLICT);
     assert_int_equal(R->gw.health.subject, 99);
+    /* with our server off, another allocator is no conflict */
+    R->g.cfg.dna = false;
+    R->g.dna.foreign = 0;
+    inject(98, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
+           dan_dc_allocation_encode(&m, buf, sizeof buf));
+    assert_int_equal(R->g.stats.dna_foreign, 1);
+    assert_int_equal(dan_gw_health(&R->gw, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_not_equal(R->gw.health.reason, DAN_GW_REASON_DNA_CONFLICT);
+}
+
+/* Frames the FC sends (CAN_SEND) are heard by the gateway's own node once
+ * they are on the bus, as by every other node: a node behind the FC (a
+ * laptop through danprobe slcan) gets GetNodeInfo answers from node 10,
+ * and its NodeStatus enters the table. */
+static void test_fc_frames_heard(void **state)
+{
+    dan_dc_transfer_t t;
+    dan_dc_node_status_t st;
+    dan_can_frame_t fr[4];
+    uint8_t buf[DAN_DC_NODE_STATUS_MAX_SIZE];
+    size_t from;
+    int n, k;
+    cap_t *c;
+    (void)state;
+    advance(1000);
+    dan_dc_transfer_init(&t, DAN_DC_GET_NODE_INFO_ID, DAN_DC_GET_NODE_INFO_SIGNATURE,
+                         DAN_DC_TRANSFER_REQUEST, NULL, 0);
+    t.priority = 24;
+    t.source_node = LISTEN_NODE; /* the rig's listener gets the answer */
+    t.destination_node = 10;
+    t.transfer_id = 3;
+    n = dan_dc_tx_build(&t, fr, 4);
+    assert_int_equal(n, 1);
+    memset(&st, 0, sizeof st);
+    st.uptime_sec = 42;
+    dan_dc_transfer_init(&t, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE,
+                         DAN_DC_TRANSFER_BROADCAST, buf,
+                         (size_t)dan_dc_node_status_encode(&st, buf, sizeof buf));
+    t.priority = 24;
+    t.source_node = LISTEN_NODE;
+    t.transfer_id = 0;
+    k = dan_dc_tx_build(&t, fr + 1, 3);
+    assert_int_equal(k, 1);
+    from = R->ncap;
+    assert_int_equal(dan_gw_can_send(&R->gw, fr, 2, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    advance(20000);
+    c = find_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
+    assert_non_null(c);
+    assert_int_equal(c->src, 10);
+    assert_int_equal(c->dst, LISTEN_NODE);
+    assert_int_equal(c->tid, 3);
+    assert_int_equal(R->g.nodes[0].e.node_id, LISTEN_NODE);
+    assert_int_equal(R->g.nodes[0].e.uptime_sec, 42);
 }
 
 /* ---- storage ---- */
@@ -624,6 +679,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_dna_stage_timeout_and_garbage, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_off, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_foreign_allocator, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_fc_frames_heard, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_storage, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_blob_reasons, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_table_id_taken, setup, teardown),

@@ -2,6 +2,7 @@
 can-utils' formats."""
 
 import argparse
+import dataclasses
 import time
 
 from danprobe import gateway_can, gateway_msgs
@@ -19,6 +20,7 @@ from danprobe.commands.common import (
 )
 from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import now
+from danprobe.recv_clock import RecvClock
 
 NAME = "can"
 HELP = "CAN gateway: raw CAN frames: 'can dump' (candump log format), 'can send ID#DATA'"
@@ -26,7 +28,10 @@ DESCRIPTION = (
     "Raw CAN frames on the DroneCAN bus behind the gateway. 'can dump' sets the gateway's "
     "receive filter and prints every frame that passes in candump's log format, "
     "'(1700000000.123456) can0 1404060A#0001900C800B01C0', which can-utils (log2asc, "
-    "canplayer) and cantools read. 'can send' sends frames written as for cansend."
+    "canplayer) and cantools read; each frame's time is when the gateway received it (its "
+    "clock, mapped onto this host's with one offset estimated from the responses), so the "
+    "gaps between frames are the bus's, not the DAN wire's. --own adds the frames the "
+    "gateway itself sends. 'can send' sends frames written as for cansend."
 )
 
 IDLE_POLL_S = 0.01
@@ -73,6 +78,11 @@ def add_arguments(p):
         help="pass frames with (id & MASK) == (ID & MASK) (hex; repeatable, up to "
         f"{gateway_msgs.FILTERS_MAX}); default: every frame",
     )
+    g.add_argument(
+        "--own",
+        action="store_true",
+        help="also the frames the gateway itself sends (filter bit 29; marked in --json)",
+    )
     g.add_argument("--count", type=positive_int, metavar="N", help="stop after N frames")
     add_duration_option(g)
     g.add_argument(
@@ -97,12 +107,31 @@ def log_line(t: float, ifname: str, f: gateway_can.CanFrame) -> str:
     return f"({t:.6f}) {ifname} {f.candump()}"
 
 
+class Stamps:
+    """Host-clock times of the frames of each CAN_RECV response, from the
+    gateway's receive times (a new clock when the gateway restarted)."""
+
+    def __init__(self):
+        self.clock = RecvClock()
+        self.resyncs = 0
+
+    def of(self, gw, host_now: float) -> list[float]:
+        if gw.can_rx_resyncs != self.resyncs:
+            self.resyncs = gw.can_rx_resyncs
+            self.clock.reset()
+        return self.clock.host_times(self.clock.unwrap(gw.recv_times), host_now)
+
+
 def _dump(ctx) -> int:
     a = ctx.args
     filters = a.filter or list(gateway_can.PASS_ALL)
+    if a.own:
+        filters = [dataclasses.replace(f, own=True) for f in filters]
     if len(filters) > gateway_msgs.FILTERS_MAX:
         raise CliError(f"at most {gateway_msgs.FILTERS_MAX} filters", EXIT_USAGE)
     res = {"frames": 0, "lost": 0, "dropped": 0}
+
+    stamps = Stamps()
 
     def op(m, gw):
         previous = gw.can_listen(filters)
@@ -117,15 +146,14 @@ def _dump(ctx) -> int:
                     and time_left(ctx, t0)
                 ):
                     try:
-                        frames = gw.can_recv()
+                        frames = gw.can_recv(opts=gateway_can.RECV_TIMES)
                     except OperationTimeout:
                         raise
                     except DanError as e:
                         dog.failed(e)
                         continue
                     dog.ok()
-                    stamp = time.time()
-                    for f in frames:
+                    for f, stamp in zip(frames, stamps.of(gw, time.time())):
                         if a.count is not None and res["frames"] >= a.count:
                             break
                         res["frames"] += 1

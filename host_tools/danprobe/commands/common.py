@@ -35,21 +35,25 @@ class CliError(Exception):
 # ---- argument types ----
 
 
-def _int_at_least(minimum: int):
+def int_range(lo: int, hi: Optional[int] = None, what: str = "the value"):
+    """An argument type: an integer (0x.. for hex) of lo.. (or lo..hi)."""
+
     def parse(s: str) -> int:
         try:
             v = int(s, 0)
         except ValueError:
             raise argparse.ArgumentTypeError(f"not a number: {s!r}") from None
-        if v < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}: {s!r}")
+        if hi is None and v < lo:
+            raise argparse.ArgumentTypeError(f"must be at least {lo}: {s!r}")
+        if hi is not None and not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{what} must be {lo}..{hi}, not {s}")
         return v
 
     return parse
 
 
-positive_int = _int_at_least(1)
-non_negative_int = _int_at_least(0)
+positive_int = int_range(1)
+non_negative_int = int_range(0)
 
 
 def positive_float(s: str) -> float:

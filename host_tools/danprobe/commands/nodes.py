@@ -11,7 +11,7 @@ from danprobe.commands.common import (
     long_running,
     positive_float,
 )
-from danprobe.master import DanError, OperationTimeout
+from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import now
 
 NAME = "nodes"
@@ -19,7 +19,10 @@ HELP = "CAN gateway: the DroneCAN node table (NodeStatus and GetNodeInfo of ever
 DESCRIPTION = (
     "Reads the gateway's node table (NODES, page by page) and each node's GetNodeInfo data "
     "(NODE_INFO): id, health, mode, uptime, name, software and hardware versions, unique "
-    "id. --watch refreshes it every second until Ctrl-C or --duration."
+    "id, and the gateway's flags of the node (duplicate: two nodes use its ID; offline: "
+    "seen, then silent over 3 s; allocated: its ID came from the gateway's allocator); with "
+    "the gateway's health verdict (HEALTH, as 'danprobe health'). --watch refreshes it every "
+    "second until Ctrl-C or --duration."
 )
 
 
@@ -51,8 +54,13 @@ class NodeTable:
         self.gw = gw
         self.entries = []
         self.info = {}  # node id -> (uptime when read, NodeInfo)
+        self.health = None  # the verdict (None: a gateway without HEALTH)
 
     def refresh(self):
+        try:
+            self.health = self.gw.health()
+        except RemoteError:
+            self.health = None
         self.entries = self.gw.nodes()
         for e in self.entries:
             known = self.info.get(e.node_id)
@@ -78,7 +86,9 @@ class NodeTable:
         return out
 
     def text(self) -> str:
-        rows = [("id", "health", "mode", "uptime", "name", "sw", "hw", "unique id", "info")]
+        rows = [
+            ("id", "health", "mode", "uptime", "name", "sw", "hw", "unique id", "info", "flags")
+        ]
         for d in self.rows():
             valid = d["info_state"] == gateway_msgs.INFO_VALID
             rows.append(
@@ -92,9 +102,13 @@ class NodeTable:
                     "%d.%d" % tuple(d["hw"]) if valid else "",
                     d["unique_id"] if valid else "",
                     d["info_state_name"],
+                    ",".join(n for _, n in gateway_msgs.NODE_FLAG_NAMES if d[n]),
                 )
             )
         return format_table(rows)
+
+    def verdict(self) -> str:
+        return f"health {self.health.text()}" if self.health else "health unknown"
 
 
 def run(ctx) -> int:
@@ -124,10 +138,18 @@ def run(ctx) -> int:
                     refreshes += 1
                     if a.json:
                         ctx.emit_json(
-                            {"event": "nodes", "time": round(t - t0, 3), "nodes": table.rows()}
+                            {
+                                "event": "nodes",
+                                "time": round(t - t0, 3),
+                                "nodes": table.rows(),
+                                "health": table.health.as_dict() if table.health else None,
+                            }
                         )
                     else:
-                        print(f"--- {time.strftime('%H:%M:%S')}  {len(table.entries)} node(s)")
+                        print(
+                            f"--- {time.strftime('%H:%M:%S')}  {len(table.entries)} node(s), "
+                            + table.verdict()
+                        )
                         print(table.text(), flush=True)
                 while (
                     not stop.stop
@@ -143,11 +165,15 @@ def run(ctx) -> int:
 
     def human():
         if not a.watch:
-            print(f"nodes: {len(rows)} DroneCAN node(s) seen by the gateway ({ms:.1f} ms)")
+            print(
+                f"nodes: {len(rows)} DroneCAN node(s) seen by the gateway; {table.verdict()} "
+                f"({ms:.1f} ms)"
+            )
             if rows:
                 print(table.text())
 
-    fields = {"nodes": rows}
+    health = table.health if table else None
+    fields = {"nodes": rows, "health": health.as_dict() if health else None}
     if a.watch:
         fields.update(event="summary", refreshes=state.get("refreshes", 0))
     return gateway_report(ctx, m, failure, ms, fields, human)

@@ -1,7 +1,7 @@
 """danprobe slcan: the CAN bus behind the gateway as an SLCAN (Lawicel)
 adapter on a local pseudo-terminal."""
 
-import time
+from collections import deque
 
 from danprobe import gateway_can, gateway_msgs
 from danprobe.commands.common import (
@@ -15,6 +15,7 @@ from danprobe.commands.common import (
 )
 from danprobe.master import DanError, OperationTimeout, RemoteError
 from danprobe.port import now
+from danprobe.recv_clock import RecvClock, slcan_stamp_ms
 from danprobe.slcan_codec import (
     ACK,
     BEL,
@@ -33,18 +34,31 @@ DESCRIPTION = (
     "one behind the gateway: frames the client sends (t/T/r/R) go out with CAN_SEND and are "
     "acknowledged (z/Z) once the gateway took them; every frame the gateway receives comes "
     "back as a t/T line (CAN_RECV, the filter set to pass everything while the channel is "
-    "open). pydronecan: dronecan.make_node('slcan:PTY', node_id=N, bitrate=1000000). The bus "
-    "is DroneCAN's 1 Mbit/s: only S8 is accepted. Runs until Ctrl-C, SIGTERM or --duration."
+    "open), and so do the frames the gateway itself sends (its NodeStatus, GetNodeInfo "
+    "answers, ESC commands: filter bit 29), unless --no-own, so a DroneCAN GUI tool or an "
+    "allocation server on this host sees the gateway's node too; the client's own frames "
+    "are not handed back. With timestamps on (Z1) a frame's timestamp is its receive time "
+    "at the gateway (milliseconds modulo 60000). pydronecan: "
+    "dronecan.make_node('slcan:PTY', node_id=N, bitrate=1000000); the DroneCAN GUI tool: "
+    "the interface 'slcan:PTY' or the /dev/pts path printed (not in its list), its local "
+    "node ID set. The bus is DroneCAN's 1 Mbit/s: only S8 is accepted. Runs until Ctrl-C, "
+    "SIGTERM or --duration."
 )
 
 IDLE_POLL_S = 0.005
 TX_QUEUE_MAX = 64  # frames from the client not taken by the gateway yet
+SENT_KEEP = 256  # our frames remembered until their copy (bit 29) comes back
 
 
 def add_arguments(p):
     add_gateway_options(p, long_running=True)
     g = p.add_argument_group("slcan options")
     add_pty_options(g)
+    g.add_argument(
+        "--no-own",
+        action="store_true",
+        help="leave out the frames the gateway itself sends (default: they pass too)",
+    )
 
 
 def can_frame(line: bytes):
@@ -128,11 +142,13 @@ class Adapter:
 
 
 def run(ctx) -> int:
-    res = {"pty": None, "link": ctx.args.link, "to_can": 0, "from_can": 0, "errors": 0, "lost": 0}
+    a = ctx.args
+    res = {"pty": None, "link": a.link, "to_can": 0, "from_can": 0, "errors": 0, "lost": 0}
+    res.update(own=not a.no_own, echoes=0)
 
     def op(m, gw):
         with bridge_pty(ctx, res, " is an SLCAN adapter on the CAN bus behind the gateway") as pty:
-            _serve(ctx, m, gw, pty, res)
+            Bridge(ctx, m, gw, pty, res).serve()
 
     m, failure, ms = gateway_operation(ctx, op)
 
@@ -145,68 +161,121 @@ def run(ctx) -> int:
     return gateway_report(ctx, m, failure, ms, {"event": "summary", **res}, human)
 
 
-def _serve(ctx, m, gw, pty, res):
-    stop, dog = long_running(m, ctx)
-    ad = Adapter()
-    previous = None  # the gateway's filter table before we opened the channel
-    filter_on = False  # ours (pass everything) is set
-    resend = False  # the last CAN_SEND's transaction failed: repeat it
-    out = bytearray()
-    t0 = now()
-    with stop:
-        try:
-            while not stop.stop and time_left(ctx, t0):
-                was_open = ad.open
-                answers = ad.feed(pty.read())
-                if was_open and not ad.open:
-                    pty.discard_output()  # like an adapter: nothing stale after C
-                    out.clear()
-                    resend = False
-                out += answers
-                del out[: pty.write(out)]
-                moved = False
-                try:
-                    if ad.open and not filter_on:
-                        listening = gw.can_listen(gateway_can.PASS_ALL)
-                        previous = listening if previous is None else previous
-                        filter_on = True
-                        ctx.progress("channel open: receiving every frame")
-                    elif not ad.open and filter_on:
-                        gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
-                        filter_on = False
-                        ctx.progress("channel closed")
-                    if ad.open and ad.tx:
-                        batch = ad.tx[: gateway_msgs.CAN_FRAMES_MAX]
-                        accepted = gw.can_send_again() if resend else gw.can_send(batch)
-                        resend = False
-                        for f in batch[:accepted]:
-                            out += tx_ack(f.ext)
-                        del ad.tx[:accepted]
-                        res["to_can"] += accepted
-                        moved = moved or accepted > 0
-                    if ad.open:
-                        frames = gw.can_recv()
-                        stamp = int(time.time() * 1000) if ad.timestamps else None
-                        for f in frames:
-                            out += format_frame(f, stamp)
-                        res["from_can"] += len(frames)
-                        moved = moved or bool(frames)
-                except OperationTimeout:
-                    raise
-                except RemoteError:
-                    raise
-                except DanError as e:
-                    resend = gw.can_send_failed
-                    dog.failed(e)
-                    continue
-                dog.ok()
-                del out[: pty.write(out)]
-                if not moved:
-                    pty.wait_readable(IDLE_POLL_S)
-        finally:
-            res["errors"], res["lost"] = ad.errors, gw.can_rx_lost
-            if filter_on:
-                try:
-                    gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
-                except DanError as e:
-                    ctx.error(f"could not restore the gateway's filter: {e}")
+class Bridge:
+    """The pty's client and the gateway: the client's frames out with
+    CAN_SEND, the received ones back with CAN_RECV while the channel is
+    open (with receive times when the client turned timestamps on)."""
+
+    def __init__(self, ctx, m, gw, pty, res):
+        self.ctx, self.m, self.gw, self.pty, self.res = ctx, m, gw, pty, res
+        self.ad = Adapter()
+        own = not ctx.args.no_own
+        self.filters = gateway_can.PASS_ALL_OWN if own else gateway_can.PASS_ALL
+        self.previous = None  # the gateway's filter table before we opened the channel
+        self.filter_on = False  # ours is set
+        self.resend = False  # the last CAN_SEND's transaction failed: repeat it
+        self.out = bytearray()
+        self.sent = deque(maxlen=SENT_KEEP)  # our frames, until the gateway's copy comes back
+        self.clock = RecvClock()
+
+    def serve(self):
+        stop, dog = long_running(self.m, self.ctx)
+        t0 = now()
+        with stop:
+            try:
+                while not stop.stop and time_left(self.ctx, t0):
+                    self._client()
+                    try:
+                        moved = self._gateway()
+                    except OperationTimeout:
+                        raise
+                    except RemoteError:
+                        raise
+                    except DanError as e:
+                        self.resend = self.gw.can_send_failed
+                        dog.failed(e)
+                        continue
+                    dog.ok()
+                    del self.out[: self.pty.write(self.out)]
+                    if not moved:
+                        self.pty.wait_readable(IDLE_POLL_S)
+            finally:
+                self.res["errors"], self.res["lost"] = self.ad.errors, self.gw.can_rx_lost
+                if self.filter_on:
+                    try:
+                        self.gw.can_filter(gateway_msgs.FILTER_REPLACE, self.previous)
+                    except DanError as e:
+                        self.ctx.error(f"could not restore the gateway's filter: {e}")
+
+    def _client(self):
+        """The client's bytes in, the answers out."""
+        was_open = self.ad.open
+        answers = self.ad.feed(self.pty.read())
+        if was_open and not self.ad.open:
+            self.pty.discard_output()  # like an adapter: nothing stale after C
+            self.out.clear()
+            self.resend = False
+        self.out += answers
+        del self.out[: self.pty.write(self.out)]
+
+    def _gateway(self) -> bool:
+        """One round with the gateway; True if frames moved."""
+        ad, gw = self.ad, self.gw
+        if ad.open and not self.filter_on:
+            listening = gw.can_listen(self.filters)
+            self.previous = listening if self.previous is None else self.previous
+            self.filter_on = True
+            self.sent.clear()
+            self.ctx.progress(
+                "channel open: receiving every frame"
+                + (", the gateway's own too" if self.filters[0].own else "")
+            )
+        elif not ad.open and self.filter_on:
+            gw.can_filter(gateway_msgs.FILTER_REPLACE, self.previous)
+            self.filter_on = False
+            self.ctx.progress("channel closed")
+        if not ad.open:
+            return False
+        return self._send() | self._recv()
+
+    def _send(self) -> bool:
+        ad, gw = self.ad, self.gw
+        if not ad.tx:
+            return False
+        batch = ad.tx[: gateway_msgs.CAN_FRAMES_MAX]
+        accepted = gw.can_send_again() if self.resend else gw.can_send(batch)
+        self.resend = False
+        for f in batch[:accepted]:
+            self.out += tx_ack(f.ext)
+            self.sent.append(f)
+        del ad.tx[:accepted]
+        self.res["to_can"] += accepted
+        return accepted > 0
+
+    def _echo(self, f) -> bool:
+        """f is the gateway's copy of a frame our client sent (bit 29):
+        an adapter does not hand a client its own frames back."""
+        if not f.own:
+            return False
+        for k, s in enumerate(self.sent):
+            if f.same_frame(s):
+                for _ in range(k + 1):  # the ones before it never came back
+                    self.sent.popleft()
+                self.res["echoes"] += 1
+                return True
+        return False
+
+    def _recv(self) -> bool:
+        gw, ad = self.gw, self.ad
+        resyncs = gw.can_rx_resyncs
+        frames = gw.can_recv(opts=gateway_can.RECV_TIMES if ad.timestamps else 0)
+        if gw.can_rx_resyncs != resyncs:
+            self.clock.reset()  # the gateway restarted: another clock
+        stamps = [None] * len(frames)
+        if ad.timestamps:
+            stamps = [slcan_stamp_ms(t) for t in self.clock.unwrap(gw.recv_times)]
+        for f, stamp in zip(frames, stamps):
+            if not self._echo(f):
+                self.out += format_frame(f, stamp)
+                self.res["from_can"] += 1
+        return bool(frames)

@@ -34,8 +34,9 @@ def run(ctx) -> int:
     def human():
         print(
             f"stats: gateway node {cfg.node_id}, ESC timeout {cfg.esc_timeout_ms} ms, arming "
-            f"{cfg.arming_rate_hz} Hz, flags {','.join(gateway_msgs.flags_names(cfg.flags)) or 'none'}"
-            f" ({ms:.1f} ms)"
+            f"{cfg.arming_rate_hz} Hz, telemetry timeout {cfg.telem_timeout_ms} ms, "
+            f"DNA {'on' if cfg.dna else 'off'}, "
+            f"flags {','.join(gateway_msgs.flags_names(cfg.flags)) or 'none'} ({ms:.1f} ms)"
         )
         print(format_table([("counter", "value")] + [(k, str(v)) for k, v in stats.items()]))
 
