@@ -24,6 +24,7 @@ from conftest import BIN, ROOT, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
 from danprobe import gateway_mgmt as M
 from danprobe import gateway_msgs as G
+from danprobe import gateway_out as O
 from danprobe.codec import encode_frame
 from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
@@ -130,6 +131,38 @@ def mgmt_vector_object(msg, d, f, rep):
         items = [M.DnaEntry(int(n), unhex(u)) for n, u in (e.split("/") for e in rep("entry"))]
         p = M.DnaPage(i("flags"), i("entries"), i("capacity"), i("next"), items)
         return p.encode(), M.DnaPage.decode, p
+    return out_vector_object(msg, d, f, rep)
+
+
+def hex_last(text):
+    """a/b/.../h as the vectors write an item whose last field is hex."""
+    *head, last = text.split("/")
+    return [*map(int, head), int(last, 16)]
+
+
+def out_vector_object(msg, d, f, rep):
+    """vector_object() of the output messages (safety, servos, lights, beep)."""
+    i = lambda k: int(f[k])  # noqa: E731
+    slashed = lambda k: [hex_last(v) for v in rep(k)]  # noqa: E731
+    key = (msg, d)
+    if d == "rsp" and msg in ("safety", "servo", "lights", "beep"):
+        return bytes([i("flags")]), G.decode_u8, i("flags")
+    if key == ("servo_fs", "rsp"):
+        return bytes([i("kept")]), G.decode_u8, i("kept")
+    if key == ("safety", "req"):
+        return O.encode_safety(i("status")), O.decode_safety, i("status")
+    if key == ("servo", "req"):
+        q = O.ServoRequest([O.ServoCommand(*c) for c in slashed("cmd")])
+        return q.encode(), O.ServoRequest.decode, q
+    if key == ("servo_fs", "req"):
+        t = O.ServoFailsafeTable([O.ServoFailsafe(*e) for e in slashed("fs")])
+        return t.encode(), O.ServoFailsafeTable.decode, t
+    if key == ("lights", "req"):
+        q = O.LightsRequest([O.Light(*x) for x in slashed("light")])
+        return q.encode(), O.LightsRequest.decode, q
+    if key == ("beep", "req"):
+        b = O.Beep(i("hz"), i("ms"))
+        return b.encode(), O.Beep.decode, b
     raise AssertionError(f"no codec for {msg} {d}")
 
 
@@ -294,8 +327,9 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 27)["counter_26"] == 0  # later versions append counters
+    assert G.stats_dict([0] * 29)["counter_28"] == 0  # later versions append counters
     assert G.stats_dict(list(range(26)))["call_timeouts"] == 25
+    assert G.stats_dict(list(range(28)))["servo_dropped"] == 27
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
     # cansend syntax
     assert GC.parse_cansend("123#DEADBEEF") == GC.CanFrame(0x123, bytes.fromhex("deadbeef"))
