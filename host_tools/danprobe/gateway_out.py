@@ -12,6 +12,7 @@ tests/vectors/gateway.txt pins every layout. Servo values stay IEEE
 binary16 bits, as on the wire; f16_bits() makes them from a number.
 """
 
+import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -49,11 +50,13 @@ F16_MAX = 65504.0
 
 def f16_bits(value: float) -> int:
     """IEEE binary16 bits of value, rounded to nearest (even); ValueError
-    beyond +-65504."""
+    for what rounds beyond +-65504, and for infinities and NaN."""
     try:
-        return struct.unpack("<H", struct.pack("<e", value))[0]
-    except OverflowError:
-        raise ValueError(f"{value} does not fit a float16 (at most {F16_MAX:g})") from None
+        if math.isfinite(value):
+            return struct.unpack("<H", struct.pack("<e", value))[0]
+    except (OverflowError, struct.error):
+        pass
+    raise ValueError(f"{value} does not fit a float16 (at most {F16_MAX:g})")
 
 
 def type_name(command_type: int) -> str:

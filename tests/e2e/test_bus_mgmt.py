@@ -19,7 +19,6 @@ import subprocess
 import sys
 import threading
 import time
-import tty
 from types import SimpleNamespace
 
 import pytest
@@ -36,7 +35,7 @@ from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, RemoteError
 from danprobe.payloads import ErrorMessage
 from danprobe.recv_clock import RecvClock, slcan_stamp_ms
-from gw_rig import GW_NODE, Rig, finish_danprobe, start_danprobe
+from gw_rig import GW_NODE, Rig, finish_danprobe, pty_open, start_danprobe
 
 sys.path.insert(0, str(ROOT / "tests" / "tools"))
 import param_node  # noqa: E402
@@ -487,12 +486,6 @@ def test_slcan_own_frames_and_receive_times(mrig, tmp_path):
     assert rc == 0 and len(frames) == 2, (out, err)
     assert all(f["own"] and f["id"] & 0xFFFFFF == 0x01550A for f in frames)
     assert t_before - 5 < frames[0]["time"] <= frames[1]["time"] < time.time() + 1
-
-
-def pty_open(path):
-    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    tty.setraw(fd)
-    return fd
 
 
 def pump_lines(fd, want, timeout):
