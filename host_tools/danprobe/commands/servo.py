@@ -112,7 +112,7 @@ def run(ctx) -> int:
         parts = []
         if send_table:
             listed = ", ".join(e.text() for e in table) or "empty (every actuator holds)"
-            parts.append(f"failsafe table {listed} ({kept[0]} kept)")
+            parts.append(f"failsafe table {listed}: {kept[0]} kept")
         if commands:
             parts.append("sent " + ", ".join(c.text() for c in commands))
         return "; ".join(parts)
