@@ -69,7 +69,7 @@ def set_arming(ctx, status: Optional[int], safety_off: Optional[bool] = None) ->
             did.append(f"safety {'OFF (255)' if safety_off else 'ON (0)'}")
         return ", ".join(did)
 
-    fields = {"status": status}
+    fields = {} if status is None else {"status": status}
     if safety_off is not None:
         fields["safety"] = gateway_out.SAFETY_OFF if safety_off else gateway_out.SAFETY_ON
     return flags_command(ctx, send, fields, what)
