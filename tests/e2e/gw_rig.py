@@ -106,22 +106,27 @@ class TunnelFarEnd:
     """The device's end of a Targetted tunnel on a pydronecan node: the
     gateway's bytes (to node_id, serial_id) collect in .got, and the far end
     answers them XORed with 0x5A, up to 120 bytes a message from pump()
-    (give pump to Rig.spin)."""
+    (give pump to Rig.spin), with serial_id reply_serial (default: the
+    same; AP_Periph answers a request for -1 with the port it chose).
+    .heard lists (protocol, serial_id, options, baudrate) of every message
+    the gateway sent to node_id, keepalives included."""
 
-    def __init__(self, node, node_id, serial_id):
+    def __init__(self, node, node_id, serial_id, reply_serial=None):
         self.node, self.node_id, self.serial_id = node, node_id, serial_id
+        self.reply_serial = serial_id if reply_serial is None else reply_serial
         self.got = bytearray()
         self.outq = bytearray()
+        self.heard = []
         self.lock = threading.Lock()
         node.add_handler(U.tunnel.Targetted, self._on_targetted)
 
     def _on_targetted(self, e):
         m = e.message
-        if (
-            m.target_node != self.node_id
-            or e.transfer.source_node_id != GW_NODE
-            or m.serial_id != self.serial_id
-        ):
+        if m.target_node != self.node_id or e.transfer.source_node_id != GW_NODE:
+            return
+        with self.lock:
+            self.heard.append((m.protocol.protocol, m.serial_id, m.options, m.baudrate))
+        if m.serial_id != self.serial_id:
             return
         data = bytes(m.buffer)
         with self.lock:
@@ -137,7 +142,7 @@ class TunnelFarEnd:
                 U.tunnel.Targetted(
                     protocol=U.tunnel.Protocol(protocol=255),
                     target_node=GW_NODE,
-                    serial_id=self.serial_id,
+                    serial_id=self.reply_serial,
                     options=0,
                     baudrate=0,
                     buffer=list(chunk),
