@@ -12,7 +12,6 @@ import itertools
 import os
 import struct
 import threading
-import time
 
 import dronecan
 import pytest
@@ -127,9 +126,7 @@ def test_safety_servos_lights_beep_and_failsafe(rig):
     AC = U.equipment.actuator.ArrayCommand
     wait_for(lambda: h.of(AC).count(failsafe) >= 2, 20, what="failsafe servos, repeated")
     wait_for(lambda: h.changes(SafetyState)[-1:] == [0], 20, what="safety ON after the failsafe")
-    wait_for(
-        lambda: h.changes(U.equipment.safety.ArmingStatus)[-1:] == [0], 20, what="DISARMED"
-    )
+    wait_for(lambda: h.changes(U.equipment.safety.ArmingStatus)[-1:] == [0], 20, what="DISARMED")
     # the states in turn, exactly: nothing else was ever sent
     assert h.changes(SafetyState) == [0, 255, 0]
     assert h.changes(U.equipment.safety.ArmingStatus) == [0, 255, 0]
@@ -271,9 +268,7 @@ def test_out_of_range_arm_and_safety_refused(rig):
     assert raws[2]["error"] == REFUSED and "SafetyState" in raws[2]["remote"], raws[2]
     assert state_flags(raws[3]["response"]) == FLAG_ARMED | FLAG_SAFETY_OFF
     assert state_flags(raws[4]["response"]) == FLAG_SAFETY_OFF
-    wait_for(
-        lambda: h.changes(U.equipment.safety.ArmingStatus)[-1:] == [0], 20, what="disarmed"
-    )
+    wait_for(lambda: h.changes(U.equipment.safety.ArmingStatus)[-1:] == [0], 20, what="disarmed")
     wait_for(lambda: h.changes(SafetyState)[-1:] == [255], 20, what="safety off")
     # 7 was never sent: the state went 0 -> 255 -> 0 only
     assert h.changes(U.equipment.safety.ArmingStatus) == [0, 255, 0]
