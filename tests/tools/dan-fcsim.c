@@ -1057,16 +1057,18 @@ static const struct {
 
 static int do_step(char *step)
 {
-    char name[64];
+    char name[64], whole[512];
     char *args = strchr(step, ':');
     size_t i;
     snprintf(name, sizeof name, "%.*s", args ? (int)(args - step) : (int)strlen(step), step);
+    /* the step as given, for a failure's line: the functions cut args up */
+    snprintf(whole, sizeof whole, "%s", step);
     if (args) {
         args++;
     }
     for (i = 0; i < sizeof steps / sizeof steps[0]; i++) {
         if (!strcmp(name, steps[i].name)) {
-            return steps[i].fn(name, step, args);
+            return steps[i].fn(name, whole, args);
         }
     }
     tool_error("unknown step '%s'", step);
