@@ -128,12 +128,7 @@ def main():
         for i, port in enumerate(args.port):
             escs.append(Esc(i, port, args.node_id_base + i, args, log))
         print("READY", flush=True)
-        while not stop:
-            for e in escs:
-                try:
-                    e.node.spin(0.002)
-                except dronecan.transport.TransferError:
-                    pass
+        pydronecan_nodes.spin_until([e.node for e in escs], stop)
     finally:
         pydronecan_nodes.close_nodes([e.node for e in escs])
         if log:

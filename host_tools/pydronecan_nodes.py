@@ -42,6 +42,29 @@ def make_node(port, node_id, bitrate=DEFAULT_BITRATE, **kw):
     return dronecan.make_node("slcan:" + str(port), node_id=node_id, bitrate=bitrate, **kw)
 
 
+def spin_until(nodes, stop, step=0.002):
+    """Spins the nodes in turn until `stop` (a list the signal handlers
+    append to) is not empty; a transfer that does not decode is skipped.
+
+    SIGTERM or Ctrl-C sent to the whole process group (procgroup, systemd,
+    a terminal) reaches the drivers' I/O processes too; one may die before
+    the next check of `stop`, and the node's next call raises DriverError.
+    With a signal in, that is the end; without one the error is real."""
+    import dronecan
+    from dronecan.driver.common import DriverError
+
+    while not stop:
+        for n in nodes:
+            try:
+                n.spin(step)
+            except dronecan.transport.TransferError:
+                pass
+            except DriverError:
+                if stop:
+                    return
+                raise
+
+
 def close_nodes(nodes, timeout=1.0):
     """Closes pydronecan SLCAN nodes within about `timeout` seconds in all.
 

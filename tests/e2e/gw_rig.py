@@ -111,24 +111,27 @@ class TunnelFarEnd:
     """The device's end of a Targetted tunnel on a pydronecan node: the
     gateway's bytes (to node_id, serial_id) collect in .got, and the far end
     answers them XORed with 0x5A, up to 120 bytes a message from pump()
-    (give pump to Rig.spin), with reply_serial_id (default serial_id: a
-    node asked for -1, its default port, answers with that port's number)."""
+    (give pump to Rig.spin), with reply_serial_id (default: the
+    same; AP_Periph answers a request for -1 with the port it chose).
+    .heard lists (protocol, serial_id, options, baudrate) of every message
+    the gateway sent to node_id, keepalives included."""
 
     def __init__(self, node, node_id, serial_id, reply_serial_id=None):
         self.node, self.node_id, self.serial_id = node, node_id, serial_id
         self.reply_serial_id = serial_id if reply_serial_id is None else reply_serial_id
         self.got = bytearray()
         self.outq = bytearray()
+        self.heard = []
         self.lock = threading.Lock()
         node.add_handler(U.tunnel.Targetted, self._on_targetted)
 
     def _on_targetted(self, e):
         m = e.message
-        if (
-            m.target_node != self.node_id
-            or e.transfer.source_node_id != GW_NODE
-            or m.serial_id != self.serial_id
-        ):
+        if m.target_node != self.node_id or e.transfer.source_node_id != GW_NODE:
+            return
+        with self.lock:
+            self.heard.append((m.protocol.protocol, m.serial_id, m.options, m.baudrate))
+        if m.serial_id != self.serial_id:
             return
         data = bytes(m.buffer)
         with self.lock:
