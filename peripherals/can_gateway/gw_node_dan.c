@@ -74,7 +74,7 @@ static int h_arm(void *user, uint32_t code, const uint8_t *req, size_t len, dan_
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     (void)code;
     if (len < 1u || (req[0] != DAN_GW_ARM_DISARMED && req[0] != DAN_GW_ARM_FULLY_ARMED)) {
-        *err = "ArmingStatus is 0 (disarmed) or 255 (fully armed)";
+        *err = "ARM takes 0 or 255 only";
         return DAN_ERR_MALFORMED;
     }
     dan_gwn_arming_set(g, req[0], now_us);
@@ -89,7 +89,7 @@ static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, d
     dan_gw_config_t c;
     (void)code;
     if (dan_gw_msg_config_req_decode(&c, req, len) != DAN_OK) {
-        *err = "bad config request or value out of range";
+        *err = "bad CONFIG or value range";
         return DAN_ERR_MALFORMED;
     }
     if (c.set_mask & DAN_GW_CFG_ESC_TIMEOUT) {

@@ -18,7 +18,7 @@ int dan_gwn_h_node_call(void *user, uint32_t code, const uint8_t *req, size_t le
     /* the digest tells a retry (same content) from a new call reusing an id */
     rc = dan_gwn_call_start(g, &c, dan_gw_check(code, DAN_GW_REQUEST, req, len), &st, now_us);
     if (rc == DAN_ERR_UNSUPPORTED) {
-        *err = "restart magic is not RestartNode's: set force to send it";
+        *err = "not RestartNode magic: force";
         return rc;
     }
     if (rc != DAN_OK) {

@@ -8,7 +8,7 @@ int dan_gwn_h_safety(void *user, uint32_t code, const uint8_t *req, size_t len, 
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     (void)code;
     if (len < 1u || (req[0] != DAN_GW_SAFETY_ON && req[0] != DAN_GW_SAFETY_OFF)) {
-        *err = "SafetyState is 0 (safety on) or 255 (safety off)";
+        *err = "SAFETY takes 0 or 255 only";
         return DAN_ERR_MALFORMED;
     }
     dan_gwn_safety_set(g, req[0], now_us);
@@ -70,7 +70,7 @@ int dan_gwn_h_beep(void *user, uint32_t code, const uint8_t *req, size_t len, da
     dan_gw_beep_t b;
     (void)code;
     if (dan_gw_msg_beep_decode(&b, req, len) != DAN_OK) {
-        *err = "bad beep (1..65504 Hz, up to 65504000 ms)";
+        *err = "BEEP: 1..65504 Hz, <65504 s";
         return DAN_ERR_MALFORMED;
     }
     dan_gwn_beep(g, &b);

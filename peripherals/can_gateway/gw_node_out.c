@@ -79,19 +79,36 @@ void dan_gwn_servos_command(dan_gw_node_t *g, const dan_gw_servo_t *c, size_t n,
     send_servos(g);
 }
 
+/* Frees the slots of actuators never commanded and no longer in the
+ * failsafe table (a table entry alone must not hold a slot for ever). */
+static void servos_compact(dan_gw_node_servos_t *s)
+{
+    size_t i, k = 0;
+    for (i = 0; i < s->n; i++) {
+        if (s->servo[i].commanded || s->servo[i].fs_mode != DAN_GW_SERVO_HOLD) {
+            s->servo[k++] = s->servo[i];
+        }
+    }
+    s->n = (uint8_t)k;
+}
+
 size_t dan_gwn_servos_set_failsafe(dan_gw_node_t *g, const dan_gw_servo_fs_t *f, size_t n)
 {
     size_t i, kept = 0;
     for (i = 0; i < g->servos.n; i++) {
         g->servos.servo[i].fs_mode = DAN_GW_SERVO_HOLD;
     }
+    servos_compact(&g->servos);
     for (i = 0; i < n; i++) {
-        dan_gw_node_servo_t *v = servo_slot(g, f[i].value.actuator_id, true);
+        /* HOLD is every actuator's default: it needs a slot only if the
+         * actuator has one already */
+        bool hold = f[i].mode == DAN_GW_SERVO_HOLD;
+        dan_gw_node_servo_t *v = servo_slot(g, f[i].value.actuator_id, !hold);
         if (v != NULL) {
             v->fs_mode = f[i].mode;
             v->fs = f[i].value;
-            kept++;
         }
+        kept += (v != NULL || hold) ? 1u : 0u;
     }
     return kept;
 }

@@ -204,6 +204,36 @@ static void test_servo_table_full(void **state)
     assert_int_equal(R->g.stats.servo_dropped, 1);
 }
 
+/* Failsafe entries of actuators never commanded do not keep slots once
+ * the table no longer names them; HOLD entries take none. */
+static void test_servo_failsafe_slots_freed(void **state)
+{
+    dan_gw_servo_fs_t fs[DAN_GW_SERVO_MAX];
+    dan_gw_servo_t s[DAN_GW_SERVO_MAX];
+    size_t i;
+    (void)state;
+    for (i = 0; i < DAN_GW_SERVO_MAX; i++) {
+        fs[i].mode = DAN_GW_SERVO_VALUE;
+        fs[i].value = dan_gw_servo_make((uint8_t)(200 + i), 0, 0.5f);
+    }
+    assert_int_equal(dan_gw_servo_failsafe(&R->gw, fs, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.servo_fs_kept, DAN_GW_SERVO_MAX);
+    for (i = 0; i < DAN_GW_SERVO_MAX; i++) { /* the same, all HOLD: no slot needed */
+        fs[i].mode = DAN_GW_SERVO_HOLD;
+    }
+    assert_int_equal(dan_gw_servo_failsafe(&R->gw, fs, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.servo_fs_kept, DAN_GW_SERVO_MAX);
+    assert_int_equal(R->g.servos.n, 0);
+    for (i = 0; i < DAN_GW_SERVO_MAX; i++) {
+        s[i] = dan_gw_servo_make((uint8_t)i, 0, 0.25f);
+    }
+    assert_int_equal(dan_gw_servo(&R->gw, s, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->g.stats.servo_dropped, 0);
+}
+
 static void test_lights_and_beep(void **state)
 {
     const dan_gw_light_t l[3] = {{0, 0xF800}, {1, 0x07E0}, {19, 0x001F}};
@@ -397,6 +427,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_arm_refuses_other_values, setup, teardown),
         cmocka_unit_test_setup_teardown(test_servos_and_failsafe, setup, teardown),
         cmocka_unit_test_setup_teardown(test_servo_table_full, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_servo_failsafe_slots_freed, setup, teardown),
         cmocka_unit_test_setup_teardown(test_lights_and_beep, setup, teardown),
         cmocka_unit_test_setup_teardown(test_temperature_in_telemetry, setup, teardown),
         cmocka_unit_test_setup_teardown(test_tunnel_default_serial, setup, teardown),
