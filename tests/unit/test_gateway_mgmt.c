@@ -167,7 +167,7 @@ static void test_dna_flood(void **state)
     advance(1000);
     for (i = 0; i < 2000; i++) {
         memset(&m, 0, sizeof m);
-        m.first_part = (i % 7) != 3; /* now and then a follow-up out of turn */
+        m.first_part = (i % 7) != 3;                 /* now and then a follow-up out of turn */
         m.uid_len = (uint8_t)((i % 5) == 0 ? 5 : 6); /* and a first stage too short */
         memset(m.uid, (uint8_t)(i * 37), m.uid_len);
         m.uid[0] = (uint8_t)i;
