@@ -7,22 +7,29 @@
 #include "dan/can_gw/f16.h"
 #include "gw_node_internal.h"
 
-/* The slot of an actuator, taken if new; NULL when the table is full. */
+/* The slot of an actuator, taken if new; NULL when the table is full. The
+ * table is kept in actuator ID order, so ArrayCommands list the actuators
+ * in that order whatever the history. */
 static dan_gw_node_servo_t *servo_slot(dan_gw_node_t *g, uint8_t id, bool take)
 {
     dan_gw_node_servos_t *s = &g->servos;
-    size_t i;
-    for (i = 0; i < s->n; i++) {
-        if (s->servo[i].last.actuator_id == id) {
-            return &s->servo[i];
-        }
+    size_t i = 0, j;
+    while (i < s->n && s->servo[i].last.actuator_id < id) {
+        i++;
+    }
+    if (i < s->n && s->servo[i].last.actuator_id == id) {
+        return &s->servo[i];
     }
     if (!take || s->n >= DAN_GW_NODE_SERVOS) {
         return NULL;
     }
-    memset(&s->servo[s->n], 0, sizeof s->servo[0]);
-    s->servo[s->n].last.actuator_id = id;
-    return &s->servo[s->n++];
+    for (j = s->n; j > i; j--) {
+        s->servo[j] = s->servo[j - 1];
+    }
+    memset(&s->servo[i], 0, sizeof s->servo[0]);
+    s->servo[i].last.actuator_id = id;
+    s->n++;
+    return &s->servo[i];
 }
 
 /* Sends what each commanded actuator should get now (its last command, or

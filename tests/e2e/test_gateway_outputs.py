@@ -264,8 +264,8 @@ def test_out_of_range_arm_and_safety_refused(rig):
     assert rc == 1  # the two refused steps
     assert [x["ok"] for x in raws] == [True, False, False, True, True]
     assert state_flags(raws[0]["response"]) == FLAG_ARMED
-    assert raws[1]["error"] == REFUSED and "ArmingStatus" in raws[1]["remote"], raws[1]
-    assert raws[2]["error"] == REFUSED and "SafetyState" in raws[2]["remote"], raws[2]
+    assert raws[1]["error"] == REFUSED and "ARM takes 0 or 255" in raws[1]["remote"], raws[1]
+    assert raws[2]["error"] == REFUSED and "SAFETY takes 0 or 255" in raws[2]["remote"], raws[2]
     assert state_flags(raws[3]["response"]) == FLAG_ARMED | FLAG_SAFETY_OFF
     assert state_flags(raws[4]["response"]) == FLAG_SAFETY_OFF
     wait_for(lambda: h.changes(U.equipment.safety.ArmingStatus)[-1:] == [0], 20, what="disarmed")

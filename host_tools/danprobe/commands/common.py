@@ -440,18 +440,32 @@ class StopSignals:
     def __init__(self):
         self.stop = False
         self._old = {}
+        self._depth = 0
 
     def _handler(self, signum, frame):
         self.stop = True
 
     def __enter__(self) -> "StopSignals":
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, self._handler)
+        # nested use (announced "ready", then the loop): installed once, so
+        # a signal in between is not lost
+        self._depth += 1
+        if self._depth == 1:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
         return self
 
     def __exit__(self, *exc):
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
+        self._depth -= 1
+        if self._depth == 0:
+            for sig, old in self._old.items():
+                signal.signal(sig, old)
+
+
+def stop_signals(ctx: "Context") -> StopSignals:
+    """The command's one StopSignals (made on first use)."""
+    if getattr(ctx, "_stop_signals", None) is None:
+        ctx._stop_signals = StopSignals()
+    return ctx._stop_signals
 
 
 class Watchdog:
@@ -475,7 +489,7 @@ class Watchdog:
 def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     """After the gateway was found: no overall time limit any more."""
     m.set_time_limit(None)
-    return StopSignals(), Watchdog(ctx.args.timeout)
+    return stop_signals(ctx), Watchdog(ctx.args.timeout)
 
 
 def time_left(ctx: Context, t0: float) -> bool:
@@ -495,7 +509,9 @@ def bridge_pty(ctx: Context, res: dict, what: str, **ready) -> Iterator[Pty]:
     except PortError as e:
         raise CliError(str(e), EXIT_USAGE) from None
     res["pty"] = pty.path
-    with pty:
+    # SIGTERM right after "ready" (a supervisor that waited for it) must
+    # still end the command cleanly: the handlers go in before the news
+    with pty, stop_signals(ctx):
         if a.json:
             ctx.emit_json({"event": "ready", "pty": pty.path, "link": a.link, **ready})
         else:
