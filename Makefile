@@ -44,7 +44,7 @@ PORT_SRC := $(wildcard src/port/*.c)
 # Peripheral types: one folder each under peripherals/, public headers in
 # its include/ (dan/<type>/...). The CAN gateway type:
 GW_DIR        := peripherals/can_gateway
-GW_CLIENT_SRC := $(wildcard $(GW_DIR)/gw_msgs*.c $(GW_DIR)/gw_client*.c) $(GW_DIR)/f16.c
+GW_CLIENT_SRC := $(wildcard $(GW_DIR)/gw_msgs*.c $(GW_DIR)/gw_client*.c) $(GW_DIR)/f16.c $(GW_DIR)/gw_esc_map.c
 GW_NODE_SRC   := $(wildcard $(GW_DIR)/gw_node*.c $(GW_DIR)/dsdl*.c) $(GW_DIR)/dronecan.c
 GW_LINUX_SRC  := $(filter-out $(GW_DIR)/linux/dan-gatewayd.c,$(wildcard $(GW_DIR)/linux/*.c))
 GWD_MAIN      := $(GW_DIR)/linux/dan-gatewayd.c
@@ -193,6 +193,21 @@ $(BUILD)/bin/%: $(BUILD)/obj/tests/tools/%.o $(ALL_LIBS)
 # The test-a type's handlers, shared with the unit tests.
 $(BUILD)/bin/dan-testperiph: $(BUILD)/obj/tests/tools/dan-testperiph.o \
                              $(BUILD)/obj/tests/unit/handlers_test_a.o $(ALL_LIBS)
+	@mkdir -p $(@D)
+	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
+# dan-fcsim keeps the telemetry of 20 ESCs (all one ESC_CMD drives): it is
+# built with DAN_GW_MAX_ESC=20 together with its own copy of the client,
+# since dan_gw_t's layout depends on it (the library's default stays 8).
+FCSIM_DEFS   := -DDAN_GW_MAX_ESC=20u
+FCSIM_GW_OBJ := $(patsubst %.c,$(BUILD)/obj/fcsim/%.o,$(GW_CLIENT_SRC))
+$(BUILD)/obj/fcsim/%.o: %.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_ALL) $(FCSIM_DEFS) -c $< -o $@
+$(BUILD)/obj/tests/tools/dan-fcsim.o: tests/tools/dan-fcsim.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_POSIX) $(FCSIM_DEFS) -c $< -o $@
+$(BUILD)/bin/dan-fcsim: $(BUILD)/obj/tests/tools/dan-fcsim.o $(FCSIM_GW_OBJ) \
+                        $(filter-out $(LIBGW),$(ALL_LIBS))
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 $(BUILD)/bin/dan-gatewayd: $(call obj,$(GWD_MAIN)) $(ALL_LIBS)

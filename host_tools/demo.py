@@ -4,7 +4,8 @@ gateway and four DroneCAN ESCs, on virtual wires, no hardware.
 
     dan-vbus (2 ptys)  <- DAN wire ->  dan-gatewayd  <- SLCAN ->  slcan_hub.py (5 ptys)
         ^ endpoint 0                                                 |-> esc_sim.py: 4 ESC nodes
-        danprobe: discover, configure 115200, arm, throttle ramp, nodes, disarm
+        danprobe: discover, configure 115200, safety off, arm, throttle ramp, nodes,
+                  disarm, safety on
 
 Every process runs in its own process group and is stopped at the end, on
 error, or on Ctrl-C/SIGTERM; nothing is left behind. Exit 0 on success.
@@ -162,6 +163,8 @@ def drive(port, ramp_seconds, plot):
     danprobe("discover", *port)
     step("Configure the bus to 115200 baud")
     danprobe("configure", *port, "--baud", "115200")
+    step("Safety off: SafetyState 255, the outputs may move (AP_Periph ESCs wait for it)")
+    danprobe("safety", "off", *port, "--bus-baud", "115200")
     step("Arm")
     danprobe("arm", *port, "--bus-baud", "115200")
     step(f"Throttle ramp on four ESCs with live telemetry ({ramp_seconds:g} s)")
@@ -185,23 +188,46 @@ def drive(port, ramp_seconds, plot):
     danprobe("nodes", *port, "--bus-baud", "115200")
     step("Disarm")
     danprobe("disarm", *port, "--bus-baud", "115200")
+    step("Safety on: SafetyState 0, the outputs locked")
+    danprobe("safety", "on", *port, "--bus-baud", "115200")
     step("Gateway counters")
     danprobe("stats", *port, "--bus-baud", "115200")
 
 
+def esc_events(tmp, event):
+    return [e for e in map(json.loads, open(tmp / "escs.jsonl")) if e["event"] == event]
+
+
+def changes(values):
+    """The values without repeats in a row: 0, 0, 255, 255, 0 -> [0, 255, 0]."""
+    return [v for i, v in enumerate(values) if i == 0 or values[i - 1] != v]
+
+
 def what_the_escs_saw(tmp, plot):
     """The ESCs' own log: the proof the commands arrived."""
-    cmds = [json.loads(line) for line in open(tmp / "escs.jsonl") if '"cmd"' in line]
-    arming = [json.loads(line) for line in open(tmp / "escs.jsonl") if '"arming"' in line]
+    # the last SafetyState went out just before; give ESC 0 a moment to log it
+    deadline = time.monotonic() + 5
+    while True:
+        safety = changes([e["status"] for e in esc_events(tmp, "safety") if e["esc"] == 0])
+        if safety[-1:] == [0] and 255 in safety or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    cmds, arming = esc_events(tmp, "cmd"), esc_events(tmp, "arming")
     top = max((max(c["cmd"][:4]) for c in cmds), default=0)
     step("What the ESCs received")
     print(
         f"{len(cmds)} RawCommand transfers, highest raw value {top}; "
         f"{len(arming)} ArmingStatus messages, last status {arming[-1]['status'] if arming else '-'}"
     )
+    print(
+        f"{len(esc_events(tmp, 'safety'))} SafetyState messages; ESC 0 heard safety "
+        + " -> ".join({0: "ON (0)", 255: "OFF (255)"}.get(v, str(v)) for v in safety)
+    )
     print(f"plot of RPM, current, voltage and temperature: {plot}")
     if not cmds or top <= 0:
         raise RuntimeError("the ESCs received no throttle")
+    if 255 not in safety or safety[-1] != 0:
+        raise RuntimeError(f"the ESCs did not hear safety off, then on: {safety}")
 
 
 def main():

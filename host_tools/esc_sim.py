@@ -11,7 +11,8 @@ current and cools toward ambient. Each publishes uavcan.equipment.esc.Status
 at --status-hz, answers GetNodeInfo (name org.dan.esc_sim), and NodeStatus
 at 1 Hz (pydronecan does this itself).
 
---log writes one JSON line per event: {"t", "esc", "event": "cmd"|"arming"|"status", ...}
+--log writes one JSON line per event: {"t", "esc", "event":
+"cmd"|"arming"|"safety"|"status", ...} (safety: ardupilot.indication.SafetyState)
 so tests and the demo can check exactly what arrived. Prints READY once all
 nodes are up; exits 0 on SIGTERM/SIGINT.
 """
@@ -41,6 +42,7 @@ class Esc:
         self.node = pydronecan_nodes.make_node(port, node_id, node_info=info)
         self.node.add_handler(dronecan.uavcan.equipment.esc.RawCommand, self.on_cmd)
         self.node.add_handler(dronecan.uavcan.equipment.safety.ArmingStatus, self.on_arming)
+        self.node.add_handler(dronecan.ardupilot.indication.SafetyState, self.on_safety)
         self.node.health = dronecan.uavcan.protocol.NodeStatus().HEALTH_OK
         self.node.mode = dronecan.uavcan.protocol.NodeStatus().MODE_OPERATIONAL
         self.cmd = 0
@@ -67,6 +69,10 @@ class Esc:
 
     def on_arming(self, e):
         self.emit("arming", status=int(e.message.status), src=e.transfer.source_node_id)
+        return None
+
+    def on_safety(self, e):
+        self.emit("safety", status=int(e.message.status), src=e.transfer.source_node_id)
         return None
 
     def step(self):
@@ -122,15 +128,9 @@ def main():
         for i, port in enumerate(args.port):
             escs.append(Esc(i, port, args.node_id_base + i, args, log))
         print("READY", flush=True)
-        while not stop:
-            for e in escs:
-                try:
-                    e.node.spin(0.002)
-                except dronecan.transport.TransferError:
-                    pass
+        pydronecan_nodes.spin_until([e.node for e in escs], stop)
     finally:
-        for e in escs:
-            e.node.close()
+        pydronecan_nodes.close_nodes([e.node for e in escs])
         if log:
             log.close()
     return 0

@@ -22,6 +22,11 @@ repeat it and the gateway never sends a retried call twice. A first
 attempt answered with a finished state is a call of someone else's with
 our id and content (a fresh call is always PENDING or BUSY): node_call()
 then starts it again with the next id. gateway_calls.py pipelines calls.
+
+Outputs (gw_client_out.c): the safety state, servo commands and their
+failsafe table are states the gateway keeps; lights and beeps are one-shot
+commands. A retried transaction sets the same state or sends the same
+command again, so they need no sequence numbers.
 """
 
 import random
@@ -111,6 +116,25 @@ from danprobe.gateway_msgs import (
     stats_dict,
     unseal,
 )
+from danprobe.gateway_out import (
+    CODE_BEEP,
+    CODE_LIGHTS,
+    CODE_SAFETY,
+    CODE_SERVO,
+    CODE_SERVO_FAILSAFE,
+    SAFETY_OFF,
+    SAFETY_ON,
+    Beep,
+    Light,
+    LightsRequest,
+    ServoFailsafe,
+    ServoFailsafeTable,
+    ServoRequest,
+    decode_safety,
+    encode_safety,
+    safety_dict,
+    servo_commands,
+)
 from danprobe.master import Malformed, Master, Nack
 
 # ---- names for sniff and error messages ----
@@ -128,12 +152,18 @@ def _describer(code: int, direction: int, fn: Callable) -> Callable[[bytes], dic
 
 
 def register_names():
-    """Names codes 0x42..0x4F, 0x52 and 0x53 in the registry, with describers
+    """Names codes 0x42..0x4F and 0x52..0x58 in the registry, with describers
     of the sealed payloads, so sniff shows and decodes them (the CLI calls
     this at start). A CAN_RECV response is decoded with the opts of the last
     CAN_RECV request described (its layout depends on them)."""
     u8 = decode_u8
     recv_opts = [0]
+
+    def flags(p):
+        return flags_dict(u8(p))
+
+    def kept(p):
+        return {"kept": u8(p)}
 
     def recv_req(p):
         q = CanRecvRequest.decode(p)
@@ -143,7 +173,7 @@ def register_names():
     for code, name, req, rsp in (
         (CODE_ESC_CMD, "ESC_CMD", lambda p: {"values": decode_esc_cmd(p)}, Telemetry.decode),
         (CODE_ESC_TELEM, "ESC_TELEM", lambda p: {"first": u8(p)}, Telemetry.decode),
-        (CODE_ARM, "ARM", lambda p: {"status": u8(p)}, lambda p: flags_dict(u8(p))),
+        (CODE_ARM, "ARM", lambda p: {"status": u8(p)}, flags),
         (CODE_CONFIG, "CONFIG", ConfigRequest.decode, ConfigResponse.decode),
         (CODE_STATS, "STATS", registry.describe_empty, lambda p: stats_dict(decode_stats(p))),
         (CODE_NODES, "NODES", lambda p: {"first": u8(p)}, NodesPage.decode),
@@ -157,6 +187,11 @@ def register_names():
         (CODE_CALL_RESULT, "CALL_RESULT", CallResultRequest.decode, CallResultResponse.decode),
         (CODE_HEALTH, "HEALTH", registry.describe_empty, Health.decode),
         (CODE_DNA, "DNA", lambda p: {"first": u8(p)}, DnaPage.decode),
+        (CODE_SAFETY, "SAFETY", lambda p: safety_dict(decode_safety(p)), flags),
+        (CODE_SERVO, "SERVO", ServoRequest.decode, flags),
+        (CODE_SERVO_FAILSAFE, "SERVO_FAILSAFE", ServoFailsafeTable.decode, kept),
+        (CODE_LIGHTS, "LIGHTS", LightsRequest.decode, flags),
+        (CODE_BEEP, "BEEP", Beep.decode, flags),
     ):
         registry.register_message(
             code,
@@ -210,6 +245,7 @@ class GatewayClient:
         self.call: Optional[CallState] = None  # the last NODE_CALL response
         self.stale_calls = 0  # our call_id and content were someone else's call
         self.health_state: Optional[Health] = None  # the last HEALTH response
+        self.servo_fs_kept = 0  # entries of the last SERVO_FAILSAFE table kept
 
     def _call(self, code: int, payload: bytes, decode: Callable):
         """One transaction: the request sealed, the reply unsealed (the
@@ -500,6 +536,38 @@ class GatewayClient:
             if p.next <= first:
                 raise self._malformed(CODE_DNA, f"next page {p.next} does not advance")
             first = p.next
+
+    # ---- outputs: safety state, servos, lights, buzzer ----
+
+    def _flags_call(self, code: int, payload: bytes) -> int:
+        self.flags = self._call(code, payload, decode_u8)
+        return self.flags
+
+    def safety(self, off: bool) -> int:
+        """SafetyState 255 (off: outputs may move) or 0 (on: locked), kept
+        and broadcast by the gateway; returns the flags (FLAG_SAFETY_OFF)."""
+        return self._flags_call(CODE_SAFETY, encode_safety(SAFETY_OFF if off else SAFETY_ON))
+
+    def servo(self, commands: Sequence) -> int:
+        """ArrayCommand: ServoCommands or (actuator_id, command_type, value)
+        tuples, 1..32; the gateway keeps each actuator's latest. Returns the flags."""
+        return self._flags_call(CODE_SERVO, ServoRequest(servo_commands(commands)).encode())
+
+    def servo_failsafe(self, entries: Sequence[ServoFailsafe]) -> int:
+        """Replaces the servo failsafe table (0..32 entries; an actuator not
+        listed holds its last command); returns the entries kept."""
+        self.servo_fs_kept = self._call(
+            CODE_SERVO_FAILSAFE, ServoFailsafeTable(list(entries)).encode(), decode_u8
+        )
+        return self.servo_fs_kept
+
+    def lights(self, lights: Sequence[Light]) -> int:
+        """LightsCommand (1..20 lights, RGB565); returns the flags."""
+        return self._flags_call(CODE_LIGHTS, LightsRequest(list(lights)).encode())
+
+    def beep(self, frequency_hz: int, duration_ms: int) -> int:
+        """BeepCommand (1..65504 Hz, 0..65504000 ms); returns the flags."""
+        return self._flags_call(CODE_BEEP, Beep(frequency_hz, duration_ms).encode())
 
 
 def _name(name) -> bytes:

@@ -2,6 +2,7 @@
 payload codec of codes 0x42..0x4A, the limits and codes of all of them,
 and the seal. The raw CAN messages (0x4B..0x4D) are in gateway_can.py,
 the bus-management ones (0x4E, 0x4F, 0x52, 0x53) in gateway_mgmt.py, the
+outputs (0x54..0x58: safety, servos, lights, buzzer) in gateway_out.py, the
 client in gateway_client.py; together they mirror libdan's
 peripherals/can_gateway (gw_msgs*.c, gw_client*.c).
 
@@ -42,6 +43,7 @@ CODE_CALL_RESULT = 0x4F
 # the second block (0x50..0x5F; 0x50 and 0x51 never used)
 CODE_HEALTH = 0x52
 CODE_DNA = 0x53
+# 0x54..0x58 (outputs): gateway_out.py
 
 # ---- limits ----
 ESC_MAX = 20
@@ -57,12 +59,23 @@ NONE = 0xFF
 FLAG_ARMED = 0x01
 FLAG_FAILSAFE = 0x02
 FLAG_CAN_OK = 0x04
+FLAG_SAFETY_OFF = 0x08  # SafetyState 255 being broadcast
+FLAG_NAMES = (
+    (FLAG_ARMED, "armed"),
+    (FLAG_FAILSAFE, "failsafe"),
+    (FLAG_CAN_OK, "can-up"),
+    (FLAG_SAFETY_OFF, "safety-off"),
+)
 
 ARM_DISARMED, ARM_FULLY_ARMED = 0, 255
 
 # telemetry record flags
 TELEM_STATUS = 0x01
 TELEM_EXT = 0x02
+TELEM_DEVICE = 0x04  # device.Temperature of the ESC's node
+TELEM_FLAGS = TELEM_STATUS | TELEM_EXT | TELEM_DEVICE
+# device.Temperature error_flags
+DEV_OVERHEATING, DEV_OVERCOOLING = 0x01, 0x02
 
 # CONFIG set mask
 CFG_ESC_TIMEOUT = 0x01
@@ -101,6 +114,8 @@ STAT_NAMES = (
     "duplicates",
     "calls",
     "call_timeouts",
+    "servo_cmds",
+    "servo_dropped",
 )
 
 # node table info_state
@@ -127,7 +142,9 @@ MODE_NAMES = {
 
 # tunnels
 TUN_CLOSED, TUN_TARGETTED, TUN_BROADCAST = 0, 1, 2
-TUN_LOCK_PORT = 0x01
+TUN_LOCK_PORT = 0x01  # Targetted option
+TUN_DEFAULT_SERIAL = -1  # Targetted serial_id: the node's default port (replies: any serial_id)
+TUN_ANY_CHANNEL = 0x01  # Broadcast option: replies on any channel_id are taken
 PROTOCOL_UNDEFINED = 255  # uavcan.tunnel.Protocol, as ArduPilot's Targetted sends
 
 # raw CAN
@@ -229,11 +246,7 @@ def off_diff(a: int, b: int) -> int:
 
 
 def flags_names(flags: int) -> list[str]:
-    return [
-        n
-        for bit, n in ((FLAG_ARMED, "armed"), (FLAG_FAILSAFE, "failsafe"), (FLAG_CAN_OK, "can-up"))
-        if flags & bit
-    ]
+    return [n for bit, n in FLAG_NAMES if flags & bit]
 
 
 def flags_dict(flags: int) -> dict:
@@ -242,6 +255,7 @@ def flags_dict(flags: int) -> dict:
         "armed": bool(flags & FLAG_ARMED),
         "failsafe": bool(flags & FLAG_FAILSAFE),
         "can_up": bool(flags & FLAG_CAN_OK),
+        "safety_off": bool(flags & FLAG_SAFETY_OFF),
     }
 
 
@@ -280,7 +294,7 @@ def decode_esc_cmd(payload) -> list[int]:
 class TelemRecord:
     esc_index: int = 0
     node_id: int = 0
-    flags: int = 0  # TELEM_STATUS | TELEM_EXT
+    flags: int = 0  # TELEM_STATUS | TELEM_EXT | TELEM_DEVICE
     age_ms: int = 0
     voltage_f16: int = 0
     current_f16: int = 0
@@ -294,9 +308,12 @@ class TelemRecord:
     motor_temp_c: int = 0
     motor_angle: int = 0
     status_flags: int = 0
+    dev_age_ms: int = 0
+    dev_temp_f16: int = 0  # kelvin
+    dev_flags: int = 0  # DEV_OVERHEATING | DEV_OVERCOOLING
 
     def put(self, w: Writer):
-        w.u8(self.esc_index).u8(self.node_id).u8(self.flags & (TELEM_STATUS | TELEM_EXT))
+        w.u8(self.esc_index).u8(self.node_id).u8(self.flags & TELEM_FLAGS)
         if self.flags & TELEM_STATUS:
             (
                 w.uvarint(self.age_ms)
@@ -316,6 +333,8 @@ class TelemRecord:
                 .u16(self.motor_angle)
                 .u24(self.status_flags)
             )
+        if self.flags & TELEM_DEVICE:
+            w.uvarint(self.dev_age_ms).u16(self.dev_temp_f16).u8(self.dev_flags)
 
     @classmethod
     def get(cls, r: Reader) -> "TelemRecord":
@@ -330,6 +349,9 @@ class TelemRecord:
             t.output_pct = r.u8("output_pct")
             t.motor_temp_c = _signed(r.u16("motor_temperature_degC"), 16)
             t.motor_angle, t.status_flags = r.u16("motor_angle"), r.u24("status_flags")
+        if t.flags & TELEM_DEVICE:
+            t.dev_age_ms, t.dev_temp_f16 = r.uvarint("dev_age_ms"), r.u16("dev_temperature")
+            t.dev_flags = r.u8("dev_error_flags")
         return t
 
     @property
@@ -345,12 +367,18 @@ class TelemRecord:
         """Kelvin, as esc.Status carries it."""
         return f16_to_float(self.temperature_f16)
 
+    @property
+    def dev_temperature(self) -> float:
+        """Kelvin, as device.Temperature carries it."""
+        return f16_to_float(self.dev_temp_f16)
+
     def as_dict(self) -> dict:
         d = {
             "index": self.esc_index,
             "node": self.node_id,
             "status": bool(self.flags & TELEM_STATUS),
             "extended": bool(self.flags & TELEM_EXT),
+            "device": bool(self.flags & TELEM_DEVICE),
         }
         if self.flags & TELEM_STATUS:
             d.update(
@@ -370,6 +398,14 @@ class TelemRecord:
                 motor_temp_c=self.motor_temp_c,
                 motor_angle=self.motor_angle,
                 status_flags=self.status_flags,
+            )
+        if self.flags & TELEM_DEVICE:
+            d.update(
+                dev_age_ms=self.dev_age_ms,
+                dev_temperature=self.dev_temperature,
+                dev_flags=self.dev_flags,
+                overheating=bool(self.dev_flags & DEV_OVERHEATING),
+                overcooling=bool(self.dev_flags & DEV_OVERCOOLING),
             )
         return d
 

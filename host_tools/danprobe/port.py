@@ -59,7 +59,7 @@ class SerialPort:
         except BlockingIOError:
             data = b""
         except OSError as e:
-            raise PortError(f"{self.path}: read failed: {e.strerror}") from None
+            raise self._failed("read", e) from None
         if r and not data:
             # Readable but empty: spurious on a pty now and then (another
             # endpoint closing), for good when the device went away.
@@ -71,11 +71,19 @@ class SerialPort:
             self._empty_reads = 0
         return data
 
+    def _failed(self, what: str, e: Exception) -> PortError:
+        """EIO, ENXIO, ENODEV: the device went away (USB unplugged, the pty's
+        other side closed), said the same way whichever call saw it."""
+        err = getattr(e, "errno", None) or getattr(getattr(e, "__context__", None), "errno", None)
+        if err in (errno.EIO, errno.ENXIO, errno.ENODEV):
+            return PortError(f"{self.path}: device disconnected ({what}: {os.strerror(err)})")
+        return PortError(f"{self.path}: {what} failed: {getattr(e, 'strerror', None) or e}")
+
     def write(self, data: bytes):
         try:
             n = self.ser.write(data)
         except (serial.SerialException, OSError) as e:
-            raise PortError(f"{self.path}: write failed: {e}") from None
+            raise self._failed("write", e) from None
         if n != len(data):
             raise PortError(f"{self.path}: short write ({n} of {len(data)} bytes)")
 

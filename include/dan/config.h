@@ -147,6 +147,11 @@
 #ifndef DAN_GW_NODE_DNA_MAX
 #define DAN_GW_NODE_DNA_MAX 64u
 #endif
+/* Servo actuators the node remembers (their last command and failsafe).
+ * RAM: 10 bytes each. */
+#ifndef DAN_GW_NODE_SERVOS
+#define DAN_GW_NODE_SERVOS 32u
+#endif
 /* DroneCAN service calls (parameters, restart) in flight or holding a
  * result at once. RAM: ~620 bytes each (the request and the result). */
 #ifndef DAN_GW_NODE_CALLS

@@ -3,6 +3,7 @@
 
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/dsdl_mgmt.h"
+#include "dan/can_gw/dsdl_out.h"
 
 /* Finishes an encode: DAN_ERR_OVERFLOW if the writer ran out of room. */
 static int enc_finish(const dan_dc_bw_t *w)
@@ -362,6 +363,11 @@ bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id, uint64_
         case DAN_DC_TUNNEL_TARGETTED_ID: sig = DAN_DC_TUNNEL_TARGETTED_SIGNATURE; break;
         case DAN_DC_TUNNEL_BROADCAST_ID: sig = DAN_DC_TUNNEL_BROADCAST_SIGNATURE; break;
         case DAN_DC_ALLOCATION_ID: sig = DAN_DC_ALLOCATION_SIGNATURE; break;
+        case DAN_DC_ARRAY_COMMAND_ID: sig = DAN_DC_ARRAY_COMMAND_SIGNATURE; break;
+        case DAN_DC_LIGHTS_COMMAND_ID: sig = DAN_DC_LIGHTS_COMMAND_SIGNATURE; break;
+        case DAN_DC_BEEP_COMMAND_ID: sig = DAN_DC_BEEP_COMMAND_SIGNATURE; break;
+        case DAN_DC_SAFETY_STATE_ID: sig = DAN_DC_SAFETY_STATE_SIGNATURE; break;
+        case DAN_DC_TEMPERATURE_ID: sig = DAN_DC_TEMPERATURE_SIGNATURE; break;
         default: return false;
         }
     } else if (transfer_type == DAN_DC_TRANSFER_REQUEST ||

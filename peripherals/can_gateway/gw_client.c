@@ -324,6 +324,10 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
     case DAN_GW_CODE_ESC_CMD:
     case DAN_GW_CODE_ESC_TELEM: rc = complete_telem(gw, code, p, len); break;
     case DAN_GW_CODE_ARM:
+    case DAN_GW_CODE_SAFETY:
+    case DAN_GW_CODE_SERVO:
+    case DAN_GW_CODE_LIGHTS:
+    case DAN_GW_CODE_BEEP:
         if (len < 1u) {
             rc = DAN_ERR_MALFORMED;
         } else {
@@ -348,6 +352,13 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
             rc = DAN_ERR_NACK;
         } else {
             memset(&gw->tun[gw->port], 0, sizeof gw->tun[gw->port]);
+        }
+        break;
+    case DAN_GW_CODE_SERVO_FAILSAFE:
+        if (len < 1u) {
+            rc = DAN_ERR_MALFORMED;
+        } else {
+            gw->servo_fs_kept = p[0];
         }
         break;
     case DAN_GW_CODE_TUN_XFER: rc = complete_xfer(gw, p, len); break;

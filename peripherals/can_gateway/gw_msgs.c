@@ -112,7 +112,7 @@ void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
 {
     dan_put_u8(w, t->esc_index);
     dan_put_u8(w, t->node_id);
-    dan_put_u8(w, (uint8_t)(t->flags & (DAN_GW_TELEM_STATUS | DAN_GW_TELEM_EXT)));
+    dan_put_u8(w, (uint8_t)(t->flags & DAN_GW_TELEM_ALL));
     if (t->flags & DAN_GW_TELEM_STATUS) {
         dan_put_uvarint(w, t->age_ms);
         dan_put_u16(w, t->voltage_f16);
@@ -129,6 +129,11 @@ void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
         dan_put_u16(w, (uint16_t)t->motor_temp_c);
         dan_put_u16(w, t->motor_angle);
         put_i24(w, (int32_t)t->status_flags);
+    }
+    if (t->flags & DAN_GW_TELEM_DEVICE) {
+        dan_put_uvarint(w, t->dev_age_ms);
+        dan_put_u16(w, t->dev_temp_f16);
+        dan_put_u8(w, t->dev_flags);
     }
 }
 
@@ -165,7 +170,12 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
         t->motor_angle = dan_get_u16(r);
         t->status_flags = get_u24(r);
     }
-    t->flags &= (uint8_t)(DAN_GW_TELEM_STATUS | DAN_GW_TELEM_EXT);
+    if (t->flags & DAN_GW_TELEM_DEVICE) {
+        t->dev_age_ms = dan_get_uvarint(r);
+        t->dev_temp_f16 = dan_get_u16(r);
+        t->dev_flags = dan_get_u8(r);
+    }
+    t->flags &= (uint8_t)DAN_GW_TELEM_ALL;
     return finish_reader(r);
 }
 

@@ -36,7 +36,8 @@ static bool accept_cb(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uin
         case DAN_DC_ESC_STATUS_EXTENDED_ID:
         case DAN_DC_TUNNEL_TARGETTED_ID:
         case DAN_DC_TUNNEL_BROADCAST_ID:
-        case DAN_DC_ALLOCATION_ID: break;
+        case DAN_DC_ALLOCATION_ID:
+        case DAN_DC_TEMPERATURE_ID: break;
         default: return false;
         }
     } else if (ttype == DAN_DC_TRANSFER_REQUEST) {
@@ -113,7 +114,8 @@ uint8_t dan_gw_node_flags(const dan_gw_node_t *g)
 {
     return (uint8_t)((g->arming.status != 0u ? DAN_GW_FLAG_ARMED : 0u) |
                      (g->esc.failsafe ? DAN_GW_FLAG_FAILSAFE : 0u) |
-                     (g->can_ok ? DAN_GW_FLAG_CAN_OK : 0u));
+                     (g->can_ok ? DAN_GW_FLAG_CAN_OK : 0u) |
+                     (g->arming.safety == DAN_DC_SAFETY_OFF ? DAN_GW_FLAG_SAFETY_OFF : 0u));
 }
 
 int dan_gw_node_set_esc_timeout(dan_gw_node_t *g, uint32_t ms)
@@ -166,6 +168,8 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_DUPLICATES] = g->stats.duplicates;
     v[DAN_GW_STAT_CALLS] = g->stats.calls;
     v[DAN_GW_STAT_CALL_TIMEOUTS] = g->stats.call_timeouts;
+    v[DAN_GW_STAT_SERVO_CMDS] = g->stats.servo_cmds;
+    v[DAN_GW_STAT_SERVO_DROPPED] = g->stats.servo_dropped;
 }
 
 /* ---- our own DroneCAN presence ---- */
@@ -237,6 +241,7 @@ static void on_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t 
     case DAN_DC_TUNNEL_TARGETTED_ID: dan_gwn_on_targetted(g, t); break;
     case DAN_DC_TUNNEL_BROADCAST_ID: dan_gwn_on_tun_broadcast(g, t); break;
     case DAN_DC_ALLOCATION_ID: dan_gwn_on_allocation(g, t, now_us); break;
+    case DAN_DC_TEMPERATURE_ID: dan_gwn_on_temperature(g, t, now_us); break;
     default: break;
     }
 }
@@ -286,6 +291,7 @@ void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us)
         g->status_due_us = now_us + DAN_GW_NODE_STATUS_US;
     }
     dan_gwn_esc_poll(g, now_us);
+    dan_gwn_servos_poll(g, now_us); /* before the ArmingStatus tick it repeats with */
     dan_gwn_arming_poll(g, now_us);
     dan_gwn_table_poll(g, now_us);
     dan_gwn_tunnel_poll(g, now_us);
@@ -298,6 +304,7 @@ uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us)
 {
     uint64_t t = g->status_due_us < g->arming.due_us ? g->status_due_us : g->arming.due_us;
     t = dan_gwn_esc_next_us(g, t);
+    t = dan_gwn_servos_next_us(g, t);
     t = dan_gwn_table_next_us(g, t);
     t = dan_gwn_tunnel_next_us(g, now_us, t);
     t = dan_gwn_calls_next_us(g, t);

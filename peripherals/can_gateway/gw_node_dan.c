@@ -6,28 +6,10 @@
 
 #include "gw_node_internal.h"
 
-/* A request reached us: the master is alive (NodeStatus health). */
-static dan_gw_node_t *touch(void *user, uint64_t now_us)
-{
-    dan_gw_node_t *g = (dan_gw_node_t *)user;
-    g->last_dan_us = now_us ? now_us : 1u;
-    g->stats.dan_requests++;
-    return g;
-}
-
-/* Encodes in place into the response with one of the codec's
- * dan_gw_msg_*_encode(x, out, cap) functions. */
-#define PUT_ENCODED(resp, fn, x)                          \
-    do {                                                  \
-        size_t room_;                                     \
-        uint8_t *out_ = dan_writer_room((resp), &room_);  \
-        dan_writer_advance((resp), fn((x), out_, room_)); \
-    } while (0)
-
 static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                      const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     int16_t v[DAN_GW_ESC_MAX];
     size_t n;
     dan_gw_telem_hdr_t h;
@@ -52,7 +34,7 @@ static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len, 
 static int h_esc_telem(void *user, uint32_t code, const uint8_t *req, size_t len,
                        dan_writer_t *resp, const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_telem_hdr_t h;
     size_t i, room;
     (void)code;
@@ -89,10 +71,10 @@ static int h_esc_telem(void *user, uint32_t code, const uint8_t *req, size_t len
 static int h_arm(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                  const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     (void)code;
-    if (len < 1u) {
-        *err = "missing arming status";
+    if (len < 1u || (req[0] != DAN_GW_ARM_DISARMED && req[0] != DAN_GW_ARM_FULLY_ARMED)) {
+        *err = "ARM takes 0 or 255 only";
         return DAN_ERR_MALFORMED;
     }
     dan_gwn_arming_set(g, req[0], now_us);
@@ -103,11 +85,11 @@ static int h_arm(void *user, uint32_t code, const uint8_t *req, size_t len, dan_
 static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                     const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_config_t c;
     (void)code;
     if (dan_gw_msg_config_req_decode(&c, req, len) != DAN_OK) {
-        *err = "bad config request or value out of range";
+        *err = "bad CONFIG or value range";
         return DAN_ERR_MALFORMED;
     }
     if (c.set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
@@ -135,7 +117,7 @@ static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, d
 static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                    const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     uint32_t v[DAN_GW_STAT_COUNT];
     size_t room;
     uint8_t *out = dan_writer_room(resp, &room);
@@ -151,7 +133,7 @@ static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len, da
 static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                    const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_nodes_hdr_t h;
     size_t room = resp->cap - DAN_GW_NODES_HDR_SIZE;
     unsigned id, first, last = 0;
@@ -194,7 +176,7 @@ static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, da
 static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len,
                        dan_writer_t *resp, const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_node_slot_t *n;
     dan_gw_node_info_t tmp;
     (void)code;
@@ -221,7 +203,7 @@ static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len
 static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                       const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_tun_open_t o;
     bool ok;
     (void)code;
@@ -238,7 +220,7 @@ static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len,
 static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                       const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_tun_xfer_t x, r;
     uint8_t out[DAN_GW_TUN_CHUNK_MAX];
     int rc;
@@ -263,7 +245,7 @@ static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len,
 static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                       const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_reader_t r;
     dan_gw_can_send_t s;
     dan_can_frame_t f[DAN_GW_CAN_FRAMES_MAX];
@@ -287,7 +269,7 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
 static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                       const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_can_recv_t q, a;
     size_t i;
     (void)code;
@@ -311,7 +293,7 @@ static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len,
 static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t len,
                         dan_writer_t *resp, const char **err, uint64_t now_us)
 {
-    dan_gw_node_t *g = touch(user, now_us);
+    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_reader_t r;
     dan_gw_filter_t f[DAN_GW_FILTERS_MAX];
     uint8_t op, count, result;
@@ -336,94 +318,6 @@ static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t le
     return DAN_OK;
 }
 
-static int h_node_call(void *user, uint32_t code, const uint8_t *req, size_t len,
-                       dan_writer_t *resp, const char **err, uint64_t now_us)
-{
-    dan_gw_node_t *g = touch(user, now_us);
-    dan_gw_call_t c;
-    dan_gw_call_state_t st;
-    int rc;
-    if (dan_gw_msg_call_decode(&c, req, len) != DAN_OK) {
-        *err = "bad node call";
-        return DAN_ERR_MALFORMED;
-    }
-    /* the digest tells a retry (same content) from a new call reusing an id */
-    rc = dan_gwn_call_start(g, &c, dan_gw_check(code, DAN_GW_REQUEST, req, len), &st, now_us);
-    if (rc == DAN_ERR_UNSUPPORTED) {
-        *err = "restart magic is not RestartNode's: set force to send it";
-        return rc;
-    }
-    if (rc != DAN_OK) {
-        *err = "node call does not fit";
-        return rc;
-    }
-    PUT_ENCODED(resp, dan_gw_msg_call_state_encode, &st);
-    return DAN_OK;
-}
-
-static int h_call_result(void *user, uint32_t code, const uint8_t *req, size_t len,
-                         dan_writer_t *resp, const char **err, uint64_t now_us)
-{
-    dan_gw_node_t *g = touch(user, now_us);
-    dan_gw_result_t q;
-    dan_gw_node_call_t *k;
-    size_t n = 0;
-    (void)code;
-    if (dan_gw_msg_result_req_decode(&q, req, len) != DAN_OK) {
-        *err = "bad call result request";
-        return DAN_ERR_MALFORMED;
-    }
-    k = dan_gwn_call_find(g, q.call_id);
-    if (k == NULL) {
-        *err = "unknown call";
-        return DAN_ERR_NOTFOUND;
-    }
-    q.state = k->state;
-    q.result_len = k->state == DAN_GW_CALL_DONE ? k->result_len : 0u;
-    if (q.offset < q.result_len) {
-        n = q.result_len - q.offset;
-        n = n < q.max ? n : q.max;
-        n = n < DAN_GW_RESULT_CHUNK_MAX ? n : DAN_GW_RESULT_CHUNK_MAX;
-    }
-    q.data = &k->result[q.offset < q.result_len ? q.offset : 0u];
-    q.len = n;
-    PUT_ENCODED(resp, dan_gw_msg_result_rsp_encode, &q);
-    return DAN_OK;
-}
-
-static int h_health(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                    const char **err, uint64_t now_us)
-{
-    dan_gw_node_t *g = touch(user, now_us);
-    dan_gw_health_t h;
-    (void)code;
-    (void)req;
-    (void)len;
-    (void)err;
-    dan_gw_node_health(g, &h, now_us);
-    PUT_ENCODED(resp, dan_gw_msg_health_encode, &h);
-    return DAN_OK;
-}
-
-static int h_dna(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                 const char **err, uint64_t now_us)
-{
-    dan_gw_node_t *g = touch(user, now_us);
-    dan_gw_dna_hdr_t h;
-    size_t i;
-    (void)code;
-    if (len < 1u) {
-        *err = "missing first entry";
-        return DAN_ERR_MALFORMED;
-    }
-    dan_gwn_dna_page(g, req[0], resp->cap, &h);
-    dan_gw_msg_dna_hdr_put(resp, &h);
-    for (i = 0; i < h.count; i++) {
-        dan_gw_msg_dna_entry_put(resp, &g->dna.table[req[0] + i]);
-    }
-    return DAN_OK;
-}
-
 const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_ESC_CMD, h_esc_cmd},
     {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
@@ -437,10 +331,15 @@ const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_CAN_SEND, h_can_send},
     {DAN_GW_CODE_CAN_RECV, h_can_recv},
     {DAN_GW_CODE_CAN_FILTER, h_can_filter},
-    {DAN_GW_CODE_NODE_CALL, h_node_call},
-    {DAN_GW_CODE_CALL_RESULT, h_call_result},
-    {DAN_GW_CODE_HEALTH, h_health},
-    {DAN_GW_CODE_DNA, h_dna},
+    {DAN_GW_CODE_NODE_CALL, dan_gwn_h_node_call},
+    {DAN_GW_CODE_CALL_RESULT, dan_gwn_h_call_result},
+    {DAN_GW_CODE_HEALTH, dan_gwn_h_health},
+    {DAN_GW_CODE_DNA, dan_gwn_h_dna},
+    {DAN_GW_CODE_SAFETY, dan_gwn_h_safety},
+    {DAN_GW_CODE_SERVO, dan_gwn_h_servo},
+    {DAN_GW_CODE_SERVO_FAILSAFE, dan_gwn_h_servo_failsafe},
+    {DAN_GW_CODE_LIGHTS, dan_gwn_h_lights},
+    {DAN_GW_CODE_BEEP, dan_gwn_h_beep},
 };
 const size_t dan_gwn_nhandlers = sizeof dan_gwn_handlers / sizeof dan_gwn_handlers[0];
 

@@ -37,8 +37,8 @@ void dan_gw_node_failsafe(dan_gw_node_t *g, uint64_t now_us)
     if (g->esc.active && g->esc.n > 0u) {
         send_raw_command(g, zeros, g->esc.n);
     }
-    g->arming.status = DAN_DC_ARMING_STATUS_DISARMED;
-    dan_gwn_arming_send(g, now_us);
+    dan_gwn_servos_failsafe(g, now_us);
+    dan_gwn_arming_failsafe(g, now_us);
 }
 
 /* The failsafe starts esc_timeout_ms after the last command; while it
@@ -49,9 +49,9 @@ void dan_gwn_esc_poll(dan_gw_node_t *g, uint64_t now_us)
         now_us - g->esc.last_cmd_us > (uint64_t)g->cfg.esc_timeout_ms * 1000u) {
         g->esc.failsafe = true;
         g->stats.failsafes++;
-        g->arming.status = DAN_DC_ARMING_STATUS_DISARMED;
         send_raw_command(g, zeros, g->esc.n);
-        dan_gwn_arming_send(g, now_us);
+        dan_gwn_servos_failsafe(g, now_us);
+        dan_gwn_arming_failsafe(g, now_us);
     }
     if (g->esc.failsafe && now_us >= g->arming.due_us) {
         send_raw_command(g, zeros, g->esc.n); /* keep the motors stopped */
@@ -77,6 +77,7 @@ const dan_gw_telem_t *dan_gwn_esc_telem(dan_gw_node_t *g, size_t idx, uint64_t n
     }
     e->t.age_ms = (e->t.flags & DAN_GW_TELEM_STATUS) ? dan_gwn_age_ms(now_us, e->status_us) : 0u;
     e->t.ext_age_ms = (e->t.flags & DAN_GW_TELEM_EXT) ? dan_gwn_age_ms(now_us, e->ext_us) : 0u;
+    e->t.dev_age_ms = (e->t.flags & DAN_GW_TELEM_DEVICE) ? dan_gwn_age_ms(now_us, e->dev_us) : 0u;
     return &e->t;
 }
 
@@ -122,6 +123,26 @@ void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_
     e->t.power_pct = s.power_rating_pct;
     e->t.error_count = s.error_count;
     e->status_us = now_us;
+}
+
+/* device.Temperature joins the telemetry of every ESC index the same node
+ * reports (Vertiq's older firmware sends its MCU temperature there). */
+void dan_gwn_on_temperature(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
+{
+    dan_dc_temperature_t m;
+    size_t i;
+    if (dan_dc_temperature_decode(&m, t->payload, t->payload_len) != DAN_OK) {
+        return;
+    }
+    for (i = 0; i < DAN_GW_NODE_ESC_SLOTS; i++) {
+        dan_gw_node_esc_t *e = &g->esc.slot[i];
+        if (e->t.flags != 0u && e->t.node_id == t->source_node) {
+            e->t.flags |= DAN_GW_TELEM_DEVICE;
+            e->t.dev_temp_f16 = m.temperature_f16;
+            e->t.dev_flags = m.error_flags;
+            e->dev_us = now_us;
+        }
+    }
 }
 
 void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)

@@ -33,6 +33,7 @@ const dan_gw_telem_t *dan_gwn_esc_next_telem(dan_gw_node_t *g, uint64_t now_us);
 uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g);
 void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_on_temperature(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_esc_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_esc_next_us(const dan_gw_node_t *g, uint64_t t);
 
@@ -41,6 +42,21 @@ void dan_gwn_arming_send(dan_gw_node_t *g, uint64_t now_us);
 /* An ARM request: broadcast at once when the value changes. */
 void dan_gwn_arming_set(dan_gw_node_t *g, uint8_t status, uint64_t now_us);
 void dan_gwn_arming_poll(dan_gw_node_t *g, uint64_t now_us);
+/* SAFETY: broadcast at once when the value changes. */
+void dan_gwn_safety_set(dan_gw_node_t *g, uint8_t status, uint64_t now_us);
+/* DISARMED and safety ON, broadcast at once. */
+void dan_gwn_arming_failsafe(dan_gw_node_t *g, uint64_t now_us);
+
+/* ---- servos, lights, buzzer (gw_node_out.c) ---- */
+void dan_gwn_servos_command(dan_gw_node_t *g, const dan_gw_servo_t *s, size_t n, uint64_t now_us);
+/* Replaces the failsafe table; returns how many actuators it holds. */
+size_t dan_gwn_servos_set_failsafe(dan_gw_node_t *g, const dan_gw_servo_fs_t *s, size_t n);
+/* Every commanded actuator to its failsafe command (or its last), now. */
+void dan_gwn_servos_failsafe(dan_gw_node_t *g, uint64_t now_us);
+void dan_gwn_servos_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_servos_next_us(const dan_gw_node_t *g, uint64_t t);
+void dan_gwn_lights(dan_gw_node_t *g, const dan_gw_light_t *l, size_t n);
+void dan_gwn_beep(dan_gw_node_t *g, const dan_gw_beep_t *b);
 
 /* ---- node table (gw_node_table.c) ---- */
 dan_gw_node_slot_t *dan_gwn_find_node(dan_gw_node_t *g, uint8_t id);
@@ -108,7 +124,44 @@ void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint
 void dan_gwn_calls_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_calls_next_us(const dan_gw_node_t *g, uint64_t t);
 
-/* ---- DAN side (gw_node_dan.c) ---- */
+/* ---- DAN side (gw_node_dan*.c) ---- */
+/* A request reached us: the master is alive (NodeStatus health). */
+static inline dan_gw_node_t *dan_gwn_touch(void *user, uint64_t now_us)
+{
+    dan_gw_node_t *g = (dan_gw_node_t *)user;
+    g->last_dan_us = now_us ? now_us : 1u;
+    g->stats.dan_requests++;
+    return g;
+}
+
+/* Encodes in place into the response with one of the codec's
+ * dan_gw_msg_*_encode(x, out, cap) functions. */
+#define PUT_ENCODED(resp, fn, x)                          \
+    do {                                                  \
+        size_t room_;                                     \
+        uint8_t *out_ = dan_writer_room((resp), &room_);  \
+        dan_writer_advance((resp), fn((x), out_, room_)); \
+    } while (0)
+
+/* The handlers the table of gw_node_dan.c takes from the other files. */
+int dan_gwn_h_node_call(void *user, uint32_t code, const uint8_t *req, size_t len,
+                        dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_call_result(void *user, uint32_t code, const uint8_t *req, size_t len,
+                          dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_health(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                     const char **err, uint64_t now_us);
+int dan_gwn_h_dna(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                  const char **err, uint64_t now_us);
+int dan_gwn_h_safety(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                     const char **err, uint64_t now_us);
+int dan_gwn_h_servo(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                    const char **err, uint64_t now_us);
+int dan_gwn_h_servo_failsafe(void *user, uint32_t code, const uint8_t *req, size_t len,
+                             dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_lights(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                     const char **err, uint64_t now_us);
+int dan_gwn_h_beep(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
+                   const char **err, uint64_t now_us);
 extern const dan_handler_t dan_gwn_handlers[];
 extern const size_t dan_gwn_nhandlers;
 extern const dan_envelope_t dan_gwn_seal;

@@ -36,8 +36,11 @@ void dan_gwn_on_targetted(dan_gw_node_t *g, const dan_dc_transfer_t *t)
     }
     for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
         dan_gw_node_tun_t *p = &g->tun[i];
+        /* serial_id -1 is "the default device": the node answers with the
+         * port it resolved it to (AP_Periph does), so any serial_id of the
+         * target node is ours */
         if (p->cfg.mode == DAN_GW_TUN_TARGETTED && p->cfg.target == t->source_node &&
-            p->cfg.serial_id == mp->serial_id) {
+            (p->cfg.serial_id == mp->serial_id || p->cfg.serial_id == DAN_GW_TUN_DEFAULT_SERIAL)) {
             tun_in(g, p, mp->buffer, mp->buffer_len);
             return;
         }
@@ -53,8 +56,9 @@ void dan_gwn_on_tun_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t)
     }
     for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
         dan_gw_node_tun_t *p = &g->tun[i];
+        /* some nodes answer on any channel (Vertiq modules ignore channel_id) */
         if (p->cfg.mode == DAN_GW_TUN_BROADCAST && p->cfg.protocol == mp->protocol &&
-            p->cfg.target == mp->channel_id) {
+            (p->cfg.target == mp->channel_id || (p->cfg.options & DAN_GW_TUN_ANY_CHANNEL))) {
             tun_in(g, p, mp->buffer, mp->buffer_len);
         }
     }
@@ -64,6 +68,7 @@ bool dan_gwn_tunnel_open(dan_gw_node_t *g, const dan_gw_tun_open_t *o, uint64_t 
 {
     dan_gw_node_tun_t *p;
     bool ok = o->port < DAN_GW_NODE_TUNNELS && o->mode <= DAN_GW_TUN_BROADCAST &&
+              (o->mode != DAN_GW_TUN_BROADCAST || o->options <= DAN_GW_TUN_ANY_CHANNEL) &&
               (o->mode != DAN_GW_TUN_TARGETTED ||
                (o->target >= 1u && o->target <= DAN_DC_NODE_ID_MAX &&
                 o->serial_id >= DAN_DC_TUNNEL_SERIAL_ID_MIN &&

@@ -1,19 +1,24 @@
-"""The gateway end-to-end rigs' shared parts (test_gateway, test_danprobe_gateway):
-Rig (dan-vbus, an SLCAN hub, dan-gatewayd, pydronecan nodes) and the far
-end of a Targetted serial tunnel."""
+"""The gateway end-to-end rigs' shared parts (test_gateway,
+test_danprobe_gateway, test_danprobe_outputs, test_bus_mgmt): Rig (dan-vbus,
+an SLCAN hub, dan-gatewayd, pydronecan nodes), Stack (the same with
+esc_sim, for danprobe's commands) and the far end of a Targetted serial
+tunnel."""
 
 import json
+import os
 import random
+import select
 import sys
 import threading
 import time
+import tty
 
 import dronecan
 import pytest
 
 import pydronecan_nodes
-from bus_util import ready
-from conftest import BIN, ROOT
+from bus_util import control, danprobe, ready
+from conftest import BIN, ROOT, wait_for
 
 U = dronecan.uavcan
 
@@ -99,30 +104,34 @@ class Rig:
         self.stop.set()
         for t in self.threads:
             t.join(5)
-        for n in self.nodes:
-            n.close()
+        pydronecan_nodes.close_nodes(self.nodes)
 
 
 class TunnelFarEnd:
     """The device's end of a Targetted tunnel on a pydronecan node: the
     gateway's bytes (to node_id, serial_id) collect in .got, and the far end
     answers them XORed with 0x5A, up to 120 bytes a message from pump()
-    (give pump to Rig.spin)."""
+    (give pump to Rig.spin), with reply_serial_id (default: the
+    same; AP_Periph answers a request for -1 with the port it chose).
+    .heard lists (protocol, serial_id, options, baudrate) of every message
+    the gateway sent to node_id, keepalives included."""
 
-    def __init__(self, node, node_id, serial_id):
+    def __init__(self, node, node_id, serial_id, reply_serial_id=None):
         self.node, self.node_id, self.serial_id = node, node_id, serial_id
+        self.reply_serial_id = serial_id if reply_serial_id is None else reply_serial_id
         self.got = bytearray()
         self.outq = bytearray()
+        self.heard = []
         self.lock = threading.Lock()
         node.add_handler(U.tunnel.Targetted, self._on_targetted)
 
     def _on_targetted(self, e):
         m = e.message
-        if (
-            m.target_node != self.node_id
-            or e.transfer.source_node_id != GW_NODE
-            or m.serial_id != self.serial_id
-        ):
+        if m.target_node != self.node_id or e.transfer.source_node_id != GW_NODE:
+            return
+        with self.lock:
+            self.heard.append((m.protocol.protocol, m.serial_id, m.options, m.baudrate))
+        if m.serial_id != self.serial_id:
             return
         data = bytes(m.buffer)
         with self.lock:
@@ -138,7 +147,7 @@ class TunnelFarEnd:
                 U.tunnel.Targetted(
                     protocol=U.tunnel.Protocol(protocol=255),
                     target_node=GW_NODE,
-                    serial_id=self.serial_id,
+                    serial_id=self.reply_serial_id,
                     options=0,
                     baudrate=0,
                     buffer=list(chunk),
@@ -164,6 +173,121 @@ def finish_danprobe(procs, p):
     lines = [json.loads(x) for x in p.stdout.read().decode().splitlines() if x.strip()]
     assert lines and lines[-1]["event"] == "summary" and lines[-1]["result"] == 0, lines
     return lines[-1]
+
+
+def danprobe_json(*args):
+    rc, out, err = danprobe(*args, "--json")
+    assert rc == 0, (rc, out, err)
+    return json.loads(out.splitlines()[-1])
+
+
+def hub_stats(ctl):
+    return json.loads(control(ctl, "stats"))
+
+
+class Stack(Rig):
+    """dan-vbus (ep 0: danprobe, ep 1: the gateway), slcan_hub (port 0: the
+    gateway, 1..escs: esc_sim, the rest for the test), dan-gatewayd and
+    esc_sim with `escs` ESCs (node ids 20..). Rig's node(k, ...) (a
+    pydronecan node on tmp/can<k>), spin() and close() serve here too."""
+
+    def __init__(self, procs, tmp, escs=4, ncan=8):
+        for b in ("dan-vbus", "dan-gatewayd", "dan-cantool"):
+            if not (BIN / b).exists():
+                pytest.fail(f"{b} not built: run make test (it builds everything)")
+        import dronecan  # noqa: F401
+
+        self.procs, self.tmp = procs, tmp
+        self.dan = str(tmp / "dan0")
+        self.ctl = tmp / "hub.ctl"
+        self.hub_log = tmp / "hub.log"
+        self.start_wires(
+            ncan,
+            vbus_extra=("--capture", tmp / "bus.cap"),
+            hub_extra=("--log", self.hub_log, "--control", self.ctl),
+        )
+        self.gwd = procs.start(
+            [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can", f"slcan:{tmp / 'can0'}"],
+            stdout=None,
+        )
+        self.esc_log = tmp / "esc.log"
+        if escs:
+            ports = sum((["--port", tmp / f"can{1 + i}"] for i in range(escs)), [])
+            self.esc = procs.start(
+                [sys.executable, ROOT / "host_tools" / "esc_sim.py", *ports, "--log", self.esc_log],
+                name="esc_sim",
+            )
+            ready(self.esc, "esc_sim")
+        self.free = escs + 1  # first hub port for the test
+        self.nodes, self.threads = [], []
+        self.stop = threading.Event()
+
+    def can(self, k):
+        return str(self.tmp / f"can{k}")
+
+    def wait_gateway_sees(self, n):
+        wait_for(
+            lambda: danprobe_json("stats", "--port", self.dan, "-q")["stats"]["nodes"] >= n,
+            60,
+            0.5,
+            what=f"{n} node(s) in the gateway's table",
+        )
+
+    def esc_events(self, event):
+        if not self.esc_log.exists():
+            return []
+        return [
+            e for e in map(json.loads, self.esc_log.read_text().splitlines()) if e["event"] == event
+        ]
+
+    def hub_frames(self, port):
+        """(id, data hex) of every frame the hub port's client sent."""
+        out = []
+        for line in self.hub_log.read_text().splitlines():
+            f = line.split()
+            if len(f) == 3 and f[1] == f"hub{port}":
+                ident, data = f[2].split("#")
+                out.append((int(ident, 16), data))
+        return out
+
+    def start_danprobe(self, *args, name="danprobe"):
+        """A long-running danprobe command (--json); returns (proc, ready event)."""
+        return start_danprobe(self.procs, *args, name=name)
+
+    def finish(self, p):
+        """SIGTERM, exit 0, and the summary document."""
+        return finish_danprobe(self.procs, p)
+
+    def close(self):
+        super().close()
+        self.threads, self.nodes = [], []
+
+
+def pty_open(path):
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    tty.setraw(fd)
+    return fd
+
+
+def pump_pty(fd, data, want, timeout=90):
+    """Writes data to fd while reading until `want` bytes came back."""
+    got = bytearray()
+    pos = 0
+    end = time.monotonic() + timeout
+    while len(got) < want and time.monotonic() < end:
+        w = [fd] if pos < len(data) else []
+        r, wr, _ = select.select([fd], w, [], 0.1)
+        if wr:
+            try:
+                pos += os.write(fd, data[pos : pos + 256])
+            except BlockingIOError:
+                pass
+        if r:
+            try:
+                got += os.read(fd, 4096)
+            except BlockingIOError:
+                pass
+    return bytes(got), pos
 
 
 # ---- dynamic node ID allocation: an allocatee from the specification ----

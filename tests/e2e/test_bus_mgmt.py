@@ -19,7 +19,6 @@ import subprocess
 import sys
 import threading
 import time
-import tty
 from types import SimpleNamespace
 
 import pytest
@@ -31,12 +30,14 @@ from danprobe import gateway_calls as C
 from danprobe import gateway_can as GC
 from danprobe import gateway_mgmt as M
 from danprobe import gateway_msgs as G
+from danprobe import registry
 from danprobe.commands.slcan import Bridge
 from danprobe.gateway_client import GatewayClient
-from danprobe.master import DanTimeout, RemoteError
+from danprobe.master import DanTimeout, Master, MasterConfig, RemoteError
 from danprobe.payloads import ErrorMessage
+from danprobe.port import SerialPort
 from danprobe.recv_clock import RecvClock, slcan_stamp_ms
-from gw_rig import GW_NODE, Rig, finish_danprobe, start_danprobe
+from gw_rig import GW_NODE, Rig, finish_danprobe, pty_open, start_danprobe
 
 sys.path.insert(0, str(ROOT / "tests" / "tools"))
 import param_node  # noqa: E402
@@ -337,6 +338,37 @@ def test_param_list_get_set_save_erase(mrig):
     assert r.dp_json("param", "get", "int_004", "--node", PARAM_NODE)["param"]["value"] == -10
 
 
+def test_param_set_repeated_by_the_master_is_applied_once(mrig):
+    """A NODE_CALL the master sends again with the same call_id and content
+    (a retry: the same bytes on the wire), while the call is pending and
+    after it is done, is one GetSet at the node."""
+    r = mrig()  # the bus at 115200 now
+    with SerialPort(r.dan, 115200) as port:
+        m = Master(port, [registry.lookup("can-gw")], 115200, MasterConfig(resp_latency_s=0.25))
+        gw = GatewayClient(m, seed=11)
+        calls_before = gw.read_stats()["calls"]
+        call = M.NodeCall(gw.new_call_id(), PARAM_NODE, M.CALL_PARAM_SET, name=b"int_012")
+        call.value = M.Value.integer(123)
+        request = G.seal(G.CODE_NODE_CALL, G.REQUEST, call.encode())
+
+        def send():
+            return M.CallState.decode(
+                G.unseal(G.CODE_NODE_CALL, G.RESPONSE, m.request(G.CODE_NODE_CALL, request))
+            )
+
+        states = [send(), send()]  # the second at once: the call is still pending
+        assert states[0].state == M.CALL_PENDING and states[1].call_id == call.call_id
+        done = wait_for(lambda: (q := gw.call_result(call.call_id)).state == M.CALL_DONE and q, 20)
+        again = send()  # after it is done: its state, not a new call
+        assert (again.state, again.result_len) == (M.CALL_DONE, done.result_len)
+        result = M.ParamResult.decode(bytes(done.data))
+        assert (result.name, result.value) == (b"int_012", M.Value.integer(123))
+        time.sleep(1.5)  # longer than an attempt: a second GetSet would have been made by now
+        assert gw.read_stats()["calls"] == calls_before + 1
+    sets = [e for e in r.events("getset") if e["set"]]
+    assert [(e["found"], e["value"]) for e in sets] == [("int_012", 123)]
+
+
 def test_no_answer_and_restart(mrig):
     r = mrig()
     rc, out, err = r.dp("param", "get", "x", "--node", 99)  # nobody has ID 99
@@ -487,12 +519,6 @@ def test_slcan_own_frames_and_receive_times(mrig, tmp_path):
     assert rc == 0 and len(frames) == 2, (out, err)
     assert all(f["own"] and f["id"] & 0xFFFFFF == 0x01550A for f in frames)
     assert t_before - 5 < frames[0]["time"] <= frames[1]["time"] < time.time() + 1
-
-
-def pty_open(path):
-    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    tty.setraw(fd)
-    return fd
 
 
 def pump_lines(fd, want, timeout):

@@ -10,25 +10,21 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 import json
 import os
 import re
-import select
 import struct
-import sys
-import threading
-import time
-import tty
 
 import pytest
 
-from bus_util import control, danprobe
-from conftest import BIN, ROOT, VECTORS, closing_factory, wait_for
+from bus_util import danprobe, ready
+from conftest import BIN, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
 from danprobe import gateway_mgmt as M
 from danprobe import gateway_msgs as G
+from danprobe import gateway_out as O
 from danprobe.codec import encode_frame
 from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
-from gw_rig import GW_NODE, Rig, TunnelFarEnd, finish_danprobe, start_danprobe
+from gw_rig import GW_NODE, Stack, TunnelFarEnd, danprobe_json, hub_stats, pty_open, pump_pty
 
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
 
@@ -130,6 +126,38 @@ def mgmt_vector_object(msg, d, f, rep):
         items = [M.DnaEntry(int(n), unhex(u)) for n, u in (e.split("/") for e in rep("entry"))]
         p = M.DnaPage(i("flags"), i("entries"), i("capacity"), i("next"), items)
         return p.encode(), M.DnaPage.decode, p
+    return out_vector_object(msg, d, f, rep)
+
+
+def hex_last(text):
+    """a/b/.../h as the vectors write an item whose last field is hex."""
+    *head, last = text.split("/")
+    return [*map(int, head), int(last, 16)]
+
+
+def out_vector_object(msg, d, f, rep):
+    """vector_object() of the output messages (safety, servos, lights, beep)."""
+    i = lambda k: int(f[k])  # noqa: E731
+    slashed = lambda k: [hex_last(v) for v in rep(k)]  # noqa: E731
+    key = (msg, d)
+    if d == "rsp" and msg in ("safety", "servo", "lights", "beep"):
+        return bytes([i("flags")]), G.decode_u8, i("flags")
+    if key == ("servo_fs", "rsp"):
+        return bytes([i("kept")]), G.decode_u8, i("kept")
+    if key == ("safety", "req"):
+        return O.encode_safety(i("status")), O.decode_safety, i("status")
+    if key == ("servo", "req"):
+        q = O.ServoRequest([O.ServoCommand(*c) for c in slashed("cmd")])
+        return q.encode(), O.ServoRequest.decode, q
+    if key == ("servo_fs", "req"):
+        t = O.ServoFailsafeTable([O.ServoFailsafe(*e) for e in slashed("fs")])
+        return t.encode(), O.ServoFailsafeTable.decode, t
+    if key == ("lights", "req"):
+        q = O.LightsRequest([O.Light(*x) for x in slashed("light")])
+        return q.encode(), O.LightsRequest.decode, q
+    if key == ("beep", "req"):
+        b = O.Beep(i("hz"), i("ms"))
+        return b.encode(), O.Beep.decode, b
     raise AssertionError(f"no codec for {msg} {d}")
 
 
@@ -294,8 +322,9 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 27)["counter_26"] == 0  # later versions append counters
+    assert G.stats_dict([0] * 29)["counter_28"] == 0  # later versions append counters
     assert G.stats_dict(list(range(26)))["call_timeouts"] == 25
+    assert G.stats_dict(list(range(28)))["servo_dropped"] == 27
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
     # cansend syntax
     assert GC.parse_cansend("123#DEADBEEF") == GC.CanFrame(0x123, bytes.fromhex("deadbeef"))
@@ -482,100 +511,6 @@ def test_client_tunnel_offsets_and_can_recv_ack():
 
 
 # ---- the real stack ----
-
-
-def danprobe_json(*args):
-    rc, out, err = danprobe(*args, "--json")
-    assert rc == 0, (rc, out, err)
-    return json.loads(out.splitlines()[-1])
-
-
-def ready(p, what):
-    line = p.stdout.readline().decode()
-    assert line.startswith("READY") or line.startswith("{"), f"{what} did not start: {line!r}"
-    return line
-
-
-def hub_stats(ctl):
-    return json.loads(control(ctl, "stats"))
-
-
-class Stack(Rig):
-    """dan-vbus (ep 0: danprobe, ep 1: the gateway), slcan_hub (port 0: the
-    gateway, 1..escs: esc_sim, the rest for the test), dan-gatewayd and
-    esc_sim with `escs` ESCs (node ids 20..). Rig's node(k, ...) (a
-    pydronecan node on tmp/can<k>), spin() and close() serve here too."""
-
-    def __init__(self, procs, tmp, escs=4, ncan=8):
-        for b in ("dan-vbus", "dan-gatewayd", "dan-cantool"):
-            if not (BIN / b).exists():
-                pytest.fail(f"{b} not built: run make test (it builds everything)")
-        import dronecan  # noqa: F401
-
-        self.procs, self.tmp = procs, tmp
-        self.dan = str(tmp / "dan0")
-        self.ctl = tmp / "hub.ctl"
-        self.hub_log = tmp / "hub.log"
-        self.start_wires(
-            ncan,
-            vbus_extra=("--capture", tmp / "bus.cap"),
-            hub_extra=("--log", self.hub_log, "--control", self.ctl),
-        )
-        self.gwd = procs.start(
-            [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can", f"slcan:{tmp / 'can0'}"],
-            stdout=None,
-        )
-        self.esc_log = tmp / "esc.log"
-        if escs:
-            ports = sum((["--port", tmp / f"can{1 + i}"] for i in range(escs)), [])
-            self.esc = procs.start(
-                [sys.executable, ROOT / "host_tools" / "esc_sim.py", *ports, "--log", self.esc_log],
-                name="esc_sim",
-            )
-            ready(self.esc, "esc_sim")
-        self.free = escs + 1  # first hub port for the test
-        self.nodes, self.threads = [], []
-        self.stop = threading.Event()
-
-    def can(self, k):
-        return str(self.tmp / f"can{k}")
-
-    def wait_gateway_sees(self, n):
-        wait_for(
-            lambda: danprobe_json("stats", "--port", self.dan, "-q")["stats"]["nodes"] >= n,
-            60,
-            0.5,
-            what=f"{n} node(s) in the gateway's table",
-        )
-
-    def esc_events(self, event):
-        if not self.esc_log.exists():
-            return []
-        return [
-            e for e in map(json.loads, self.esc_log.read_text().splitlines()) if e["event"] == event
-        ]
-
-    def hub_frames(self, port):
-        """(id, data hex) of every frame the hub port's client sent."""
-        out = []
-        for line in self.hub_log.read_text().splitlines():
-            f = line.split()
-            if len(f) == 3 and f[1] == f"hub{port}":
-                ident, data = f[2].split("#")
-                out.append((int(ident, 16), data))
-        return out
-
-    def start_danprobe(self, *args, name="danprobe"):
-        """A long-running danprobe command (--json); returns (proc, ready event)."""
-        return start_danprobe(self.procs, *args, name=name)
-
-    def finish(self, p):
-        """SIGTERM, exit 0, and the summary document."""
-        return finish_danprobe(self.procs, p)
-
-    def close(self):
-        super().close()
-        self.threads, self.nodes = [], []
 
 
 @pytest.fixture
@@ -768,33 +703,6 @@ def test_can_dump_filter_and_send(stack):
     danprobe_json("can", "send", "--port", s.dan, "-q", "321#01")
     danprobe_json("can", "send", "--port", s.dan, "-q", "321#01")
     wait_for(lambda: s.hub_frames(0).count((0x321, "01")) == 2, 20, what="both 321#01 on the bus")
-
-
-def pty_open(path):
-    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    tty.setraw(fd)
-    return fd
-
-
-def pump_pty(fd, data, want, timeout=90):
-    """Writes data to fd while reading until `want` bytes came back."""
-    got = bytearray()
-    pos = 0
-    end = time.monotonic() + timeout
-    while len(got) < want and time.monotonic() < end:
-        w = [fd] if pos < len(data) else []
-        r, wr, _ = select.select([fd], w, [], 0.1)
-        if wr:
-            try:
-                pos += os.write(fd, data[pos : pos + 256])
-            except BlockingIOError:
-                pass
-        if r:
-            try:
-                got += os.read(fd, 4096)
-            except BlockingIOError:
-                pass
-    return bytes(got), pos
 
 
 def test_tunnel_targetted_and_broadcast(stack):

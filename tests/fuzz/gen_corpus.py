@@ -32,6 +32,11 @@ GW_CODES = {
     "call_result": 0x4F,
     "health": 0x52,
     "dna": 0x53,
+    "safety": 0x54,
+    "servo": 0x55,
+    "servo_fs": 0x56,
+    "lights": 0x57,
+    "beep": 0x58,
 }
 # call result blobs (read through CALL_RESULT), not messages of their own
 GW_RESULTS = {"opcode", "param"}
@@ -47,6 +52,11 @@ DSDL_SEL = {
     "arming_status": 5,
     "tunnel_targetted": 6,
     "tunnel_broadcast": 7,
+    "array_command": 8,
+    "lights_command": 9,
+    "beep_command": 10,
+    "safety_state": 11,
+    "temperature": 12,
 }
 
 

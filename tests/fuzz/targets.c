@@ -817,6 +817,52 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
+    case DAN_DC_ARRAY_COMMAND_ID: {
+        dan_dc_array_command_t a, b;
+        if (dan_dc_array_command_decode(&a, p, n) == DAN_OK) {
+            r = dan_dc_array_command_encode(&a, buf, sizeof buf);
+            FUZZ_CHECK(r >= 0 && dan_dc_array_command_decode(&b, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(a.count == b.count && !memcmp(a.cmd, b.cmd, a.count * sizeof a.cmd[0]));
+        }
+        break;
+    }
+    case DAN_DC_LIGHTS_COMMAND_ID: {
+        dan_dc_lights_command_t a, b;
+        if (dan_dc_lights_command_decode(&a, p, n) == DAN_OK) {
+            r = dan_dc_lights_command_encode(&a, buf, sizeof buf);
+            FUZZ_CHECK(r >= 0 && dan_dc_lights_command_decode(&b, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(a.count == b.count &&
+                       !memcmp(a.light, b.light, a.count * sizeof a.light[0]));
+        }
+        break;
+    }
+    case DAN_DC_BEEP_COMMAND_ID: {
+        dan_dc_beep_command_t a, b;
+        if (dan_dc_beep_command_decode(&a, p, n) == DAN_OK) {
+            r = dan_dc_beep_command_encode(&a, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_beep_command_decode(&b, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(!memcmp(&a, &b, sizeof a));
+        }
+        break;
+    }
+    case DAN_DC_SAFETY_STATE_ID: {
+        uint8_t a, b;
+        if (dan_dc_safety_state_decode(&a, p, n) == DAN_OK) {
+            r = dan_dc_safety_state_encode(a, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_safety_state_decode(&b, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(a == b);
+        }
+        break;
+    }
+    case DAN_DC_TEMPERATURE_ID: {
+        dan_dc_temperature_t a, b;
+        if (dan_dc_temperature_decode(&a, p, n) == DAN_OK) {
+            r = dan_dc_temperature_encode(&a, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_temperature_decode(&b, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(!memcmp(&a, &b, sizeof a));
+        }
+        break;
+    }
     default: {
         static dan_dc_tunnel_targetted_t tt;
         static dan_dc_tunnel_broadcast_t tb;
@@ -831,21 +877,29 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     }
 }
 
-/* data[0] % 8 picks the type; the rest is the serialized payload. */
+/* data[0] % 16 picks the type; the rest is the serialized payload. */
 int dan_fuzz_dsdl(const uint8_t *data, size_t len)
 {
-    static const uint16_t ids[8] = {DAN_DC_NODE_STATUS_ID,
-                                    DAN_DC_GET_NODE_INFO_ID,
-                                    DAN_DC_ESC_RAW_COMMAND_ID,
-                                    DAN_DC_ESC_STATUS_ID,
-                                    DAN_DC_ESC_STATUS_EXTENDED_ID,
-                                    DAN_DC_ARMING_STATUS_ID,
-                                    0u,
-                                    0xFFFFu};
+    static const uint16_t ids[16] = {DAN_DC_NODE_STATUS_ID,
+                                     DAN_DC_GET_NODE_INFO_ID,
+                                     DAN_DC_ESC_RAW_COMMAND_ID,
+                                     DAN_DC_ESC_STATUS_ID,
+                                     DAN_DC_ESC_STATUS_EXTENDED_ID,
+                                     DAN_DC_ARMING_STATUS_ID,
+                                     0u,
+                                     0xFFFFu,
+                                     DAN_DC_ARRAY_COMMAND_ID,
+                                     DAN_DC_LIGHTS_COMMAND_ID,
+                                     DAN_DC_BEEP_COMMAND_ID,
+                                     DAN_DC_SAFETY_STATE_ID,
+                                     DAN_DC_TEMPERATURE_ID,
+                                     0u,
+                                     0u,
+                                     0u};
     if (len < 1u) {
         return 0;
     }
-    dsdl_any(ids[data[0] % 8u], data + 1, len - 1u);
+    dsdl_any(ids[data[0] % 16u], data + 1, len - 1u);
     return 0;
 }
 
@@ -929,8 +983,8 @@ int dan_fuzz_slcan(const uint8_t *data, size_t len)
 
 static dan_master_t fz_master;
 
-/* data[0] % 16: response code 0x42 + k up to 0x4F, then HEALTH (0x52) and
- * DNA (0x53); data[1]: tunnel port and client offsets seed; the rest is
+/* data[0] % 28: response code 0x42 + k up to 0x4F, then 0x52 + (k - 14)
+ * up to 0x5F (HEALTH, DNA, the outputs, reserved ones); data[1]: tunnel port and client offsets seed; the rest is
  * the response payload. */
 int dan_fuzz_gw_client(const uint8_t *data, size_t len)
 {
@@ -942,7 +996,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     if (len < 2u) {
         return 0;
     }
-    code = DAN_GW_CODE_ESC_CMD + (uint32_t)(data[0] % 16u);
+    code = DAN_GW_CODE_ESC_CMD + (uint32_t)(data[0] % 28u);
     if (code > DAN_GW_CODE_CALL_RESULT) {
         code = DAN_GW_CODE_HEALTH + (code - DAN_GW_CODE_CALL_RESULT - 1u);
     }

@@ -188,14 +188,10 @@ def main():
     try:
         node = ParamNode(a.port, a.node_id, a.count, log)
         print("READY", flush=True)
-        while not stop:
-            try:
-                node.node.spin(0.005)
-            except node.dc.transport.TransferError:
-                pass
+        pydronecan_nodes.spin_until([node.node], stop, 0.005)
     finally:
         if node:
-            node.node.close()
+            pydronecan_nodes.close_nodes([node.node])
         if log:
             log.close()
     return 0

@@ -18,6 +18,7 @@
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/f16.h"
 #include "dan/can_gw/dsdl_mgmt.h"
+#include "dan/can_gw/dsdl_out.h"
 
 #define MAX_FRAMES 64
 #define MAX_KV     32
@@ -178,7 +179,105 @@ typedef union {
     dan_dc_param_opcode_t op;
     uint64_t magic;
     bool ok;
+    dan_dc_array_command_t ac;
+    dan_dc_lights_command_t lc;
+    dan_dc_beep_command_t bc;
+    uint8_t safety;
+    dan_dc_temperature_t tp;
 } any_msg_t;
+
+/* Splits "a/b/c,a/b/c" lists into up to max rows of k numbers. */
+static size_t rows_of(const char *s, unsigned long (*row)[3], size_t k, size_t max)
+{
+    size_t n = 0, j;
+    if (strcmp(s, "-") == 0) {
+        return 0;
+    }
+    while (*s != '\0' && n < max) {
+        char *end;
+        for (j = 0; j < k; j++) {
+            row[n][j] = strtoul(s, &end, 10);
+            s = (*end == '/' || *end == ',') ? end + 1 : end;
+        }
+        n++;
+    }
+    return n;
+}
+
+/* Outputs and indications (dsdl_out.h); -100 for another type. */
+static int build_out(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t, uint8_t *buf, size_t cap)
+{
+    unsigned long row[20][3];
+    size_t i, n;
+    if (strcmp(v->name, "array_command") == 0) {
+        n = rows_of(kv(v, "acts"), row, 3, DAN_DC_ARRAY_COMMAND_MAX);
+        for (i = 0; i < n; i++) {
+            m->ac.cmd[i].actuator_id = (uint8_t)row[i][0];
+            m->ac.cmd[i].command_type = (uint8_t)row[i][1];
+            m->ac.cmd[i].value_f16 = (uint16_t)row[i][2];
+        }
+        m->ac.count = (uint8_t)n;
+        t->data_type_id = DAN_DC_ARRAY_COMMAND_ID;
+        return dan_dc_array_command_encode(&m->ac, buf, cap);
+    }
+    if (strcmp(v->name, "lights_command") == 0) {
+        n = rows_of(kv(v, "lights"), row, 2, DAN_DC_LIGHTS_MAX);
+        for (i = 0; i < n; i++) {
+            m->lc.light[i].light_id = (uint8_t)row[i][0];
+            m->lc.light[i].rgb565 = (uint16_t)row[i][1];
+        }
+        m->lc.count = (uint8_t)n;
+        t->data_type_id = DAN_DC_LIGHTS_COMMAND_ID;
+        return dan_dc_lights_command_encode(&m->lc, buf, cap);
+    }
+    if (strcmp(v->name, "beep_command") == 0) {
+        m->bc.frequency_f16 = (uint16_t)kv_int(v, "freq");
+        m->bc.duration_f16 = (uint16_t)kv_int(v, "dur");
+        t->data_type_id = DAN_DC_BEEP_COMMAND_ID;
+        return dan_dc_beep_command_encode(&m->bc, buf, cap);
+    }
+    if (strcmp(v->name, "safety_state") == 0) {
+        m->safety = (uint8_t)kv_int(v, "status");
+        t->data_type_id = DAN_DC_SAFETY_STATE_ID;
+        return dan_dc_safety_state_encode(m->safety, buf, cap);
+    }
+    if (strcmp(v->name, "temperature") == 0) {
+        m->tp.device_id = (uint16_t)kv_int(v, "device_id");
+        m->tp.temperature_f16 = (uint16_t)kv_int(v, "temp");
+        m->tp.error_flags = (uint8_t)kv_int(v, "flags");
+        t->data_type_id = DAN_DC_TEMPERATURE_ID;
+        return dan_dc_temperature_encode(&m->tp, buf, cap);
+    }
+    return -100;
+}
+
+/* Decodes (enc false) or re-encodes (enc true) an output type; -100 for
+ * another type. */
+static int codec_out(const char *name, any_msg_t *m, const uint8_t *p, size_t len, uint8_t *buf,
+                     size_t cap, bool enc)
+{
+    if (strcmp(name, "array_command") == 0) {
+        return enc ? dan_dc_array_command_encode(&m->ac, buf, cap)
+                   : dan_dc_array_command_decode(&m->ac, p, len);
+    }
+    if (strcmp(name, "lights_command") == 0) {
+        return enc ? dan_dc_lights_command_encode(&m->lc, buf, cap)
+                   : dan_dc_lights_command_decode(&m->lc, p, len);
+    }
+    if (strcmp(name, "beep_command") == 0) {
+        return enc ? dan_dc_beep_command_encode(&m->bc, buf, cap)
+                   : dan_dc_beep_command_decode(&m->bc, p, len);
+    }
+    if (strcmp(name, "safety_state") == 0) {
+        return enc ? dan_dc_safety_state_encode(m->safety, buf, cap)
+                   : dan_dc_safety_state_decode(&m->safety, p, len);
+    }
+    if (strcmp(name, "temperature") == 0) {
+        return enc ? dan_dc_temperature_encode(&m->tp, buf, cap)
+                   : dan_dc_temperature_decode(&m->tp, p, len);
+    }
+    return -100;
+}
 
 /* A param value from its text: 0 | 1/<int> | 2/<float> | 3/<0|1> | 4/<hex>. */
 static void value_of(const char *s, dan_dc_param_value_t *v)
@@ -252,6 +351,10 @@ static int build_mgmt(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t, uint8_
 
 static int decode_mgmt(const char *name, any_msg_t *m, const uint8_t *p, size_t len)
 {
+    int rc = codec_out(name, m, p, len, NULL, 0, false);
+    if (rc != -100) {
+        return rc;
+    }
     if (strcmp(name, "allocation") == 0) {
         return dan_dc_allocation_decode(&m->al, p, len);
     }
@@ -277,8 +380,12 @@ static int decode_mgmt(const char *name, any_msg_t *m, const uint8_t *p, size_t 
     return -1;
 }
 
-static int encode_mgmt(const char *name, const any_msg_t *m, uint8_t *buf, size_t cap)
+static int encode_mgmt(const char *name, any_msg_t *m, uint8_t *buf, size_t cap)
 {
+    int rc = codec_out(name, m, NULL, 0, buf, cap, true);
+    if (rc != -100) {
+        return rc;
+    }
     if (strcmp(name, "allocation") == 0) {
         return dan_dc_allocation_encode(&m->al, buf, cap);
     }
@@ -400,6 +507,9 @@ static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t, ui
         len = dan_dc_get_node_info_rsp_encode(n, buf, cap);
     } else {
         len = build_mgmt(v, m, t, buf, cap);
+        if (len == -100) {
+            len = build_out(v, m, t, buf, cap);
+        }
         if (len == -100) {
             fail_msg("unknown vector type %s", v->name);
         }

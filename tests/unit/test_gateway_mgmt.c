@@ -152,6 +152,48 @@ static void test_dna_stage_timeout_and_garbage(void **state)
     assert_int_equal(R->g.stats.dna_allocations, 0);
 }
 
+/* A flood of first stages from ever new unique IDs, with nothing draining
+ * the CAN queue (a stalled bus): the queue holds one answer, throttle still
+ * goes out first, and the table stays empty. */
+static void test_dna_flood(void **state)
+{
+    const int16_t v[4] = {100, 200, 300, 400};
+    dan_dc_allocation_t m;
+    dan_can_frame_t f;
+    dan_dc_transfer_t id;
+    uint8_t buf[DAN_DC_ALLOCATION_MAX_SIZE];
+    int i;
+    (void)state;
+    advance(1000);
+    for (i = 0; i < 2000; i++) {
+        memset(&m, 0, sizeof m);
+        m.first_part = (i % 7) != 3;                 /* now and then a follow-up out of turn */
+        m.uid_len = (uint8_t)((i % 5) == 0 ? 5 : 6); /* and a first stage too short */
+        memset(m.uid, (uint8_t)(i * 37), m.uid_len);
+        m.uid[0] = (uint8_t)i;
+        m.uid[1] = (uint8_t)(i >> 8);
+        m.node_id = (uint8_t)(i % 128);
+        inject(0, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
+               buf, dan_dc_allocation_encode(&m, buf, sizeof buf));
+        dan_gw_node_poll(&R->g, R->bus.now);
+    }
+    assert_true(R->g.stats.dna_bad > 0);
+    assert_true(dan_gw_node_tx_pending(&R->g) <= 3u); /* one answer, not 1600 */
+    assert_int_equal(R->g.dna.n, 0);
+    /* a throttle command waits behind that one answer at most */
+    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+    assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK);
+    for (i = 0; i < 4; i++) {
+        assert_true(dan_gw_node_tx_peek(&R->g, &f));
+        assert_int_equal(dan_dc_parse_id(f.id, &id), DAN_OK);
+        if (id.data_type_id == DAN_DC_ESC_RAW_COMMAND_ID) {
+            break;
+        }
+        dan_gw_node_tx_pop(&R->g);
+    }
+    assert_int_equal(id.data_type_id, DAN_DC_ESC_RAW_COMMAND_ID);
+}
+
 static void test_dna_off(void **state)
 {
     size_t from;
@@ -677,6 +719,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_dna_skips_ids_in_use, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_waits_for_discovery, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_stage_timeout_and_garbage, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_dna_flood, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_off, setup, teardown),
         cmocka_unit_test_setup_teardown(test_dna_foreign_allocator, setup, teardown),
         cmocka_unit_test_setup_teardown(test_fc_frames_heard, setup, teardown),

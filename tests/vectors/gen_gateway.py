@@ -11,6 +11,8 @@ import os
 from _wire import array, frame, u8, u16, u24, u32, uvarint
 from gen_gateway_mgmt import __doc__ as MGMT_DOC
 from gen_gateway_mgmt import mgmt_vectors
+from gen_gateway_out import __doc__ as OUT_DOC
+from gen_gateway_out import out_vectors
 
 HEADER = """\
 # CAN-over-DAN gateway payload vectors (docs/PROTOCOL.md section 7).
@@ -27,7 +29,7 @@ HEADER = """\
 #   telem rsp         (ESC_CMD and ESC_TELEM responses) flags= aux= then rec= per record:
 #                     index/node/flags/age_ms/voltage_f16/current_f16/temperature_f16/
 #                     rpm/power_pct/error_count/ext_age_ms/input_pct/output_pct/
-#                     motor_temp_c/motor_angle/status_flags
+#                     motor_temp_c/motor_angle/status_flags/dev_age_ms/dev_temp_f16/dev_flags
 #   esc_telem req     first=
 #   arm req           status=        arm rsp  flags=
 #   config req        mask= timeout= rate= telem= dna=
@@ -69,22 +71,27 @@ def esc_cmd(values):
 
 
 def rec_bytes(r):
-    (idx, node, fl, age, v, c, t, rpm, pwr, err, eage, inp, outp, mt, ang, sf) = r
+    (idx, node, fl, age, v, c, t, rpm, pwr, err, eage, inp, outp, mt, ang, sf) = r[:16]
+    (dage, dtemp, dfl) = r[16:] if len(r) > 16 else (0, 0, 0)
     b = u8(idx) + u8(node) + u8(fl)
     if fl & 1:
         b += uvarint(age) + u16(v) + u16(c) + u16(t) + u24(rpm) + u8(pwr) + uvarint(err)
     if fl & 2:
         b += uvarint(eage) + u8(inp) + u8(outp) + u16(mt) + u16(ang) + u24(sf)
+    if fl & 4:
+        b += uvarint(dage) + u16(dtemp) + u8(dfl)
     return b
 
 
 def rec_text(r):
     fl = r[2]
-    r = list(r)
+    r = list(r) + [0] * (19 - len(r))
     if not fl & 1:
         r[3:10] = [0] * 7
     if not fl & 2:
         r[10:16] = [0] * 6
+    if not fl & 4:
+        r[16:19] = [0] * 3
     return "rec=" + "/".join(str(x) for x in r)
 
 
@@ -124,6 +131,16 @@ def esc_vectors():
             (0, 21, 3, 200, 0x4C33, 0x4248, 0x5CD9, 131071, 100, 300, 5, 50, 48, -40, 359, 370085),
             (31, 127, 2, 0, 0, 0, 0, 0, 0, 0, 65535, 127, 0, 255, 511, 524287),
             (7, 1, 1, 4294967295, 0x7BFF, 0x8000, 0x0001, -131072, 0, 4294967295, 0, 0, 0, 0, 0, 0),
+        ],
+    )
+    # device.Temperature of the ESC's node (bit 2): 0x5CF8 is 318 K; dev
+    # flags 1 overheating, 2 overcooling
+    telem(
+        0x01,
+        2,
+        [
+            (2, 30, 5, 40, 0x4A40, 0x3C00, 0x5CB0, 1000, 20, 0, 0, 0, 0, 0, 0, 0, 12, 0x5CF8, 1),
+            (3, 31, 4, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 4294967295, 0x7C00, 2),
         ],
     )
     emit("esc_telem", "req", ["first=0"], u8(0))
@@ -322,11 +339,13 @@ def can_vectors():
 def main():
     print(HEADER, end="")
     print("".join("# " + line + "\n" for line in MGMT_DOC.strip().splitlines()[5:]), end="")
+    print("".join("# " + line + "\n" for line in OUT_DOC.strip().splitlines()[5:]), end="")
     esc_vectors()
     node_vectors()
     tunnel_vectors()
     can_vectors()
     mgmt_vectors(emit)
+    out_vectors(emit)
 
 
 def crc16_ccitt_false(data):

@@ -1,12 +1,14 @@
-"""danprobe arm: make the gateway broadcast ArmingStatus armed."""
+"""danprobe arm: make the gateway broadcast ArmingStatus armed (and, with
+--safety-off, SafetyState off first)."""
 
-from danprobe import gateway_msgs
+from typing import Optional
+
+from danprobe import gateway_msgs, gateway_out
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
     add_gateway_options,
-    gateway_operation,
-    gateway_report,
+    flags_command,
     non_negative_int,
 )
 
@@ -15,7 +17,13 @@ HELP = "CAN gateway: broadcast ArmingStatus FULLY_ARMED (255) to the ESCs"
 DESCRIPTION = (
     "Sends ARM to the CAN-over-DAN gateway, which broadcasts "
     "uavcan.equipment.safety.ArmingStatus at once and then at its arming rate. "
+    "--safety-off first sends SAFETY 255 (SafetyState OFF, as ArduPilot's safety switch "
+    "must be off before arming), so AP_Periph ESCs that wait for it spin. "
     "Prints the gateway flags."
+)
+EXAMPLES = (
+    "danprobe arm --port /dev/ttyUSB0 --baud 115200",
+    "danprobe arm --port /dev/ttyUSB0 --baud 115200 --safety-off",
 )
 
 
@@ -27,38 +35,45 @@ def add_arguments(p):
         type=non_negative_int,
         default=gateway_msgs.ARM_FULLY_ARMED,
         metavar="N",
-        help="ArmingStatus value to send, 0..255 (default 255)",
+        help="ArmingStatus value to send: 255 (default) or 0 (the gateway refuses others)",
+    )
+    g.add_argument(
+        "--safety-off",
+        action="store_true",
+        help="send SAFETY 255 (SafetyState OFF) before arming",
     )
 
 
-def set_arming(ctx, status: int) -> int:
-    """ARM with status; the result is reported for arm and disarm alike."""
-    if status > 255:
+def set_arming(ctx, status: Optional[int], safety_off: Optional[bool] = None) -> int:
+    """ARM with status (None: none) and SAFETY (None: none; off before
+    arming, on after disarming); the result is reported for arm, disarm and
+    safety alike."""
+    if status is not None and status > 255:
         raise CliError("--status must be 0..255", EXIT_USAGE)
-    flags = None
 
-    def op(m, gw):
-        nonlocal flags
-        flags = gw.arm(status)
+    def send(gw):
+        if safety_off:
+            flags = gw.safety(True)
+        if status is not None:
+            flags = gw.arm(status)
+        if safety_off is False:
+            flags = gw.safety(False)
+        return flags
 
-    m, failure, ms = gateway_operation(ctx, op)
+    def what(flags):
+        did = []
+        if status is not None:
+            state = "armed" if flags & gateway_msgs.FLAG_ARMED else "disarmed"
+            did.append(f"gateway {state} (ArmingStatus {status})")
+        if safety_off is not None:
+            did.append(f"safety {'OFF (255)' if safety_off else 'ON (0)'}")
+        return ", ".join(did)
 
-    def human():
-        state = "armed" if flags & gateway_msgs.FLAG_ARMED else "disarmed"
-        print(
-            f"{ctx.args.command}: ok, gateway {state} (ArmingStatus {status}); flags "
-            f"{','.join(gateway_msgs.flags_names(flags)) or 'none'} ({ms:.1f} ms)"
-        )
-
-    return gateway_report(
-        ctx,
-        m,
-        failure,
-        ms,
-        {"status": status, **(gateway_msgs.flags_dict(flags) if flags is not None else {})},
-        human,
-    )
+    fields = {} if status is None else {"status": status}
+    if safety_off is not None:
+        fields["safety"] = gateway_out.SAFETY_OFF if safety_off else gateway_out.SAFETY_ON
+    return flags_command(ctx, send, fields, what)
 
 
 def run(ctx) -> int:
-    return set_arming(ctx, ctx.args.status)
+    return set_arming(ctx, ctx.args.status, True if ctx.args.safety_off else None)

@@ -66,6 +66,39 @@ def positive_float(s: str) -> float:
     return v
 
 
+def assignments(parse_one: Callable[[int, str], object], what: str, id_max: int = 255):
+    """An argument type: comma-separated ID=SPEC items (ID 0..id_max), each
+    parse_one(id, spec) (a ValueError says why not); a list. With
+    action="append", flat() joins the lists of repeated options."""
+
+    def parse(s: str) -> list:
+        out = []
+        for item in filter(None, (x.strip() for x in s.split(","))):
+            ident, sep, spec = item.partition("=")
+            try:
+                if not sep or not spec:
+                    raise ValueError("expected ID=" + what.upper())
+                try:
+                    i = int(ident, 0)
+                except ValueError:
+                    raise ValueError(f"{ident!r} is not an ID") from None
+                if not 0 <= i <= id_max:
+                    raise ValueError(f"ID {i} is outside 0..{id_max}")
+                out.append(parse_one(i, spec.strip()))
+            except ValueError as e:
+                raise argparse.ArgumentTypeError(f"{item!r}: {e}") from None
+        if not out:
+            raise argparse.ArgumentTypeError(f"no ID={what.upper()} given")
+        return out
+
+    return parse
+
+
+def flat(groups) -> list:
+    """The items of an append option's lists, in order ([] if never given)."""
+    return [x for g in groups or () for x in g]
+
+
 def type_list(s: str) -> list[registry.PeripheralType]:
     out = []
     for name in filter(None, (x.strip() for x in s.split(","))):
@@ -372,6 +405,33 @@ def gateway_report(
     return report(ctx, m, failure, ms, fields, f"{ctx.args.command}: {failure}", human)
 
 
+def flags_command(ctx: Context, send: Callable, fields, what: Callable[[int], str]) -> int:
+    """A one-shot gateway command: send(gw) makes its calls and returns the
+    gateway flags of the last response (None: no call returns them). Prints
+    "COMMAND: ok, what(flags); flags ... (N ms)", or the JSON document:
+    fields (a dict, or a function giving it after the calls) and the flags."""
+    flags = None
+
+    def op(m, gw):
+        nonlocal flags
+        flags = send(gw)
+
+    m, failure, ms = gateway_operation(ctx, op)
+
+    def human():
+        names = ",".join(gateway_msgs.flags_names(flags)) or "none" if flags is not None else None
+        print(
+            f"{ctx.args.command}: ok, {what(flags)}"
+            + (f"; flags {names}" if names is not None else "")
+            + f" ({ms:.1f} ms)"
+        )
+
+    doc = fields() if callable(fields) else dict(fields)
+    if flags is not None:
+        doc.update(gateway_msgs.flags_dict(flags))
+    return gateway_report(ctx, m, failure, ms, doc, human)
+
+
 class StopSignals:
     """While active, SIGINT and SIGTERM only set .stop: a long-running
     command ends its loop and cleans up (tunnel closed, zero throttle sent,
@@ -380,18 +440,32 @@ class StopSignals:
     def __init__(self):
         self.stop = False
         self._old = {}
+        self._depth = 0
 
     def _handler(self, signum, frame):
         self.stop = True
 
     def __enter__(self) -> "StopSignals":
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, self._handler)
+        # nested use (announced "ready", then the loop): installed once, so
+        # a signal in between is not lost
+        self._depth += 1
+        if self._depth == 1:
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
         return self
 
     def __exit__(self, *exc):
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
+        self._depth -= 1
+        if self._depth == 0:
+            for sig, old in self._old.items():
+                signal.signal(sig, old)
+
+
+def stop_signals(ctx: "Context") -> StopSignals:
+    """The command's one StopSignals (made on first use)."""
+    if getattr(ctx, "_stop_signals", None) is None:
+        ctx._stop_signals = StopSignals()
+    return ctx._stop_signals
 
 
 class Watchdog:
@@ -415,7 +489,7 @@ class Watchdog:
 def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     """After the gateway was found: no overall time limit any more."""
     m.set_time_limit(None)
-    return StopSignals(), Watchdog(ctx.args.timeout)
+    return stop_signals(ctx), Watchdog(ctx.args.timeout)
 
 
 def time_left(ctx: Context, t0: float) -> bool:
@@ -435,7 +509,9 @@ def bridge_pty(ctx: Context, res: dict, what: str, **ready) -> Iterator[Pty]:
     except PortError as e:
         raise CliError(str(e), EXIT_USAGE) from None
     res["pty"] = pty.path
-    with pty:
+    # SIGTERM right after "ready" (a supervisor that waited for it) must
+    # still end the command cleanly: the handlers go in before the news
+    with pty, stop_signals(ctx):
         if a.json:
             ctx.emit_json({"event": "ready", "pty": pty.path, "link": a.link, **ready})
         else:
@@ -446,23 +522,48 @@ def bridge_pty(ctx: Context, res: dict, what: str, **ready) -> Iterator[Pty]:
         yield pty
 
 
+def _kelvin_text(k: float) -> str:
+    return f"{k - 273.15:.1f} C"
+
+
 def telemetry_table(records: Iterable[gateway_msgs.TelemRecord]) -> str:
+    """One row per ESC; a "dev temp" column (the node's device.Temperature)
+    when some record carries one."""
+    records = sorted(records, key=lambda r: r.esc_index)
+    device = any(t.flags & gateway_msgs.TELEM_DEVICE for t in records)
     rows = [("esc", "node", "rpm", "voltage", "current", "temp", "power", "errors", "age")]
-    for t in sorted(records, key=lambda r: r.esc_index):
+    rows[0] += ("dev temp",) if device else ()
+    for t in records:
         if t.flags & gateway_msgs.TELEM_STATUS:
-            rows.append(
-                (
-                    str(t.esc_index),
-                    str(t.node_id),
-                    str(t.rpm),
-                    f"{t.voltage:.2f} V",
-                    f"{t.current:.2f} A",
-                    f"{t.temperature - 273.15:.1f} C",
-                    f"{t.power_pct} %",
-                    str(t.error_count),
-                    f"{t.age_ms} ms",
-                )
+            row = (
+                str(t.esc_index),
+                str(t.node_id),
+                str(t.rpm),
+                f"{t.voltage:.2f} V",
+                f"{t.current:.2f} A",
+                _kelvin_text(t.temperature),
+                f"{t.power_pct} %",
+                str(t.error_count),
+                f"{t.age_ms} ms",
             )
         else:
-            rows.append((str(t.esc_index), str(t.node_id)) + ("-",) * 7)
+            row = (str(t.esc_index), str(t.node_id)) + ("-",) * 7
+        if device:
+            row += (dev_temp_text(t) or "-",)
+        rows.append(row)
     return format_table(rows)
+
+
+def dev_temp_text(t: gateway_msgs.TelemRecord) -> str:
+    """ "44.9 C" (with "overheating" / "overcooling"), or "" without one."""
+    if not t.flags & gateway_msgs.TELEM_DEVICE:
+        return ""
+    warn = [
+        n
+        for bit, n in (
+            (gateway_msgs.DEV_OVERHEATING, "overheating"),
+            (gateway_msgs.DEV_OVERCOOLING, "overcooling"),
+        )
+        if t.dev_flags & bit
+    ]
+    return _kelvin_text(t.dev_temperature) + (f" {','.join(warn)}" if warn else "")

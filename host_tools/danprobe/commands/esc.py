@@ -8,6 +8,7 @@ from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
     add_gateway_options,
+    dev_temp_text,
     gateway_operation,
     gateway_report,
     long_running,
@@ -26,7 +27,14 @@ DESCRIPTION = (
     "telemetry back (round robin), shown once a second (--json: every exchange as a JSON "
     "line). Values are raw (-8192..8191) or percent of full "
     "throttle with a '%' suffix (100% = 8191). At the end one command of zeros stops the "
-    "motors at once (the gateway's failsafe would after its timeout)."
+    "motors at once (the gateway's failsafe would after its timeout). Negative values "
+    "(reversible ESCs) are written as they are: --values -8192,-1,0,8191."
+)
+EXAMPLES = (
+    "danprobe esc --port /dev/ttyUSB0 --configure --values 0,100,200,300 --duration 3",
+    "danprobe esc --port /dev/ttyUSB0 --baud 115200 --values -8192,-1,0,8191",
+    "danprobe esc --port /dev/ttyUSB0 --baud 115200 --ramp -10%:10% --duration 5 --arm",
+    "danprobe esc --port /dev/ttyUSB0 --baud 115200 --throttle -5 --count 2 --json",
 )
 
 
@@ -72,7 +80,7 @@ def add_arguments(p):
         "--values",
         type=value_list,
         metavar="LIST",
-        help="one value per ESC, comma-separated: raw or N%% (0,100,200,300)",
+        help="one value per ESC, comma-separated: raw or N%% (0,100,200,300 or -8192,-1,0,8191)",
     )
     what.add_argument(
         "--throttle",
@@ -163,6 +171,7 @@ def _live_line(t: float, values, gw, rate: float) -> str:
             parts.append(
                 f"esc{i} {r.rpm} rpm {r.voltage:.1f} V {r.current:.1f} A "
                 f"{r.temperature - 273.15:.0f} C"
+                + (f" (dev {dev_temp_text(r)})" if r.flags & gateway_msgs.TELEM_DEVICE else "")
             )
     return (
         f"{t:6.1f} s  cmd {','.join(map(str, values))}  "

@@ -26,7 +26,17 @@ DESCRIPTION = (
     "bridges it to a new pseudo-terminal: bytes written to the pty go out through TUN_XFER, "
     "bytes from the tunnel come back into it, so any serial tool (a GPS configurator, a "
     "terminal, MAVProxy) can talk to the device behind the CAN bus. Prints the pty's path; "
-    "runs until Ctrl-C, SIGTERM or --duration, then closes the tunnel port."
+    "runs until Ctrl-C, SIGTERM or --duration, then closes the tunnel port. "
+    "Targetted --serial-id -1 asks the node for its default serial port: its replies are "
+    "taken whatever serial_id they carry (the node answers with the port it chose). "
+    "Broadcast --any-channel takes replies on every channel_id (some nodes, e.g. Vertiq "
+    "modules, ignore the channel when they answer)."
+)
+EXAMPLES = (
+    "danprobe tunnel --port /dev/ttyUSB0 --configure --target 30 --serial-id 2 --serial-baud "
+    "115200 --lock --link /tmp/gps",
+    "danprobe tunnel --port /dev/ttyUSB0 --baud 115200 --target 30 --serial-id -1",
+    "danprobe tunnel --port /dev/ttyUSB0 --baud 115200 --protocol 2 --channel 7 --any-channel",
 )
 
 IDLE_POLL_S = 0.02  # nothing moved: look again this much later
@@ -48,7 +58,8 @@ def add_arguments(p):
         type=int,
         default=0,
         metavar="N",
-        help="Targetted: serial_id of the device's port (-1..15, default 0)",
+        help="Targetted: serial_id of the device's port, 0..15, or -1: the node's default "
+        "port (replies on any serial_id taken); default 0",
     )
     g.add_argument(
         "--serial-baud",
@@ -70,6 +81,11 @@ def add_arguments(p):
     )
     g.add_argument("--channel", type=non_negative_int, metavar="C", help="Broadcast: channel_id")
     g.add_argument(
+        "--any-channel",
+        action="store_true",
+        help="Broadcast: take replies on every channel_id (option ANY_CHANNEL)",
+    )
+    g.add_argument(
         "--tunnel-port",
         type=non_negative_int,
         default=0,
@@ -85,6 +101,8 @@ def tunnel_config(a) -> gateway_msgs.TunOpen:
             "give --target NODE (Targetted) or --protocol P --channel C (Broadcast)", EXIT_USAGE
         )
     if a.target is not None:
+        if a.any_channel:
+            raise CliError("--any-channel is a Broadcast option (--protocol/--channel)", EXIT_USAGE)
         if not 1 <= a.target <= 127 or not -1 <= a.serial_id <= 15 or a.serial_baud > 0xFFFFFF:
             raise CliError(
                 "--target 1..127, --serial-id -1..15, --serial-baud up to 16777215", EXIT_USAGE
@@ -100,17 +118,26 @@ def tunnel_config(a) -> gateway_msgs.TunOpen:
         )
     if a.protocol is None or a.channel is None or a.protocol > 255 or a.channel > 255:
         raise CliError("Broadcast needs --protocol P and --channel C (0..255)", EXIT_USAGE)
-    return gateway_msgs.TunOpen(a.tunnel_port, gateway_msgs.TUN_BROADCAST, a.protocol, a.channel)
+    return gateway_msgs.TunOpen(
+        a.tunnel_port,
+        gateway_msgs.TUN_BROADCAST,
+        a.protocol,
+        a.channel,
+        options=gateway_msgs.TUN_ANY_CHANNEL if a.any_channel else 0,
+    )
 
 
 def describe(cfg: gateway_msgs.TunOpen) -> str:
     if cfg.mode == gateway_msgs.TUN_TARGETTED:
+        serial = "default" if cfg.serial_id == gateway_msgs.TUN_DEFAULT_SERIAL else cfg.serial_id
         return (
-            f"Targetted node {cfg.target} serial {cfg.serial_id}"
+            f"Targetted node {cfg.target} serial {serial}"
             + (f" at {cfg.baud} baud" if cfg.baud else "")
             + (" (locked)" if cfg.options & gateway_msgs.TUN_LOCK_PORT else "")
         )
-    return f"Broadcast protocol {cfg.protocol} channel {cfg.target}"
+    return f"Broadcast protocol {cfg.protocol} channel {cfg.target}" + (
+        " (replies on any channel)" if cfg.options & gateway_msgs.TUN_ANY_CHANNEL else ""
+    )
 
 
 def run(ctx) -> int:

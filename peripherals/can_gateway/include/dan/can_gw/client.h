@@ -33,6 +33,7 @@
 
 #include "dan/can_gw/msgs.h"
 #include "dan/can_gw/msgs_mgmt.h"
+#include "dan/can_gw/msgs_out.h"
 #include "dan/master.h"
 
 #ifdef __cplusplus
@@ -76,6 +77,7 @@ typedef struct {
     uint8_t recv_opts;        /* of the last CAN_RECV */
     dan_gw_call_state_t call; /* last NODE_CALL response */
     dan_gw_health_t health;   /* last HEALTH response */
+    uint8_t servo_fs_kept;    /* entries of the last SERVO_FAILSAFE table kept */
 } dan_gw_t;
 
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
@@ -177,6 +179,26 @@ int dan_gw_health(dan_gw_t *gw, uint64_t now_us);
 int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us);
 int dan_gw_dna_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_dna_hdr_t *hdr);
 int dan_gw_dna_next(dan_reader_t *r, dan_gw_dna_entry_t *e);
+
+/* ---- outputs besides ESCs (gw_client_out.c; docs/PROTOCOL.md "Outputs")
+ *
+ * Each is a state the gateway keeps sending (safety, servos) or a one-shot
+ * command (lights, beep); the response's gw_flags land in gw->gw_flags. */
+
+/* SafetyState: true sends STATUS_SAFETY_OFF (255: nodes may drive their
+ * outputs), false STATUS_SAFETY_ON (0). The gateway's failsafe sets ON. */
+int dan_gw_safety(dan_gw_t *gw, bool safety_off, uint64_t now_us);
+/* Actuator commands, latest wins per actuator_id (1..DAN_GW_SERVO_MAX
+ * entries). Values are binary16 bits: dan_gw_servo_make() converts. */
+int dan_gw_servo(dan_gw_t *gw, const dan_gw_servo_t *s, size_t n, uint64_t now_us);
+dan_gw_servo_t dan_gw_servo_make(uint8_t actuator_id, uint8_t command_type, float value);
+/* Replaces the servo failsafe table (0..DAN_GW_SERVO_MAX entries; an
+ * actuator not listed holds its last command). gw->servo_fs_kept after. */
+int dan_gw_servo_failsafe(dan_gw_t *gw, const dan_gw_servo_fs_t *s, size_t n, uint64_t now_us);
+/* LightsCommand, 1..DAN_GW_LIGHTS_MAX lights, colours RGB565. */
+int dan_gw_lights(dan_gw_t *gw, const dan_gw_light_t *l, size_t n, uint64_t now_us);
+/* BeepCommand: frequency 1..65504 Hz, duration 0..65504000 ms. */
+int dan_gw_beep(dan_gw_t *gw, uint32_t frequency_hz, uint32_t duration_ms, uint64_t now_us);
 
 #ifdef __cplusplus
 }

@@ -50,9 +50,10 @@ extern "C" {
 #define DAN_GW_NONE           0xFFu /* "no next page" index */
 
 /* Gateway flags byte, in several responses. */
-#define DAN_GW_FLAG_ARMED    0x01u /* ArmingStatus being broadcast: armed */
-#define DAN_GW_FLAG_FAILSAFE 0x02u /* failsafe active (commands stopped) */
-#define DAN_GW_FLAG_CAN_OK   0x04u /* CAN interface up */
+#define DAN_GW_FLAG_ARMED      0x01u /* ArmingStatus being broadcast: armed */
+#define DAN_GW_FLAG_FAILSAFE   0x02u /* failsafe active (commands stopped) */
+#define DAN_GW_FLAG_CAN_OK     0x04u /* CAN interface up */
+#define DAN_GW_FLAG_SAFETY_OFF 0x08u /* SafetyState being broadcast: safety off */
 
 /* ---- ESC command (0x42) ----
  * Request: uint8 n (1..20), then the n int14 values bit-packed: value i
@@ -71,6 +72,8 @@ int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, siz
  * esc.Status (dan_f16_to_f32() in dan/can_gw/f16.h converts). */
 #define DAN_GW_TELEM_STATUS 0x01u /* esc.Status fields valid */
 #define DAN_GW_TELEM_EXT    0x02u /* esc.StatusExtended fields valid */
+#define DAN_GW_TELEM_DEVICE 0x04u /* device.Temperature of the same node valid */
+#define DAN_GW_TELEM_ALL    0x07u
 
 typedef struct {
     uint8_t esc_index;        /* 0..31 */
@@ -90,6 +93,10 @@ typedef struct {
     int16_t motor_temp_c;
     uint16_t motor_angle;
     uint32_t status_flags; /* uint19 */
+    /* device.Temperature sent by the same node (e.g. its MCU) */
+    uint32_t dev_age_ms;
+    uint16_t dev_temp_f16; /* K */
+    uint8_t dev_flags;     /* 1 overheating, 2 overcooling */
 } dan_gw_telem_t;
 
 /* Header of both telemetry responses: uint8 gw_flags, uint8 aux (ESC_CMD:
@@ -184,7 +191,9 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(DNA_FOREIGN, dna_foreign)         /* Allocation messages of another allocator */    \
     X(DUPLICATES, duplicates)           /* nodes flagged as sharing an ID */              \
     X(CALLS, calls)                     /* service calls started */                       \
-    X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */
+    X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */                \
+    X(SERVO_CMDS, servo_cmds)           /* SERVO requests */                              \
+    X(SERVO_DROPPED, servo_dropped)     /* actuators beyond the node's table */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
 enum { DAN_GW_STATS(DAN_GW_STAT_ENUM_) DAN_GW_STAT_COUNT };
@@ -256,12 +265,21 @@ int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t 
 /* ---- TUN_OPEN (0x49) ----
  * Request: uint8 port, uint8 mode (DAN_GW_TUN_*), uint8 protocol, uint8
  * target (Targetted: node id; Broadcast: channel_id), int8 serial_id,
- * uint8 options (Targetted options, bit0 LOCK_PORT), uvarint baud.
+ * uint8 options (Targetted: the DSDL options, bit0 LOCK_PORT; Broadcast:
+ * bit0 DAN_GW_TUN_ANY_CHANNEL), uvarint baud.
+ * Targetted serial_id -1 (DAN_GW_TUN_DEFAULT_SERIAL) asks the node for its
+ * default port; replies from the target with any serial_id are then ours,
+ * because nodes answer with the port they resolved (AP_Periph does).
+ * Broadcast with ANY_CHANNEL accepts replies on every channel_id of the
+ * protocol (some nodes ignore channel_id when they answer).
  * Opening (again) discards buffered data and restarts both offsets at 0.
  * Response: uint8 port, uint8 result (0 OK, 1 refused: bad port or field). */
 #define DAN_GW_TUN_CLOSED    0u
 #define DAN_GW_TUN_TARGETTED 1u
 #define DAN_GW_TUN_BROADCAST 2u
+
+#define DAN_GW_TUN_DEFAULT_SERIAL (-1)  /* Targetted serial_id: the node's default */
+#define DAN_GW_TUN_ANY_CHANNEL    0x01u /* Broadcast option: replies on any channel */
 
 typedef struct {
     uint8_t port;

@@ -34,8 +34,11 @@
  *     the failsafe: no ESC_CMD for esc_timeout_ms -> RawCommand of zeros
  *     (the channel count last used) and ArmingStatus DISARMED at once, then
  *     both repeated at the arming rate until the next ESC_CMD.
- *   - gw_node_arming.c: ArmingStatus at arming_rate_hz, and at once on a
- *     change.
+ *   - gw_node_arming.c: ArmingStatus and ArduPilot's SafetyState at
+ *     arming_rate_hz, and at once on a change; the failsafe forces
+ *     DISARMED and safety ON.
+ *   - gw_node_out.c: servos (actuator ArrayCommand, latest wins, a
+ *     failsafe value or hold per actuator), LightsCommand, BeepCommand.
  *   - gw_node_table.c: the node table from NodeStatus; GetNodeInfo asked of
  *     every new node up to DAN_GW_NODE_INFO_TRIES times a second apart (and
  *     again after the node restarts: its uptime went down).
@@ -56,8 +59,10 @@
 #include "dan/can_gw/dronecan.h"
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/dsdl_mgmt.h"
+#include "dan/can_gw/dsdl_out.h"
 #include "dan/can_gw/msgs.h"
 #include "dan/can_gw/msgs_mgmt.h"
+#include "dan/can_gw/msgs_out.h"
 #include "dan/peripheral.h"
 
 #ifdef __cplusplus
@@ -152,6 +157,8 @@ typedef struct {
     uint32_t duplicates;      /* nodes flagged as sharing an ID */
     uint32_t calls;           /* service calls started */
     uint32_t call_timeouts;   /* calls no attempt of which was answered */
+    uint32_t servo_cmds;      /* SERVO requests */
+    uint32_t servo_dropped;   /* actuators beyond DAN_GW_NODE_SERVOS */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -165,7 +172,7 @@ typedef struct {
 /* One ESC index's newest telemetry (gw_node_esc.c). */
 typedef struct {
     dan_gw_telem_t t; /* age fields filled when sent */
-    uint64_t status_us, ext_us;
+    uint64_t status_us, ext_us, dev_us;
 } dan_gw_node_esc_t;
 
 /* ESC commands, telemetry and the failsafe (gw_node_esc.c). */
@@ -179,11 +186,29 @@ typedef struct {
     dan_gw_node_esc_t slot[DAN_GW_NODE_ESC_SLOTS];
 } dan_gw_node_escs_t;
 
-/* ArmingStatus (gw_node_arming.c). */
+/* ArmingStatus and SafetyState (gw_node_arming.c). */
 typedef struct {
     uint8_t status;  /* ArmingStatus value broadcast */
+    uint8_t safety;  /* SafetyState value broadcast (ON at start) */
     uint64_t due_us; /* next periodic broadcast */
 } dan_gw_node_arming_t;
+
+/* One servo actuator (gw_node_out.c). */
+typedef struct {
+    dan_gw_servo_t last; /* its newest command */
+    dan_gw_servo_t fs;   /* its failsafe command (mode VALUE) */
+    uint8_t fs_mode;     /* DAN_GW_SERVO_HOLD / _VALUE */
+    bool commanded;      /* last is valid */
+} dan_gw_node_servo_t;
+
+/* Servos and their failsafe (gw_node_out.c). */
+typedef struct {
+    bool active; /* servo commands have been received */
+    bool failsafe;
+    uint8_t n; /* actuators known */
+    uint64_t last_cmd_us;
+    dan_gw_node_servo_t servo[DAN_GW_NODE_SERVOS];
+} dan_gw_node_servos_t;
 
 /* One node of the table (gw_node_table.c). */
 typedef struct {
@@ -272,6 +297,7 @@ typedef struct {
     bool can_ok;
     dan_gw_node_escs_t esc;
     dan_gw_node_arming_t arming;
+    dan_gw_node_servos_t servos;
     dan_gw_node_slot_t nodes[DAN_GW_NODE_MAX_NODES];
     dan_gw_node_tun_t tun[DAN_GW_NODE_TUNNELS];
     dan_gw_node_raw_t raw;

@@ -1,0 +1,42 @@
+"""danprobe beep: BeepCommand through the gateway."""
+
+from danprobe import gateway_out as O
+from danprobe.commands.common import add_gateway_options, flags_command, int_range
+
+NAME = "beep"
+HELP = "CAN gateway: sound the buzzers (uavcan.equipment.indication.BeepCommand)"
+DESCRIPTION = (
+    "Sends uavcan.equipment.indication.BeepCommand through the gateway (BEEP): every "
+    "buzzer on the bus beeps at --hz for --ms. The message carries both as float16 (the "
+    "gateway converts, rounding to nearest: Hz and seconds)."
+)
+EXAMPLES = ("danprobe beep --port /dev/ttyUSB0 --baud 115200 --hz 2000 --ms 100",)
+
+
+def add_arguments(p):
+    add_gateway_options(p)
+    g = p.add_argument_group("beep options")
+    g.add_argument(
+        "--hz",
+        type=int_range(1, O.BEEP_HZ_MAX, "--hz"),
+        default=2000,
+        metavar="N",
+        help=f"frequency, 1..{O.BEEP_HZ_MAX} Hz (default 2000)",
+    )
+    g.add_argument(
+        "--ms",
+        type=int_range(0, O.BEEP_MS_MAX, "--ms"),
+        default=100,
+        metavar="N",
+        help=f"duration, 0..{O.BEEP_MS_MAX} ms (default 100)",
+    )
+
+
+def run(ctx) -> int:
+    a = ctx.args
+    return flags_command(
+        ctx,
+        lambda gw: gw.beep(a.hz, a.ms),
+        {"frequency_hz": a.hz, "duration_ms": a.ms},
+        lambda flags: f"{a.hz} Hz for {a.ms} ms",
+    )

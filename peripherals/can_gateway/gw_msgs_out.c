@@ -1,0 +1,155 @@
+/* CAN-over-DAN gateway output messages (see dan/can_gw/msgs_out.h). */
+#include <string.h>
+
+#include "dan/can_gw/msgs_out.h"
+
+static void servo_put(dan_writer_t *w, const dan_gw_servo_t *s)
+{
+    dan_put_u8(w, s->actuator_id);
+    dan_put_u8(w, s->command_type);
+    dan_put_u16(w, s->value_f16);
+}
+
+static bool servo_get(dan_reader_t *r, dan_gw_servo_t *s)
+{
+    s->actuator_id = dan_get_u8(r);
+    s->command_type = dan_get_u8(r);
+    s->value_f16 = dan_get_u16(r);
+    return s->command_type <= DAN_GW_SERVO_TYPE_MAX;
+}
+
+int dan_gw_msg_servo_encode(const dan_gw_servo_t *s, size_t n, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    size_t i;
+    if (s == NULL || n == 0u || n > DAN_GW_SERVO_MAX) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, (uint8_t)n);
+    for (i = 0; i < n; i++) {
+        if (s[i].command_type > DAN_GW_SERVO_TYPE_MAX) {
+            return DAN_ERR_ARG;
+        }
+        servo_put(&w, &s[i]);
+    }
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_servo_decode(dan_gw_servo_t *s, size_t *n, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    size_t i;
+    dan_reader_init(&r, p, len);
+    *n = dan_get_u8(&r);
+    if (*n == 0u || *n > DAN_GW_SERVO_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = 0; i < *n; i++) {
+        if (!servo_get(&r, &s[i])) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_servo_fs_encode(const dan_gw_servo_fs_t *s, size_t n, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    size_t i;
+    if ((s == NULL && n > 0u) || n > DAN_GW_SERVO_MAX) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, (uint8_t)n);
+    for (i = 0; i < n; i++) {
+        if (s[i].mode > DAN_GW_SERVO_VALUE || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
+            return DAN_ERR_ARG;
+        }
+        dan_put_u8(&w, s[i].value.actuator_id);
+        dan_put_u8(&w, (uint8_t)(s[i].value.command_type | (s[i].mode << 7)));
+        dan_put_u16(&w, s[i].value.value_f16);
+    }
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_servo_fs_decode(dan_gw_servo_fs_t *s, size_t *n, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    size_t i;
+    dan_reader_init(&r, p, len);
+    *n = dan_get_u8(&r);
+    if (*n > DAN_GW_SERVO_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = 0; i < *n; i++) {
+        uint8_t kind;
+        s[i].value.actuator_id = dan_get_u8(&r);
+        kind = dan_get_u8(&r);
+        s[i].value.value_f16 = dan_get_u16(&r);
+        s[i].mode = (uint8_t)(kind >> 7);
+        s[i].value.command_type = kind & 0x0Fu;
+        if ((kind & 0x70u) != 0u || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_lights_encode(const dan_gw_light_t *l, size_t n, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    size_t i;
+    if (l == NULL || n == 0u || n > DAN_GW_LIGHTS_MAX) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, (uint8_t)n);
+    for (i = 0; i < n; i++) {
+        dan_put_u8(&w, l[i].light_id);
+        dan_put_u16(&w, l[i].rgb565);
+    }
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    size_t i;
+    dan_reader_init(&r, p, len);
+    *n = dan_get_u8(&r);
+    if (*n == 0u || *n > DAN_GW_LIGHTS_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = 0; i < *n; i++) {
+        l[i].light_id = dan_get_u8(&r);
+        l[i].rgb565 = dan_get_u16(&r);
+    }
+    return dan_reader_finish(&r);
+}
+
+int dan_gw_msg_beep_encode(const dan_gw_beep_t *b, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    if (b == NULL || b->frequency_hz < 1u || b->frequency_hz > DAN_GW_BEEP_HZ_MAX ||
+        b->duration_ms > DAN_GW_BEEP_MS_MAX) {
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_uvarint(&w, b->frequency_hz);
+    dan_put_uvarint(&w, b->duration_ms);
+    return dan_writer_finish(&w);
+}
+
+int dan_gw_msg_beep_decode(dan_gw_beep_t *b, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    b->frequency_hz = dan_get_uvarint(&r);
+    b->duration_ms = dan_get_uvarint(&r);
+    if (b->frequency_hz < 1u || b->frequency_hz > DAN_GW_BEEP_HZ_MAX ||
+        b->duration_ms > DAN_GW_BEEP_MS_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(&r);
+}
