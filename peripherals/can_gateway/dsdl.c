@@ -18,46 +18,12 @@ static int dec_finish(const dan_dc_br_t *r)
 
 /* ---- NodeStatus ---- */
 
-static void put_node_status(dan_dc_bw_t *w, const dan_dc_node_status_t *m)
-{
-    dan_dc_put_uint(w, 32, m->uptime_sec);
-    dan_dc_put_uint(w, 2, m->health);
-    dan_dc_put_uint(w, 3, m->mode);
-    dan_dc_put_uint(w, 3, m->sub_mode);
-    dan_dc_put_uint(w, 16, m->vendor_specific_status_code);
-}
+#define NS_FIELDS(type, m)                                                                    \
+    DAN_DC_U(type, m uptime_sec, 32), DAN_DC_U(type, m health, 2), DAN_DC_U(type, m mode, 3), \
+        DAN_DC_U(type, m sub_mode, 3), DAN_DC_U(type, m vendor_specific_status_code, 16)
 
-static void get_node_status(dan_dc_br_t *r, dan_dc_node_status_t *m)
-{
-    m->uptime_sec = (uint32_t)dan_dc_get_uint(r, 32);
-    m->health = (uint8_t)dan_dc_get_uint(r, 2);
-    m->mode = (uint8_t)dan_dc_get_uint(r, 3);
-    m->sub_mode = (uint8_t)dan_dc_get_uint(r, 3);
-    m->vendor_specific_status_code = (uint16_t)dan_dc_get_uint(r, 16);
-}
-
-int dan_dc_node_status_encode(const dan_dc_node_status_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    put_node_status(&w, m);
-    return enc_finish(&w);
-}
-
-int dan_dc_node_status_decode(dan_dc_node_status_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    get_node_status(&r, m);
-    return dec_finish(&r);
-}
+static const dan_dc_field_t NODE_STATUS[] = {NS_FIELDS(dan_dc_node_status_t, )};
+DAN_DC_TABLE_CODEC(dan_dc_node_status, dan_dc_node_status_t, NODE_STATUS)
 
 /* ---- GetNodeInfo ---- */
 
@@ -75,65 +41,60 @@ int dan_dc_get_node_info_req_decode(const uint8_t *buf, size_t len)
     return DAN_OK;
 }
 
+/* Status, software version and the hardware version up to unique_id. */
+static const dan_dc_field_t NODE_INFO_HEAD[] = {
+    NS_FIELDS(dan_dc_get_node_info_rsp_t, status.),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, software_version.major, 8),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, software_version.minor, 8),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, software_version.optional_field_flags, 8),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, software_version.vcs_commit, 32),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, software_version.image_crc, 64),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, hardware_version.major, 8),
+    DAN_DC_U(dan_dc_get_node_info_rsp_t, hardware_version.minor, 8),
+};
+static const dan_dc_field_t NODE_INFO_NAME[] = {
+    DAN_DC_TAO_STR(dan_dc_get_node_info_rsp_t, name, name_len, DAN_DC_GET_NODE_INFO_NAME_MAX),
+};
+
 int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m, uint8_t *buf, size_t cap)
 {
     dan_dc_bw_t w;
-    const dan_dc_software_version_t *sw;
     const dan_dc_hardware_version_t *hw;
-    if (m == NULL || m->name_len > DAN_DC_GET_NODE_INFO_NAME_MAX) {
+    if (m == NULL) {
         return DAN_ERR_ARG;
     }
-    sw = &m->software_version;
     hw = &m->hardware_version;
     dan_dc_bw_init(&w, buf, cap);
-    put_node_status(&w, &m->status);
-    dan_dc_put_uint(&w, 8, sw->major);
-    dan_dc_put_uint(&w, 8, sw->minor);
-    dan_dc_put_uint(&w, 8, sw->optional_field_flags);
-    dan_dc_put_uint(&w, 32, sw->vcs_commit);
-    dan_dc_put_uint(&w, 64, sw->image_crc);
-    dan_dc_put_uint(&w, 8, hw->major);
-    dan_dc_put_uint(&w, 8, hw->minor);
+    (void)dan_dc_put_fields(&w, m, NODE_INFO_HEAD, DAN_DC_NFIELDS(NODE_INFO_HEAD));
     dan_dc_put_bytes(&w, hw->unique_id, sizeof hw->unique_id);
     /* Nested type: its array keeps the length prefix. */
     dan_dc_put_array_len(&w, hw->coa_len, DAN_DC_COA_MAX);
     dan_dc_put_bytes(&w, hw->certificate_of_authenticity, hw->coa_len);
-    dan_dc_put_bytes(&w, (const uint8_t *)m->name, m->name_len); /* TAO */
+    if (!dan_dc_put_fields(&w, m, NODE_INFO_NAME, 1u)) {
+        return DAN_ERR_ARG;
+    }
     return enc_finish(&w);
 }
 
 int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t *buf, size_t len)
 {
     dan_dc_br_t r;
-    dan_dc_software_version_t *sw;
     dan_dc_hardware_version_t *hw;
     size_t n;
     if (m == NULL || (buf == NULL && len > 0u)) {
         return DAN_ERR_ARG;
     }
     memset(m, 0, sizeof *m);
-    sw = &m->software_version;
     hw = &m->hardware_version;
     dan_dc_br_init(&r, buf, len);
-    get_node_status(&r, &m->status);
-    sw->major = (uint8_t)dan_dc_get_uint(&r, 8);
-    sw->minor = (uint8_t)dan_dc_get_uint(&r, 8);
-    sw->optional_field_flags = (uint8_t)dan_dc_get_uint(&r, 8);
-    sw->vcs_commit = (uint32_t)dan_dc_get_uint(&r, 32);
-    sw->image_crc = dan_dc_get_uint(&r, 64);
-    hw->major = (uint8_t)dan_dc_get_uint(&r, 8);
-    hw->minor = (uint8_t)dan_dc_get_uint(&r, 8);
+    (void)dan_dc_get_fields(&r, m, NODE_INFO_HEAD, DAN_DC_NFIELDS(NODE_INFO_HEAD));
     dan_dc_get_bytes(&r, hw->unique_id, sizeof hw->unique_id);
     n = dan_dc_get_array_len(&r, DAN_DC_COA_MAX);
     dan_dc_get_bytes(&r, hw->certificate_of_authenticity, n);
     hw->coa_len = (uint8_t)n;
-    n = dan_dc_tao_count(&r, 8);
-    if (n > DAN_DC_GET_NODE_INFO_NAME_MAX) {
+    if (!dan_dc_get_fields(&r, m, NODE_INFO_NAME, 1u)) {
         return DAN_ERR_MALFORMED;
     }
-    dan_dc_get_bytes(&r, (uint8_t *)m->name, n);
-    m->name_len = (uint8_t)n;
-    m->name[n] = '\0';
     return dec_finish(&r);
 }
 
@@ -173,180 +134,48 @@ int dan_dc_esc_raw_command_decode(dan_dc_esc_raw_command_t *m, const uint8_t *bu
     return dec_finish(&r);
 }
 
-/* ---- esc.Status ---- */
+/* ---- esc.Status, esc.StatusExtended, safety.ArmingStatus, tunnels ---- */
 
-int dan_dc_esc_status_encode(const dan_dc_esc_status_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 32, m->error_count);
-    dan_dc_put_uint(&w, 16, m->voltage_f16);
-    dan_dc_put_uint(&w, 16, m->current_f16);
-    dan_dc_put_uint(&w, 16, m->temperature_f16);
-    dan_dc_put_int(&w, 18, m->rpm);
-    dan_dc_put_uint(&w, 7, m->power_rating_pct);
-    dan_dc_put_uint(&w, 5, m->esc_index);
-    return enc_finish(&w);
-}
+static const dan_dc_field_t ESC_STATUS[] = {
+    DAN_DC_U(dan_dc_esc_status_t, error_count, 32),
+    DAN_DC_U(dan_dc_esc_status_t, voltage_f16, 16),
+    DAN_DC_U(dan_dc_esc_status_t, current_f16, 16),
+    DAN_DC_U(dan_dc_esc_status_t, temperature_f16, 16),
+    DAN_DC_I(dan_dc_esc_status_t, rpm, 18),
+    DAN_DC_U(dan_dc_esc_status_t, power_rating_pct, 7),
+    DAN_DC_U(dan_dc_esc_status_t, esc_index, 5),
+};
+DAN_DC_TABLE_CODEC(dan_dc_esc_status, dan_dc_esc_status_t, ESC_STATUS)
 
-int dan_dc_esc_status_decode(dan_dc_esc_status_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->error_count = (uint32_t)dan_dc_get_uint(&r, 32);
-    m->voltage_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    m->current_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    m->temperature_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    m->rpm = (int32_t)dan_dc_get_int(&r, 18);
-    m->power_rating_pct = (uint8_t)dan_dc_get_uint(&r, 7);
-    m->esc_index = (uint8_t)dan_dc_get_uint(&r, 5);
-    return dec_finish(&r);
-}
+static const dan_dc_field_t ESC_STATUS_EXTENDED[] = {
+    DAN_DC_U(dan_dc_esc_status_extended_t, input_pct, 7),
+    DAN_DC_U(dan_dc_esc_status_extended_t, output_pct, 7),
+    DAN_DC_I(dan_dc_esc_status_extended_t, motor_temperature_degC, 9),
+    DAN_DC_U(dan_dc_esc_status_extended_t, motor_angle, 9),
+    DAN_DC_U(dan_dc_esc_status_extended_t, status_flags, 19),
+    DAN_DC_U(dan_dc_esc_status_extended_t, esc_index, 5),
+};
+DAN_DC_TABLE_CODEC(dan_dc_esc_status_extended, dan_dc_esc_status_extended_t, ESC_STATUS_EXTENDED)
 
-/* ---- esc.StatusExtended ---- */
+static const dan_dc_field_t ARMING_STATUS[] = {DAN_DC_U(dan_dc_arming_status_t, status, 8)};
+DAN_DC_TABLE_CODEC(dan_dc_arming_status, dan_dc_arming_status_t, ARMING_STATUS)
 
-int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m, uint8_t *buf,
-                                      size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 7, m->input_pct);
-    dan_dc_put_uint(&w, 7, m->output_pct);
-    dan_dc_put_int(&w, 9, m->motor_temperature_degC);
-    dan_dc_put_uint(&w, 9, m->motor_angle);
-    dan_dc_put_uint(&w, 19, m->status_flags);
-    dan_dc_put_uint(&w, 5, m->esc_index);
-    return enc_finish(&w);
-}
+static const dan_dc_field_t TUNNEL_TARGETTED[] = {
+    DAN_DC_U(dan_dc_tunnel_targetted_t, protocol, 8),
+    DAN_DC_U(dan_dc_tunnel_targetted_t, target_node, 7),
+    DAN_DC_I(dan_dc_tunnel_targetted_t, serial_id, 5),
+    DAN_DC_U(dan_dc_tunnel_targetted_t, options, 4),
+    DAN_DC_U(dan_dc_tunnel_targetted_t, baudrate, 24),
+    DAN_DC_TAO(dan_dc_tunnel_targetted_t, buffer, buffer_len, DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX),
+};
+DAN_DC_TABLE_CODEC(dan_dc_tunnel_targetted, dan_dc_tunnel_targetted_t, TUNNEL_TARGETTED)
 
-int dan_dc_esc_status_extended_decode(dan_dc_esc_status_extended_t *m, const uint8_t *buf,
-                                      size_t len)
-{
-    dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->input_pct = (uint8_t)dan_dc_get_uint(&r, 7);
-    m->output_pct = (uint8_t)dan_dc_get_uint(&r, 7);
-    m->motor_temperature_degC = (int16_t)dan_dc_get_int(&r, 9);
-    m->motor_angle = (uint16_t)dan_dc_get_uint(&r, 9);
-    m->status_flags = (uint32_t)dan_dc_get_uint(&r, 19);
-    m->esc_index = (uint8_t)dan_dc_get_uint(&r, 5);
-    return dec_finish(&r);
-}
-
-/* ---- safety.ArmingStatus ---- */
-
-int dan_dc_arming_status_encode(const dan_dc_arming_status_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 8, m->status);
-    return enc_finish(&w);
-}
-
-int dan_dc_arming_status_decode(dan_dc_arming_status_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->status = (uint8_t)dan_dc_get_uint(&r, 8);
-    return dec_finish(&r);
-}
-
-/* ---- tunnel.Targetted ---- */
-
-int dan_dc_tunnel_targetted_encode(const dan_dc_tunnel_targetted_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL || m->buffer_len > DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 8, m->protocol);
-    dan_dc_put_uint(&w, 7, m->target_node);
-    dan_dc_put_int(&w, 5, m->serial_id);
-    dan_dc_put_uint(&w, 4, m->options);
-    dan_dc_put_uint(&w, 24, m->baudrate);
-    dan_dc_put_bytes(&w, m->buffer, m->buffer_len); /* TAO */
-    return enc_finish(&w);
-}
-
-int dan_dc_tunnel_targetted_decode(dan_dc_tunnel_targetted_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    size_t n;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->protocol = (uint8_t)dan_dc_get_uint(&r, 8);
-    m->target_node = (uint8_t)dan_dc_get_uint(&r, 7);
-    m->serial_id = (int8_t)dan_dc_get_int(&r, 5);
-    m->options = (uint8_t)dan_dc_get_uint(&r, 4);
-    m->baudrate = (uint32_t)dan_dc_get_uint(&r, 24);
-    n = dan_dc_tao_count(&r, 8);
-    if (n > DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    dan_dc_get_bytes(&r, m->buffer, n);
-    m->buffer_len = (uint8_t)n;
-    return dec_finish(&r);
-}
-
-/* ---- tunnel.Broadcast ---- */
-
-int dan_dc_tunnel_broadcast_encode(const dan_dc_tunnel_broadcast_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL || m->buffer_len > DAN_DC_TUNNEL_BROADCAST_BUFFER_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 8, m->protocol);
-    dan_dc_put_uint(&w, 8, m->channel_id);
-    dan_dc_put_bytes(&w, m->buffer, m->buffer_len); /* TAO */
-    return enc_finish(&w);
-}
-
-int dan_dc_tunnel_broadcast_decode(dan_dc_tunnel_broadcast_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    size_t n;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->protocol = (uint8_t)dan_dc_get_uint(&r, 8);
-    m->channel_id = (uint8_t)dan_dc_get_uint(&r, 8);
-    n = dan_dc_tao_count(&r, 8);
-    if (n > DAN_DC_TUNNEL_BROADCAST_BUFFER_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    dan_dc_get_bytes(&r, m->buffer, n);
-    m->buffer_len = (uint8_t)n;
-    return dec_finish(&r);
-}
+static const dan_dc_field_t TUNNEL_BROADCAST[] = {
+    DAN_DC_U(dan_dc_tunnel_broadcast_t, protocol, 8),
+    DAN_DC_U(dan_dc_tunnel_broadcast_t, channel_id, 8),
+    DAN_DC_TAO(dan_dc_tunnel_broadcast_t, buffer, buffer_len, DAN_DC_TUNNEL_BROADCAST_BUFFER_MAX),
+};
+DAN_DC_TABLE_CODEC(dan_dc_tunnel_broadcast, dan_dc_tunnel_broadcast_t, TUNNEL_BROADCAST)
 
 /* ---- signatures ---- */
 

@@ -306,3 +306,108 @@ size_t dan_dc_tao_count(const dan_dc_br_t *r, unsigned elem_bits)
     }
     return dan_dc_br_remaining_bits(r) / elem_bits;
 }
+
+/* ---- table-driven codecs ---- */
+
+/* A scalar member of size bytes, widened (sign-extended when is_signed). */
+static uint64_t member_load(const uint8_t *p, unsigned size, bool is_signed)
+{
+    uint8_t u8;
+    uint16_t u16;
+    uint32_t u32;
+    uint64_t u64;
+    switch (size) {
+    case 1u: memcpy(&u8, p, 1u); return is_signed ? (uint64_t)(int64_t)(int8_t)u8 : u8;
+    case 2u: memcpy(&u16, p, 2u); return is_signed ? (uint64_t)(int64_t)(int16_t)u16 : u16;
+    case 4u: memcpy(&u32, p, 4u); return is_signed ? (uint64_t)(int64_t)(int32_t)u32 : u32;
+    default: memcpy(&u64, p, 8u); return u64;
+    }
+}
+
+static void member_store(uint8_t *p, unsigned size, uint64_t v)
+{
+    uint8_t u8 = (uint8_t)v;
+    uint16_t u16 = (uint16_t)v;
+    uint32_t u32 = (uint32_t)v;
+    switch (size) {
+    case 1u: memcpy(p, &u8, 1u); break;
+    case 2u: memcpy(p, &u16, 2u); break;
+    case 4u: memcpy(p, &u32, 4u); break;
+    default: memcpy(p, &v, 8u); break;
+    }
+}
+
+bool dan_dc_put_fields(dan_dc_bw_t *w, const void *m, const dan_dc_field_t *f, size_t n)
+{
+    const uint8_t *base = (const uint8_t *)m;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        const uint8_t *p = base + f[i].offset;
+        if (f[i].kind == DAN_DC_F_UINT) {
+            dan_dc_put_uint(w, f[i].bits, member_load(p, f[i].aux, false));
+        } else if (f[i].kind == DAN_DC_F_INT) {
+            dan_dc_put_int(w, f[i].bits, (int64_t)member_load(p, f[i].aux, true));
+        } else {
+            uint8_t len = base[f[i].aux];
+            if (len > f[i].bits) {
+                return false;
+            }
+            dan_dc_put_bytes(w, p, len); /* TAO: no length prefix */
+        }
+    }
+    return true;
+}
+
+bool dan_dc_get_fields(dan_dc_br_t *r, void *m, const dan_dc_field_t *f, size_t n)
+{
+    uint8_t *base = (uint8_t *)m;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        uint8_t *p = base + f[i].offset;
+        if (f[i].kind == DAN_DC_F_UINT || f[i].kind == DAN_DC_F_INT) {
+            bool is_signed = f[i].kind == DAN_DC_F_INT;
+            uint64_t v =
+                is_signed ? (uint64_t)dan_dc_get_int(r, f[i].bits) : dan_dc_get_uint(r, f[i].bits);
+            member_store(p, f[i].aux, v);
+        } else {
+            size_t len = dan_dc_tao_count(r, 8u);
+            if (len > f[i].bits) {
+                return false;
+            }
+            dan_dc_get_bytes(r, p, len);
+            base[f[i].aux] = (uint8_t)len;
+            if (f[i].kind == DAN_DC_F_TAO_STRING) {
+                p[len] = 0u;
+            }
+        }
+    }
+    return true;
+}
+
+int dan_dc_encode_table(const void *m, const dan_dc_field_t *f, size_t n, uint8_t *buf, size_t cap)
+{
+    dan_dc_bw_t w;
+    if (m == NULL) {
+        return DAN_ERR_ARG;
+    }
+    dan_dc_bw_init(&w, buf, cap);
+    if (!dan_dc_put_fields(&w, m, f, n)) {
+        return DAN_ERR_ARG;
+    }
+    return dan_dc_bw_finish(&w);
+}
+
+int dan_dc_decode_table(void *m, size_t size, const dan_dc_field_t *f, size_t n, const uint8_t *buf,
+                        size_t len)
+{
+    dan_dc_br_t r;
+    if (m == NULL || (buf == NULL && len > 0u)) {
+        return DAN_ERR_ARG;
+    }
+    memset(m, 0, size);
+    dan_dc_br_init(&r, buf, len);
+    if (!dan_dc_get_fields(&r, m, f, n)) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_dc_br_finish(&r);
+}

@@ -5,37 +5,23 @@
 
 /* ---- dynamic_node_id.Allocation ---- */
 
+static const dan_dc_field_t ALLOCATION[] = {
+    DAN_DC_U(dan_dc_allocation_t, node_id, 7),
+    DAN_DC_U(dan_dc_allocation_t, first_part, 1),
+    DAN_DC_TAO(dan_dc_allocation_t, uid, uid_len, DAN_DC_UNIQUE_ID_SIZE),
+};
+
 int dan_dc_allocation_encode(const dan_dc_allocation_t *m, uint8_t *buf, size_t cap)
 {
-    dan_dc_bw_t w;
-    if (m == NULL || m->uid_len > DAN_DC_UNIQUE_ID_SIZE || m->node_id > DAN_DC_NODE_ID_MAX) {
+    if (m != NULL && m->node_id > DAN_DC_NODE_ID_MAX) {
         return DAN_ERR_ARG;
     }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 7, m->node_id);
-    dan_dc_put_bool(&w, m->first_part);
-    dan_dc_put_bytes(&w, m->uid, m->uid_len); /* TAO */
-    return dan_dc_bw_finish(&w);
+    return dan_dc_encode_table(m, ALLOCATION, DAN_DC_NFIELDS(ALLOCATION), buf, cap);
 }
 
 int dan_dc_allocation_decode(dan_dc_allocation_t *m, const uint8_t *buf, size_t len)
 {
-    dan_dc_br_t r;
-    size_t n;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->node_id = (uint8_t)dan_dc_get_uint(&r, 7);
-    m->first_part = dan_dc_get_bool(&r);
-    n = dan_dc_tao_count(&r, 8);
-    if (n > DAN_DC_UNIQUE_ID_SIZE) {
-        return DAN_ERR_MALFORMED;
-    }
-    dan_dc_get_bytes(&r, m->uid, n);
-    m->uid_len = (uint8_t)n;
-    return dan_dc_br_finish(&r);
+    return dan_dc_decode_table(m, sizeof *m, ALLOCATION, DAN_DC_NFIELDS(ALLOCATION), buf, len);
 }
 
 /* ---- param.Value / NumericValue ---- */
@@ -178,55 +164,16 @@ int dan_dc_param_getset_rsp_decode(dan_dc_param_getset_rsp_t *m, const uint8_t *
 
 /* ---- param.ExecuteOpcode ---- */
 
-int dan_dc_param_opcode_req_encode(const dan_dc_param_opcode_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 8, m->opcode);
-    dan_dc_put_int(&w, 48, m->argument);
-    return dan_dc_bw_finish(&w);
-}
-
-int dan_dc_param_opcode_req_decode(dan_dc_param_opcode_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->opcode = (uint8_t)dan_dc_get_uint(&r, 8);
-    m->argument = dan_dc_get_int(&r, 48);
-    return dan_dc_br_finish(&r);
-}
-
-int dan_dc_param_opcode_rsp_encode(const dan_dc_param_opcode_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_int(&w, 48, m->argument);
-    dan_dc_put_bool(&w, m->ok);
-    return dan_dc_bw_finish(&w);
-}
-
-int dan_dc_param_opcode_rsp_decode(dan_dc_param_opcode_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    m->argument = dan_dc_get_int(&r, 48);
-    m->ok = dan_dc_get_bool(&r);
-    return dan_dc_br_finish(&r);
-}
+static const dan_dc_field_t OPCODE_REQ[] = {
+    DAN_DC_U(dan_dc_param_opcode_t, opcode, 8),
+    DAN_DC_I(dan_dc_param_opcode_t, argument, 48),
+};
+static const dan_dc_field_t OPCODE_RSP[] = {
+    DAN_DC_I(dan_dc_param_opcode_t, argument, 48),
+    DAN_DC_U(dan_dc_param_opcode_t, ok, 1),
+};
+DAN_DC_TABLE_CODEC(dan_dc_param_opcode_req, dan_dc_param_opcode_t, OPCODE_REQ)
+DAN_DC_TABLE_CODEC(dan_dc_param_opcode_rsp, dan_dc_param_opcode_t, OPCODE_RSP)
 
 /* ---- RestartNode ---- */
 

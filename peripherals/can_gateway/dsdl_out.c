@@ -90,28 +90,11 @@ int dan_dc_lights_command_decode(dan_dc_lights_command_t *m, const uint8_t *buf,
     return dan_dc_br_finish(&r);
 }
 
-int dan_dc_beep_command_encode(const dan_dc_beep_command_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 16, m->frequency_f16);
-    dan_dc_put_uint(&w, 16, m->duration_f16);
-    return dan_dc_bw_finish(&w);
-}
-
-int dan_dc_beep_command_decode(dan_dc_beep_command_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (!dec_begin(&r, m, sizeof *m, buf, len)) {
-        return DAN_ERR_ARG;
-    }
-    m->frequency_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    m->duration_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    return dan_dc_br_finish(&r);
-}
+static const dan_dc_field_t BEEP_COMMAND[] = {
+    DAN_DC_U(dan_dc_beep_command_t, frequency_f16, 16),
+    DAN_DC_U(dan_dc_beep_command_t, duration_f16, 16),
+};
+DAN_DC_TABLE_CODEC(dan_dc_beep_command, dan_dc_beep_command_t, BEEP_COMMAND)
 
 int dan_dc_safety_state_encode(uint8_t status, uint8_t *buf, size_t cap)
 {
@@ -131,27 +114,9 @@ int dan_dc_safety_state_decode(uint8_t *status, const uint8_t *buf, size_t len)
     return dan_dc_br_finish(&r);
 }
 
-int dan_dc_temperature_encode(const dan_dc_temperature_t *m, uint8_t *buf, size_t cap)
-{
-    dan_dc_bw_t w;
-    if (m == NULL) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 16, m->device_id);
-    dan_dc_put_uint(&w, 16, m->temperature_f16);
-    dan_dc_put_uint(&w, 8, m->error_flags);
-    return dan_dc_bw_finish(&w);
-}
-
-int dan_dc_temperature_decode(dan_dc_temperature_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    if (!dec_begin(&r, m, sizeof *m, buf, len)) {
-        return DAN_ERR_ARG;
-    }
-    m->device_id = (uint16_t)dan_dc_get_uint(&r, 16);
-    m->temperature_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    m->error_flags = (uint8_t)dan_dc_get_uint(&r, 8);
-    return dan_dc_br_finish(&r);
-}
+static const dan_dc_field_t TEMPERATURE[] = {
+    DAN_DC_U(dan_dc_temperature_t, device_id, 16),
+    DAN_DC_U(dan_dc_temperature_t, temperature_f16, 16),
+    DAN_DC_U(dan_dc_temperature_t, error_flags, 8),
+};
+DAN_DC_TABLE_CODEC(dan_dc_temperature, dan_dc_temperature_t, TEMPERATURE)

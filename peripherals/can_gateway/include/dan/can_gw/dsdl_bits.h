@@ -99,6 +99,68 @@ static inline bool dan_dc_tao(unsigned elem_min_bits, bool last_top_level_field)
  * bits; the leftover padding is under 8 bits). */
 size_t dan_dc_tao_count(const dan_dc_br_t *r, unsigned elem_bits);
 
+/*
+ * Table-driven codecs. Most DSDL types are a fixed list of scalars, maybe
+ * ending in a tail byte array: one table per type drives both directions,
+ * so each layout is written once (the table is the DSDL, field by field).
+ */
+typedef enum {
+    DAN_DC_F_UINT,      /* unsigned scalar: put_uint / get_uint */
+    DAN_DC_F_INT,       /* two's complement scalar: put_int / get_int */
+    DAN_DC_F_TAO_BYTES, /* tail uint8[<=max] (last field of a top-level type) */
+    DAN_DC_F_TAO_STRING /* the same, decoded NUL-terminated (member holds max + 1) */
+} dan_dc_fkind_t;
+
+typedef struct {
+    uint16_t offset; /* of the member in the struct */
+    uint16_t aux;    /* scalars: sizeof the member (1, 2, 4, 8); tail arrays:
+                        offset of the uint8_t length member */
+    uint8_t bits;    /* scalars: DSDL bit length (1..64); tail arrays: max */
+    uint8_t kind;    /* dan_dc_fkind_t */
+} dan_dc_field_t;
+
+#define DAN_DC_SCALAR_(type, member, nbits, k)                                    \
+    {                                                                             \
+        (uint16_t) offsetof(type, member), (uint16_t)sizeof(((type *)0)->member), \
+            (uint8_t)(nbits), (uint8_t)(k)                                        \
+    }
+#define DAN_DC_U(type, member, nbits) DAN_DC_SCALAR_(type, member, nbits, DAN_DC_F_UINT)
+#define DAN_DC_I(type, member, nbits) DAN_DC_SCALAR_(type, member, nbits, DAN_DC_F_INT)
+#define DAN_DC_TAIL_(type, member, len_member, max, k)                                           \
+    {                                                                                            \
+        (uint16_t) offsetof(type, member), (uint16_t)offsetof(type, len_member), (uint8_t)(max), \
+            (uint8_t)(k)                                                                         \
+    }
+#define DAN_DC_TAO(type, member, len_member, max) \
+    DAN_DC_TAIL_(type, member, len_member, max, DAN_DC_F_TAO_BYTES)
+#define DAN_DC_TAO_STR(type, member, len_member, max) \
+    DAN_DC_TAIL_(type, member, len_member, max, DAN_DC_F_TAO_STRING)
+#define DAN_DC_NFIELDS(table) (sizeof(table) / sizeof((table)[0]))
+
+/* Writes the fields of m in table order. False (nothing sensible written)
+ * when a tail array is longer than its maximum. */
+bool dan_dc_put_fields(dan_dc_bw_t *w, const void *m, const dan_dc_field_t *f, size_t n);
+/* Reads the fields into m (not cleared first). False when a tail array
+ * would be longer than its maximum. */
+bool dan_dc_get_fields(dan_dc_br_t *r, void *m, const dan_dc_field_t *f, size_t n);
+/* A whole top-level type. Encode: bytes written, DAN_ERR_ARG (m NULL, tail
+ * too long) or DAN_ERR_OVERFLOW. Decode: m (size bytes) is cleared first;
+ * DAN_OK, DAN_ERR_ARG or DAN_ERR_MALFORMED. */
+int dan_dc_encode_table(const void *m, const dan_dc_field_t *f, size_t n, uint8_t *buf, size_t cap);
+int dan_dc_decode_table(void *m, size_t size, const dan_dc_field_t *f, size_t n, const uint8_t *buf,
+                        size_t len);
+
+/* Defines NAME_encode and NAME_decode of TYPE from TABLE. */
+#define DAN_DC_TABLE_CODEC(name, type, table)                                                \
+    int name##_encode(const type *m, uint8_t *buf, size_t cap)                               \
+    {                                                                                        \
+        return dan_dc_encode_table(m, table, DAN_DC_NFIELDS(table), buf, cap);               \
+    }                                                                                        \
+    int name##_decode(type *m, const uint8_t *buf, size_t len)                               \
+    {                                                                                        \
+        return dan_dc_decode_table(m, sizeof(type), table, DAN_DC_NFIELDS(table), buf, len); \
+    }
+
 #ifdef __cplusplus
 }
 #endif
