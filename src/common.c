@@ -313,3 +313,115 @@ int dan_reader_finish(const dan_reader_t *r)
 {
     return r->error ? DAN_ERR_MALFORMED : DAN_OK;
 }
+
+/* ---- field tables ---- */
+
+static uint32_t field_load(const uint8_t *p, uint8_t size)
+{
+    uint8_t u8;
+    uint16_t u16;
+    uint32_t u32;
+    if (size == 1u) {
+        memcpy(&u8, p, 1u);
+        return u8;
+    }
+    if (size == 2u) {
+        memcpy(&u16, p, 2u);
+        return u16;
+    }
+    memcpy(&u32, p, 4u);
+    return u32;
+}
+
+static void field_store(uint8_t *p, uint8_t size, uint32_t v)
+{
+    uint8_t u8 = (uint8_t)v;
+    uint16_t u16 = (uint16_t)v;
+    if (size == 1u) {
+        memcpy(p, &u8, 1u);
+    } else if (size == 2u) {
+        memcpy(p, &u16, 2u);
+    } else {
+        memcpy(p, &v, 4u);
+    }
+}
+
+int dan_put_fields(dan_writer_t *w, const void *m, const dan_field_t *f, size_t n)
+{
+    const uint8_t *base = (const uint8_t *)m;
+    size_t i;
+    for (i = 0; i < n; i++) { /* check first: all or nothing */
+        if (f[i].kind == DAN_F_VIEW) {
+            const uint8_t *data;
+            size_t len;
+            memcpy(&data, base + f[i].offset, sizeof data);
+            memcpy(&len, base + f[i].aux, sizeof len);
+            if (len > f[i].size || (len > 0u && data == NULL)) {
+                return DAN_ERR_ARG;
+            }
+        }
+    }
+    for (i = 0; i < n; i++) {
+        const uint8_t *p = base + f[i].offset;
+        switch (f[i].kind) {
+        case DAN_F_U8: dan_put_u8(w, (uint8_t)field_load(p, f[i].size)); break;
+        case DAN_F_U16: dan_put_u16(w, (uint16_t)field_load(p, f[i].size)); break;
+        case DAN_F_U32: dan_put_u32(w, field_load(p, f[i].size)); break;
+        case DAN_F_UV: dan_put_uvarint(w, field_load(p, f[i].size)); break;
+        default: {
+            const uint8_t *data;
+            size_t len;
+            memcpy(&data, p, sizeof data);
+            memcpy(&len, base + f[i].aux, sizeof len);
+            dan_put_array(w, data, len);
+            break;
+        }
+        }
+    }
+    return DAN_OK;
+}
+
+int dan_get_fields(dan_reader_t *r, void *m, const dan_field_t *f, size_t n)
+{
+    uint8_t *base = (uint8_t *)m;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        uint8_t *p = base + f[i].offset;
+        switch (f[i].kind) {
+        case DAN_F_U8: field_store(p, f[i].size, dan_get_u8(r)); break;
+        case DAN_F_U16: field_store(p, f[i].size, dan_get_u16(r)); break;
+        case DAN_F_U32: field_store(p, f[i].size, dan_get_u32(r)); break;
+        case DAN_F_UV: field_store(p, f[i].size, dan_get_uvarint(r)); break;
+        default: {
+            const uint8_t *data;
+            size_t len;
+            dan_get_array_view(r, &data, &len);
+            if (len > f[i].size) {
+                r->error = true;
+                data = NULL;
+                len = 0;
+            }
+            memcpy(p, &data, sizeof data);
+            memcpy(base + f[i].aux, &len, sizeof len);
+            break;
+        }
+        }
+    }
+    return dan_reader_finish(r);
+}
+
+int dan_encode_fields(const void *m, const dan_field_t *f, size_t n, uint8_t *out, size_t cap)
+{
+    dan_writer_t w;
+    int rc;
+    dan_writer_init(&w, out, cap);
+    rc = dan_put_fields(&w, m, f, n);
+    return rc < 0 ? rc : dan_writer_finish(&w);
+}
+
+int dan_decode_fields(void *m, const dan_field_t *f, size_t n, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    return dan_get_fields(&r, m, f, n);
+}

@@ -128,6 +128,52 @@ size_t dan_reader_remaining(const dan_reader_t *r);
  * are allowed (later protocol versions may append fields). */
 int dan_reader_finish(const dan_reader_t *r);
 
+/* ---- field tables ----
+ *
+ * A message that is a fixed list of fields is described once, as a table,
+ * and the same table drives the writer and the reader: the layout is
+ * written in one place and both directions cannot drift apart. */
+typedef enum {
+    DAN_F_U8,  /* u8 */
+    DAN_F_U16, /* u16 little endian */
+    DAN_F_U32, /* u32 little endian */
+    DAN_F_UV,  /* uvarint (<= 32 bits) */
+    DAN_F_VIEW /* array[uint8]: a const uint8_t * member and a size_t length */
+} dan_fkind_t;
+
+typedef struct {
+    uint16_t offset; /* of the member in the struct */
+    uint16_t aux;    /* DAN_F_VIEW: offset of the size_t length member */
+    uint8_t size;    /* scalars: sizeof the member (1, 2 or 4; wider values
+                        are truncated, narrower ones zero-extended);
+                        DAN_F_VIEW: the array's maximum length (<= 255) */
+    uint8_t kind;    /* dan_fkind_t */
+} dan_field_t;
+
+#define DAN_FIELD(type, member, k)                                                                \
+    {                                                                                             \
+        (uint16_t) offsetof(type, member), 0u, (uint8_t)sizeof(((type *)0)->member), (uint8_t)(k) \
+    }
+#define DAN_FIELD_VIEW(type, member, len_member, max)                                            \
+    {                                                                                            \
+        (uint16_t) offsetof(type, member), (uint16_t)offsetof(type, len_member), (uint8_t)(max), \
+            (uint8_t)DAN_F_VIEW                                                                  \
+    }
+#define DAN_NFIELDS(table) (sizeof(table) / sizeof((table)[0]))
+
+/* Writes m's fields in table order. DAN_ERR_ARG (nothing written) for a
+ * view longer than its maximum or with data NULL and a length; else
+ * DAN_OK (a short buffer shows in dan_writer_finish). */
+int dan_put_fields(dan_writer_t *w, const void *m, const dan_field_t *f, size_t n);
+/* Reads the fields into m; members not in the table are left alone. A view
+ * points into the payload. DAN_ERR_MALFORMED for a short payload or a view
+ * longer than its maximum, else DAN_OK. */
+int dan_get_fields(dan_reader_t *r, void *m, const dan_field_t *f, size_t n);
+/* Whole payloads: encode returns the length or a negative error; decode
+ * DAN_OK or a negative error. */
+int dan_encode_fields(const void *m, const dan_field_t *f, size_t n, uint8_t *out, size_t cap);
+int dan_decode_fields(void *m, const dan_field_t *f, size_t n, const uint8_t *p, size_t len);
+
 #ifdef __cplusplus
 }
 #endif

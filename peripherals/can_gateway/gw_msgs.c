@@ -93,19 +93,20 @@ static uint32_t get_u24(dan_reader_t *r)
     return lo | ((uint32_t)dan_get_u16(r) << 8);
 }
 
+static const dan_field_t TELEM_HDR[] = {
+    DAN_FIELD(dan_gw_telem_hdr_t, gw_flags, DAN_F_U8),
+    DAN_FIELD(dan_gw_telem_hdr_t, aux, DAN_F_U8),
+    DAN_FIELD(dan_gw_telem_hdr_t, count, DAN_F_U8),
+};
+
 void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h)
 {
-    dan_put_u8(w, h->gw_flags);
-    dan_put_u8(w, h->aux);
-    dan_put_u8(w, h->count);
+    (void)dan_put_fields(w, h, TELEM_HDR, DAN_NFIELDS(TELEM_HDR));
 }
 
 int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h)
 {
-    h->gw_flags = dan_get_u8(r);
-    h->aux = dan_get_u8(r);
-    h->count = dan_get_u8(r);
-    return finish_reader(r);
+    return dan_get_fields(r, h, TELEM_HDR, DAN_NFIELDS(TELEM_HDR));
 }
 
 void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
@@ -307,17 +308,19 @@ int dan_gw_msg_stats_decode(uint32_t *v, size_t cap, size_t *n, const uint8_t *p
 
 /* ---- nodes ---- */
 
+static const dan_field_t NODES_HDR[] = {
+    DAN_FIELD(dan_gw_nodes_hdr_t, next, DAN_F_U8),
+    DAN_FIELD(dan_gw_nodes_hdr_t, count, DAN_F_U8),
+};
+
 void dan_gw_msg_nodes_hdr_put(dan_writer_t *w, const dan_gw_nodes_hdr_t *h)
 {
-    dan_put_u8(w, h->next);
-    dan_put_u8(w, h->count);
+    (void)dan_put_fields(w, h, NODES_HDR, DAN_NFIELDS(NODES_HDR));
 }
 
 int dan_gw_msg_nodes_hdr_get(dan_reader_t *r, dan_gw_nodes_hdr_t *h)
 {
-    h->next = dan_get_u8(r);
-    h->count = dan_get_u8(r);
-    return dan_reader_finish(r);
+    return dan_get_fields(r, h, NODES_HDR, DAN_NFIELDS(NODES_HDR));
 }
 
 void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n)
@@ -394,96 +397,62 @@ int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t 
 
 /* ---- tunnels ---- */
 
+static const dan_field_t TUN_OPEN[] = {
+    DAN_FIELD(dan_gw_tun_open_t, port, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_open_t, mode, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_open_t, protocol, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_open_t, target, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_open_t, serial_id, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_open_t, options, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_open_t, baud, DAN_F_UV),
+};
+
 int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, o->port);
-    dan_put_u8(&w, o->mode);
-    dan_put_u8(&w, o->protocol);
-    dan_put_u8(&w, o->target);
-    dan_put_u8(&w, (uint8_t)o->serial_id);
-    dan_put_u8(&w, o->options);
-    dan_put_uvarint(&w, o->baud);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(o, TUN_OPEN, DAN_NFIELDS(TUN_OPEN), out, cap);
 }
 
 int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
-    dan_reader_init(&r, p, len);
-    o->port = dan_get_u8(&r);
-    o->mode = dan_get_u8(&r);
-    o->protocol = dan_get_u8(&r);
-    o->target = dan_get_u8(&r);
-    o->serial_id = (int8_t)dan_get_u8(&r);
-    o->options = dan_get_u8(&r);
-    o->baud = dan_get_uvarint(&r);
-    return dan_reader_finish(&r);
+    return dan_decode_fields(o, TUN_OPEN, DAN_NFIELDS(TUN_OPEN), p, len);
 }
+
+static const dan_field_t TUN_XFER_REQ[] = {
+    DAN_FIELD(dan_gw_tun_xfer_t, port, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_xfer_t, wr_offset, DAN_F_UV),
+    DAN_FIELD(dan_gw_tun_xfer_t, rd_offset, DAN_F_UV),
+    DAN_FIELD(dan_gw_tun_xfer_t, rd_max, DAN_F_UV),
+    DAN_FIELD_VIEW(dan_gw_tun_xfer_t, data, len, DAN_GW_TUN_CHUNK_MAX),
+};
+static const dan_field_t TUN_XFER_RSP[] = {
+    DAN_FIELD(dan_gw_tun_xfer_t, port, DAN_F_U8),
+    DAN_FIELD(dan_gw_tun_xfer_t, wr_offset, DAN_F_UV),
+    DAN_FIELD(dan_gw_tun_xfer_t, wr_space, DAN_F_UV),
+    DAN_FIELD(dan_gw_tun_xfer_t, rd_offset, DAN_F_UV),
+    DAN_FIELD(dan_gw_tun_xfer_t, rd_dropped, DAN_F_UV),
+    DAN_FIELD_VIEW(dan_gw_tun_xfer_t, data, len, DAN_GW_TUN_CHUNK_MAX),
+};
 
 int dan_gw_msg_tun_xfer_req_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    if (x->len > DAN_GW_TUN_CHUNK_MAX || (x->len > 0u && x->data == NULL)) {
-        return DAN_ERR_ARG;
-    }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, x->port);
-    dan_put_uvarint(&w, x->wr_offset);
-    dan_put_uvarint(&w, x->rd_offset);
-    dan_put_uvarint(&w, x->rd_max);
-    dan_put_array(&w, x->data, x->len);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(x, TUN_XFER_REQ, DAN_NFIELDS(TUN_XFER_REQ), out, cap);
 }
 
 int dan_gw_msg_tun_xfer_req_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
     memset(x, 0, sizeof *x);
-    dan_reader_init(&r, p, len);
-    x->port = dan_get_u8(&r);
-    x->wr_offset = dan_get_uvarint(&r);
-    x->rd_offset = dan_get_uvarint(&r);
-    x->rd_max = dan_get_uvarint(&r);
-    dan_get_array_view(&r, &x->data, &x->len);
-    if (x->len > DAN_GW_TUN_CHUNK_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    return dan_reader_finish(&r);
+    return dan_decode_fields(x, TUN_XFER_REQ, DAN_NFIELDS(TUN_XFER_REQ), p, len);
 }
 
 int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    if (x->len > DAN_GW_TUN_CHUNK_MAX || (x->len > 0u && x->data == NULL)) {
-        return DAN_ERR_ARG;
-    }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, x->port);
-    dan_put_uvarint(&w, x->wr_offset);
-    dan_put_uvarint(&w, x->wr_space);
-    dan_put_uvarint(&w, x->rd_offset);
-    dan_put_uvarint(&w, x->rd_dropped);
-    dan_put_array(&w, x->data, x->len);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(x, TUN_XFER_RSP, DAN_NFIELDS(TUN_XFER_RSP), out, cap);
 }
 
 int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
     memset(x, 0, sizeof *x);
-    dan_reader_init(&r, p, len);
-    x->port = dan_get_u8(&r);
-    x->wr_offset = dan_get_uvarint(&r);
-    x->wr_space = dan_get_uvarint(&r);
-    x->rd_offset = dan_get_uvarint(&r);
-    x->rd_dropped = dan_get_uvarint(&r);
-    dan_get_array_view(&r, &x->data, &x->len);
-    if (x->len > DAN_GW_TUN_CHUNK_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    return dan_reader_finish(&r);
+    return dan_decode_fields(x, TUN_XFER_RSP, DAN_NFIELDS(TUN_XFER_RSP), p, len);
 }
 
 /* ---- raw CAN ---- */
@@ -552,24 +521,20 @@ int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s)
     return dan_reader_finish(r);
 }
 
+static const dan_field_t CAN_SEND_RSP[] = {
+    DAN_FIELD(dan_gw_can_send_t, seq, DAN_F_U8),
+    DAN_FIELD(dan_gw_can_send_t, count, DAN_F_U8),
+    DAN_FIELD(dan_gw_can_send_t, queue_free, DAN_F_UV),
+};
+
 int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, s->seq);
-    dan_put_u8(&w, s->count);
-    dan_put_uvarint(&w, s->queue_free);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(s, CAN_SEND_RSP, DAN_NFIELDS(CAN_SEND_RSP), out, cap);
 }
 
 int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
-    dan_reader_init(&r, p, len);
-    s->seq = dan_get_u8(&r);
-    s->count = dan_get_u8(&r);
-    s->queue_free = dan_get_uvarint(&r);
-    return dan_reader_finish(&r);
+    return dan_decode_fields(s, CAN_SEND_RSP, DAN_NFIELDS(CAN_SEND_RSP), p, len);
 }
 
 int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap)

@@ -185,56 +185,41 @@ int dan_gw_msg_call_state_decode(dan_gw_call_state_t *s, const uint8_t *p, size_
 
 /* ---- CALL_RESULT ---- */
 
+static const dan_field_t RESULT_REQ[] = {
+    DAN_FIELD(dan_gw_result_t, call_id, DAN_F_U16),
+    DAN_FIELD(dan_gw_result_t, offset, DAN_F_UV),
+    DAN_FIELD(dan_gw_result_t, max, DAN_F_U8),
+};
+static const dan_field_t RESULT_RSP[] = {
+    DAN_FIELD(dan_gw_result_t, call_id, DAN_F_U16),
+    DAN_FIELD(dan_gw_result_t, state, DAN_F_U8),
+    DAN_FIELD(dan_gw_result_t, result_len, DAN_F_UV),
+    DAN_FIELD(dan_gw_result_t, offset, DAN_F_UV),
+    DAN_FIELD_VIEW(dan_gw_result_t, data, len, DAN_GW_RESULT_CHUNK_MAX),
+};
+
 int dan_gw_msg_result_req_encode(const dan_gw_result_t *q, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    dan_writer_init(&w, out, cap);
-    dan_put_u16(&w, q->call_id);
-    dan_put_uvarint(&w, q->offset);
-    dan_put_u8(&w, q->max);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(q, RESULT_REQ, DAN_NFIELDS(RESULT_REQ), out, cap);
 }
 
 int dan_gw_msg_result_req_decode(dan_gw_result_t *q, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
     memset(q, 0, sizeof *q);
-    dan_reader_init(&r, p, len);
-    q->call_id = dan_get_u16(&r);
-    q->offset = dan_get_uvarint(&r);
-    q->max = dan_get_u8(&r);
-    return dan_reader_finish(&r);
+    return dan_decode_fields(q, RESULT_REQ, DAN_NFIELDS(RESULT_REQ), p, len);
 }
 
 int dan_gw_msg_result_rsp_encode(const dan_gw_result_t *q, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    if (q->len > DAN_GW_RESULT_CHUNK_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_writer_init(&w, out, cap);
-    dan_put_u16(&w, q->call_id);
-    dan_put_u8(&w, q->state);
-    dan_put_uvarint(&w, q->result_len);
-    dan_put_uvarint(&w, q->offset);
-    dan_put_array(&w, q->data, q->len);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(q, RESULT_RSP, DAN_NFIELDS(RESULT_RSP), out, cap);
 }
 
 int dan_gw_msg_result_rsp_decode(dan_gw_result_t *q, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
+    int rc;
     memset(q, 0, sizeof *q);
-    dan_reader_init(&r, p, len);
-    q->call_id = dan_get_u16(&r);
-    q->state = dan_get_u8(&r);
-    q->result_len = dan_get_uvarint(&r);
-    q->offset = dan_get_uvarint(&r);
-    dan_get_array_view(&r, &q->data, &q->len);
-    if (q->state > DAN_GW_CALL_BUSY || q->len > DAN_GW_RESULT_CHUNK_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    return dan_reader_finish(&r);
+    rc = dan_decode_fields(q, RESULT_RSP, DAN_NFIELDS(RESULT_RSP), p, len);
+    return rc == DAN_OK && q->state > DAN_GW_CALL_BUSY ? DAN_ERR_MALFORMED : rc;
 }
 
 /* ---- call results ---- */
@@ -306,28 +291,20 @@ int dan_gw_msg_opcode_result_decode(dan_gw_opcode_result_t *o, const uint8_t *b,
 
 /* ---- HEALTH ---- */
 
+static const dan_field_t HEALTH[] = {
+    DAN_FIELD(dan_gw_health_t, verdict, DAN_F_U8),  DAN_FIELD(dan_gw_health_t, reason, DAN_F_U8),
+    DAN_FIELD(dan_gw_health_t, subject, DAN_F_U8),  DAN_FIELD(dan_gw_health_t, detail, DAN_F_U8),
+    DAN_FIELD(dan_gw_health_t, problems, DAN_F_U8),
+};
+
 int dan_gw_msg_health_encode(const dan_gw_health_t *h, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, h->verdict);
-    dan_put_u8(&w, h->reason);
-    dan_put_u8(&w, h->subject);
-    dan_put_u8(&w, h->detail);
-    dan_put_u8(&w, h->problems);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(h, HEALTH, DAN_NFIELDS(HEALTH), out, cap);
 }
 
 int dan_gw_msg_health_decode(dan_gw_health_t *h, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
-    dan_reader_init(&r, p, len);
-    h->verdict = dan_get_u8(&r);
-    h->reason = dan_get_u8(&r);
-    h->subject = dan_get_u8(&r);
-    h->detail = dan_get_u8(&r);
-    h->problems = dan_get_u8(&r);
-    return dan_reader_finish(&r);
+    return dan_decode_fields(h, HEALTH, DAN_NFIELDS(HEALTH), p, len);
 }
 
 const char *dan_gw_reason_name(unsigned reason)
@@ -339,23 +316,20 @@ const char *dan_gw_reason_name(unsigned reason)
 
 /* ---- DNA ---- */
 
+static const dan_field_t DNA_HDR[] = {
+    DAN_FIELD(dan_gw_dna_hdr_t, flags, DAN_F_U8),    DAN_FIELD(dan_gw_dna_hdr_t, entries, DAN_F_U8),
+    DAN_FIELD(dan_gw_dna_hdr_t, capacity, DAN_F_U8), DAN_FIELD(dan_gw_dna_hdr_t, next, DAN_F_U8),
+    DAN_FIELD(dan_gw_dna_hdr_t, count, DAN_F_U8),
+};
+
 void dan_gw_msg_dna_hdr_put(dan_writer_t *w, const dan_gw_dna_hdr_t *h)
 {
-    dan_put_u8(w, h->flags);
-    dan_put_u8(w, h->entries);
-    dan_put_u8(w, h->capacity);
-    dan_put_u8(w, h->next);
-    dan_put_u8(w, h->count);
+    (void)dan_put_fields(w, h, DNA_HDR, DAN_NFIELDS(DNA_HDR));
 }
 
 int dan_gw_msg_dna_hdr_get(dan_reader_t *r, dan_gw_dna_hdr_t *h)
 {
-    h->flags = dan_get_u8(r);
-    h->entries = dan_get_u8(r);
-    h->capacity = dan_get_u8(r);
-    h->next = dan_get_u8(r);
-    h->count = dan_get_u8(r);
-    return dan_reader_finish(r);
+    return dan_get_fields(r, h, DNA_HDR, DAN_NFIELDS(DNA_HDR));
 }
 
 void dan_gw_msg_dna_entry_put(dan_writer_t *w, const dan_gw_dna_entry_t *e)
