@@ -69,7 +69,7 @@ void Reset_Handler(void)
 #if SIZE_PROBE >= 2
         {
             int16_t v[4] = {1, 2, 3, 4};
-            dan_gw_config_t cfg = {0, 0, 0, 0, 0};
+            dan_gw_config_t cfg = {0};
             if (probe_in == 1u)
                 dan_gw_init(&probe_gw, &probe_master);
             if (probe_in == 2u)

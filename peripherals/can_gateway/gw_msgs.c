@@ -93,20 +93,21 @@ static uint32_t get_u24(dan_reader_t *r)
     return lo | ((uint32_t)dan_get_u16(r) << 8);
 }
 
-static const dan_field_t TELEM_HDR[] = {
-    DAN_FIELD(dan_gw_telem_hdr_t, gw_flags, DAN_F_U8),
-    DAN_FIELD(dan_gw_telem_hdr_t, aux, DAN_F_U8),
-    DAN_FIELD(dan_gw_telem_hdr_t, count, DAN_F_U8),
-};
-
+/* Written out (not a field table): it is on the FC's ESC path, where the
+ * table walker would cost flash. */
 void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h)
 {
-    (void)dan_put_fields(w, h, TELEM_HDR, DAN_NFIELDS(TELEM_HDR));
+    dan_put_u8(w, h->gw_flags);
+    dan_put_u8(w, h->aux);
+    dan_put_u8(w, h->count);
 }
 
 int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h)
 {
-    return dan_get_fields(r, h, TELEM_HDR, DAN_NFIELDS(TELEM_HDR));
+    h->gw_flags = dan_get_u8(r);
+    h->aux = dan_get_u8(r);
+    h->count = dan_get_u8(r);
+    return finish_reader(r);
 }
 
 void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
@@ -449,10 +450,23 @@ int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, siz
     return dan_encode_fields(x, TUN_XFER_RSP, DAN_NFIELDS(TUN_XFER_RSP), out, cap);
 }
 
+/* Written out: dan_gw_complete() links it into every FC image, where the
+ * table walker would cost flash. */
 int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
 {
+    dan_reader_t r;
     memset(x, 0, sizeof *x);
-    return dan_decode_fields(x, TUN_XFER_RSP, DAN_NFIELDS(TUN_XFER_RSP), p, len);
+    dan_reader_init(&r, p, len);
+    x->port = dan_get_u8(&r);
+    x->wr_offset = dan_get_uvarint(&r);
+    x->wr_space = dan_get_uvarint(&r);
+    x->rd_offset = dan_get_uvarint(&r);
+    x->rd_dropped = dan_get_uvarint(&r);
+    dan_get_array_view(&r, &x->data, &x->len);
+    if (x->len > DAN_GW_TUN_CHUNK_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(&r);
 }
 
 /* ---- raw CAN ---- */
@@ -532,9 +546,16 @@ int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, siz
     return dan_encode_fields(s, CAN_SEND_RSP, DAN_NFIELDS(CAN_SEND_RSP), out, cap);
 }
 
+/* Written out: dan_gw_complete() links it into every FC image, where the
+ * table walker would cost flash. */
 int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len)
 {
-    return dan_decode_fields(s, CAN_SEND_RSP, DAN_NFIELDS(CAN_SEND_RSP), p, len);
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    s->seq = dan_get_u8(&r);
+    s->count = dan_get_u8(&r);
+    s->queue_free = dan_get_uvarint(&r);
+    return dan_reader_finish(&r);
 }
 
 int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap)
