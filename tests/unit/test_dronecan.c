@@ -20,50 +20,24 @@
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
 
+#include "vectors.h"
+
 #define MAX_FRAMES 64
 #define MAX_KV     32
 
 /* ---- helpers ---- */
 
-static int hexval(char c)
-{
-    if (c >= '0' && c <= '9')
-        return c - '0';
-    if (c >= 'a' && c <= 'f')
-        return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F')
-        return c - 'A' + 10;
-    return -1;
-}
-
-/* Parses hex into out (cap bytes); returns byte count or -1. */
-static int parse_hex(const char *s, size_t slen, uint8_t *out, size_t cap)
-{
-    size_t i;
-    if (slen % 2u != 0u || slen / 2u > cap) {
-        return -1;
-    }
-    for (i = 0; i < slen / 2u; i++) {
-        int hi = hexval(s[2 * i]), lo = hexval(s[2 * i + 1]);
-        if (hi < 0 || lo < 0) {
-            return -1;
-        }
-        out[i] = (uint8_t)(hi << 4 | lo);
-    }
-    return (int)(slen / 2u);
-}
-
 /* "1401550A#01000000003412c0" -> frame */
 static void parse_frame(const char *s, dan_can_frame_t *f)
 {
     const char *hash = strchr(s, '#');
-    int n;
+    size_t n;
     assert_non_null(hash);
     memset(f, 0, sizeof *f);
     f->id = (uint32_t)strtoul(s, NULL, 16);
     f->flags = DAN_CAN_EXT;
-    n = parse_hex(hash + 1, strlen(hash + 1), f->data, 8);
-    assert_true(n >= 1);
+    n = vec_hex(hash + 1, f->data, 8);
+    assert_true(n >= 1u);
     f->dlc = (uint8_t)n;
 }
 
@@ -125,10 +99,7 @@ static float kv_float(const vec_t *v, const char *key)
 
 static size_t kv_hex(const vec_t *v, const char *key, uint8_t *out, size_t cap)
 {
-    const char *s = kv(v, key);
-    int n = parse_hex(s, strlen(s), out, cap);
-    assert_true(n >= 0);
-    return (size_t)n;
+    return vec_hex(kv(v, key), out, cap);
 }
 
 /* Splits line (modified in place) into v. Returns false for comments. */
@@ -291,9 +262,7 @@ static void value_of(const char *s, dan_dc_param_value_t *v)
     case DAN_DC_PARAM_REAL: v->real = (float)strtod(arg, NULL); break;
     case DAN_DC_PARAM_BOOLEAN: v->boolean = (uint8_t)atoi(arg); break;
     case DAN_DC_PARAM_STRING: {
-        int n = parse_hex(arg, strlen(arg), v->string, sizeof v->string);
-        assert_true(n >= 0);
-        v->string_len = (uint8_t)n;
+        v->string_len = (uint8_t)vec_hex(arg, v->string, sizeof v->string);
         break;
     }
     default: break;
