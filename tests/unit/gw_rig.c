@@ -88,6 +88,15 @@ size_t last_req(uint8_t *out)
     return f.len;
 }
 
+void lose_response(void)
+{
+    uint8_t req[DAN_MAX_PAYLOAD];
+    uint32_t code = R->m.req_code;
+    size_t n = last_req(req);
+    assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK);
+    assert_int_equal(dan_master_request(&R->m, code, req, n, R->bus.now), DAN_OK);
+}
+
 /* Finds the n-th captured transfer of a type from index from on. */
 cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from)
 {

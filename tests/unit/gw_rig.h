@@ -46,6 +46,10 @@ int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 int finish(void);
 /* The payload of the master's request in flight, to send it again. */
 size_t last_req(uint8_t *out);
+/* The gateway handles the request in flight but its response is lost: the
+ * master sends the same bytes again, as its retry would; the client still
+ * waits for the answer (complete it with finish()). */
+void lose_response(void);
 /* The next captured transfer of a type from index *from on. */
 cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from);
 /* A transfer from fake node src into the gateway. */
