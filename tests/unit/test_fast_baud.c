@@ -21,8 +21,8 @@ static const dan_identity_t ident_a = {1,       "DAN Project",         "test A",
                                        "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
 static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1", DAN_BAUD_MASK_DEFINED,
                                         0, false};
-static const dan_identity_t ident_b = {1,       "Old Co",              "v1 only", "1",
-                                       "0.9",   DAN_BAUD_MASK_DEFINED, 0,         false};
+static const dan_identity_t ident_b = {1, "Old Co", "v1 only", "1", "0.9", DAN_BAUD_MASK_DEFINED,
+                                       0, false};
 static const uint32_t up_to_1m[] = {230400u, 460800u, 921600u, 1000000u};
 static const uint32_t probe_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_CAN_GW_FIRST,
                                        DAN_TYPE_TEST_B_FIRST};
