@@ -57,7 +57,12 @@ def test_negotiates_1m_and_names_2m(procs, tmp_path):
     _, eps, _ = start_vbus(procs, tmp_path, 3)
     start_two(procs, eps)
     _, out = fast_master(
-        eps[0], 1000000, "discover", "configure", "request:0x62:414243", "configure:2000000",
+        eps[0],
+        1000000,
+        "discover",
+        "configure",
+        "request:0x62:414243",
+        "configure:2000000",
         "request:0x62:58595a",
     )
     _, conf1, req1, conf2, req2 = out
