@@ -446,7 +446,10 @@ class Master:
             t = link.polled  # every byte that came before t was handled
             until = deadline
             if t >= deadline:
-                last = deadline + MAX_FRAME * link.char
+                # The tail of a reply that started in time: at least the gap,
+                # since at fast bauds a whole frame is shorter than an
+                # adapter's burst latency (PROTOCOL.md section 6).
+                last = deadline + max(MAX_FRAME * link.char, link.gap)
                 if link.idle(t) >= link.gap or t >= last:
                     self.stats.timeouts += 1
                     raise DanTimeout(f"no answer to 0x{code:02X} at {link.baud} baud")
@@ -570,8 +573,16 @@ class Master:
             return baud
         if not baud:
             for c in self.fast_bauds():
-                if self._try_fast(c):
-                    return c
+                try:
+                    if self._try_fast(c):
+                        return c
+                except OperationTimeout:
+                    raise
+                except DanError as e:
+                    # Recovered to 9600: a peer acknowledged and was not
+                    # there. It is not trusted with another fast baud.
+                    self.progress(f"{c} baud failed ({e}); going on with the draft's bauds")
+                    break
         return self._configure_mask(baud or self.best_baud())
 
     def _try_fast(self, target: int) -> bool:
@@ -598,6 +609,9 @@ class Master:
         except OperationTimeout:
             raise
         except DanError as e:
+            for p in found:
+                if p.baud == target or p in moved:
+                    p.refused_fast = True  # failed it: asked first from now on
             self._recover(e)
         return True
 

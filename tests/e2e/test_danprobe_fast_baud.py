@@ -15,7 +15,7 @@ MASK_ALL = 0x0F  # 19200..115200
 
 class Periph:
     """One modelled peripheral. extra: the bauds above the mask it accepts;
-    liar: acknowledges every CONFIGURE and stays where it is."""
+    liar: acknowledges every fast baud and stays where it is."""
 
     def __init__(self, ptype, baud=9600, extra=(), liar=False):
         self.type, self.baud, self.extra, self.liar = ptype, baud, set(extra), liar
@@ -31,9 +31,10 @@ class Periph:
         if frame.code == self.type.configure:
             want = payloads.Configure.decode(frame.payload).baud
             self.configures.append((self.baud, want))
-            ok = self.liar or self.accepts(want)
+            lie = self.liar and want in FAST_BAUDS
+            ok = lie or self.accepts(want)
             ack = payloads.encode_ack(payloads.ACK_OK if ok else payloads.ACK_FAIL)
-            switch_to = want if ok and not self.liar else None
+            switch_to = want if ok and not lie else None
             return codec.encode_frame(frame.code, ack), switch_to
         return None, None
 
@@ -120,17 +121,27 @@ def test_explicit_fast_baud_refused_keeps_the_bus():
 
 
 def test_a_peer_that_acknowledges_and_stays_is_recovered():
+    # A named fast baud: recovery to 9600 and the failure.
     liar, good = Periph(TEST_A, liar=True), Periph(TEST_B, extra=FAST_BAUDS)
     port = ModelPort([liar, good])
     m = Master(port, [TEST_A, TEST_B], 9600, MasterConfig(max_baud=2_000_000, seed=1), echo=False)
     m.discover()
     with pytest.raises(DanTimeout):
-        m.configure()
+        m.configure(2_000_000)
     # Recovery found the good peer at the baud it was moved to and brought
     # it back; the liar never left 9600. Both answer at 9600.
     assert m.stats.recoveries == 1
     assert good.baud == liar.baud == m.baud == 9600
     assert {p.type.name for p in m.present()} == {"test-a", "test-b"}
+
+
+def test_after_a_lie_configure_goes_on_with_the_mask_bauds():
+    liar, good = Periph(TEST_A, liar=True), Periph(TEST_B, extra=FAST_BAUDS)
+    m, baud = run([liar, good])
+    assert m.stats.recoveries == 1
+    # No second fast candidate was offered to anyone after the failure.
+    assert [w for _, w in good.configures if w in FAST_BAUDS] == [2_000_000]
+    assert baud == m.baud == good.baud == liar.baud == 115200
 
 
 def test_discovery_finds_a_peer_left_at_a_fast_baud():
