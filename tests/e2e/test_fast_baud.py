@@ -146,6 +146,7 @@ def test_danprobe_negotiates_and_finds_fast_bauds(procs, tmp_path):
         "configure", "--port", eps[0], "--types", "test-a,can-gw", "--max-baud", 2000000
     )
     assert conf["result"] == 0 and conf["baud"] == 2000000, conf
+    print("danprobe configure 115200 -> 2000000: %.1f ms" % conf["ms"])
     disc = danprobe_doc("discover", "--port", eps[0], "--types", "test-a,can-gw", "--baud", 2000000)
     assert [p["baud"] for p in disc["peers"]] == [2000000, 2000000]
     assert talkers_at(tmp_path, 2000000) == {0, 1, 2}
