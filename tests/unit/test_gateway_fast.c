@@ -179,9 +179,9 @@ static void test_fast_malformed(void **state)
         if (good) {
             continue;
         }
-        assert_int_equal(request_sealed(bad % 2u ? DAN_GW_CODE_ESC_FAST_T : DAN_GW_CODE_ESC_FAST,
-                                        p, len),
-                         DAN_OK);
+        assert_int_equal(
+            request_sealed(bad % 2u ? DAN_GW_CODE_ESC_FAST_T : DAN_GW_CODE_ESC_FAST, p, len),
+            DAN_OK);
         assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
         bad++;
     }
@@ -215,8 +215,7 @@ static void test_fast_codec_limits(void **state)
     t.age_ms = 4294967295u;
     assert_int_equal(dan_gw_fast_rec_make(&t, false).age_4ms, 255);
     assert_int_equal(dan_gw_msg_esc_fast_encode(NULL, 4, buf, sizeof buf), DAN_ERR_ARG);
-    assert_int_equal(dan_gw_msg_esc_fast_encode((const int16_t *)buf, 4, buf, 6),
-                     DAN_ERR_OVERFLOW);
+    assert_int_equal(dan_gw_msg_esc_fast_encode((const int16_t *)buf, 4, buf, 6), DAN_ERR_OVERFLOW);
     assert_int_equal(dan_gw_msg_esc_fast_encode((const int16_t *)buf, 4, NULL, 0), 7);
 }
 

@@ -45,10 +45,10 @@ int dan_gw_msg_esc_fast_decode(const uint8_t *p, size_t len, int16_t *values, si
  *       record: the FC counts updates, never the same sample twice);
  *   u8 age in units of 4 ms since that esc.Status arrived (rounded down),
  *       255 = 1020 ms or older (ArduPilot drops RPM older than 1 s). */
-#define DAN_GW_FAST_REC_SIZE  10u
-#define DAN_GW_FAST_AGE_UNIT  4u   /* ms */
-#define DAN_GW_FAST_AGE_MAX   255u /* saturated */
-#define DAN_GW_FAST_RSP_MAX   (1u + DAN_GW_FAST_REC_SIZE)
+#define DAN_GW_FAST_REC_SIZE 10u
+#define DAN_GW_FAST_AGE_UNIT 4u   /* ms */
+#define DAN_GW_FAST_AGE_MAX  255u /* saturated */
+#define DAN_GW_FAST_RSP_MAX  (1u + DAN_GW_FAST_REC_SIZE)
 
 typedef struct {
     uint8_t esc_index; /* 0..31 */
