@@ -166,9 +166,11 @@ static void print_row(const row_t *r)
            "\"ratio\": %.4f, \"bytes_per_exchange\": %.2f, \"telem_hz_min\": %.2f, "
            "\"fresh_hz_min\": %.2f}\n",
            r->escs, (unsigned long)r->baud,
-           r->every == MODE_CMD ? "cmd" : r->every == MODE_FAST ? "fast" : "fast_t", r->every,
-           (unsigned long)r->exchanges, (unsigned long)r->failed, r->sim_seconds, rate, bound,
-           rate / bound, (double)r->wire_chars / r->exchanges - 5.0, lo / r->sim_seconds,
+           r->every == MODE_CMD    ? "cmd"
+           : r->every == MODE_FAST ? "fast"
+                                   : "fast_t",
+           r->every, (unsigned long)r->exchanges, (unsigned long)r->failed, r->sim_seconds, rate,
+           bound, rate / bound, (double)r->wire_chars / r->exchanges - 5.0, lo / r->sim_seconds,
            lo_fresh / r->sim_seconds);
     fflush(stdout);
 }
