@@ -3,6 +3,14 @@
 
 static const uint32_t mask_bauds[4] = {19200u, 38400u, 57600u, 115200u};
 
+const uint32_t dan_fast_bauds[DAN_NFAST_BAUDS] = {230400u,  460800u,  921600u,
+                                                  1000000u, 1500000u, 2000000u};
+
+bool dan_baud_is_v1(uint32_t baud)
+{
+    return baud == DAN_BAUD_BASE || dan_mask_bit_of_baud(baud) != 0u;
+}
+
 uint32_t dan_baud_of_mask_bit(uint16_t bit)
 {
     unsigned i;

@@ -71,11 +71,20 @@ static void queue_error(dan_periph_t *p, uint32_t code, const char *text, uint64
 
 static bool baud_allowed(const dan_periph_t *p, const dan_ptype_t *t, uint32_t baud)
 {
+    size_t i;
     if (p->cfg.max_baud != 0u && baud > p->cfg.max_baud) {
         return false;
     }
-    return baud == DAN_BAUD_BASE ||
-           (t->identity->baud_mask & DAN_BAUD_MASK_DEFINED & dan_mask_bit_of_baud(baud)) != 0u;
+    if (baud == DAN_BAUD_BASE ||
+        (t->identity->baud_mask & DAN_BAUD_MASK_DEFINED & dan_mask_bit_of_baud(baud)) != 0u) {
+        return true;
+    }
+    for (i = 0; i < p->cfg.nextra_bauds && p->cfg.extra_bauds != NULL; i++) {
+        if (p->cfg.extra_bauds[i] == baud) {
+            return true; /* a fast baud this device was configured for */
+        }
+    }
+    return false;
 }
 
 static void handle_configure(dan_periph_t *p, const dan_ptype_t *t, const dan_frame_t *f,

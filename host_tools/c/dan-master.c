@@ -32,7 +32,10 @@ static void usage(FILE *f)
                "\n"
                "options:\n"
                "  --port TTY          serial port (required)\n"
-               "  --baud N            the port's starting baud (default 9600)\n"
+               "  --baud N            the port's starting baud, any value (default 9600)\n"
+               "  --max-baud N        offer the fast bauds up to N (230400..2000000) before\n"
+               "                      the mask bauds, and scan them in discovery (default 0:\n"
+               "                      none, DAN v1 only)\n"
                "  --types LIST        types to probe, comma-separated names or first codes\n"
                "                      (default: vtx,can-gw; also test-a, test-b)\n"
                "  --no-echo           the adapter does not echo our bytes\n"
@@ -46,7 +49,8 @@ static void usage(FILE *f)
                "\n"
                "steps:\n"
                "  discover            probe every type at 9600, then other bauds\n"
-               "  configure[:BAUD]    move the bus to BAUD (default: best common) and verify\n"
+               "  configure[:BAUD]    move the bus to BAUD (default: the fastest every peer\n"
+               "                      accepts, fast bauds first) and verify\n"
                "  request:CODE[:HEX]  send a request, print the reply payload\n"
                "  repeat:N:CODE[:HEX] the same N times; prints the count and the rate\n"
                "  stats               engine counters\n");
@@ -65,6 +69,7 @@ typedef struct {
     uint32_t baud, latency_ms, gap_ms, retries, timeout_ms;
     bool no_echo, json;
     int first_step;
+    uint32_t max_baud;
 } opts_t;
 
 /* Runs the poll loop until the current operation completes. */
@@ -189,11 +194,11 @@ static void print_stats(ctx_t *c)
         "\"remote_errors\":%u,\"stray\":%u,\"lbt_waits\":%u,\"busy_failures\":%u,\"recoveries\":%u,"
         "\"tx_frames\":%u,\"tx_bytes\":%u,\"rx_bytes\":%u,\"collisions\":%u,\"echo_timeouts\":%u,"
         "\"rx_frames\":%u,\"crc_errors\":%u,\"oversize\":%u,\"bad_varint\":%u,\"garbage\":%u,"
-        "\"aborted\":%u%s\n",
+        "\"aborted\":%u,\"fast_refusals\":%u,\"moved_back\":%u%s\n",
         c->json ? "{" : "stats: {", s->transactions, s->ok, s->timeouts, s->retries,
         s->remote_errors, s->stray, s->lbt_waits, s->busy_failures, s->recoveries, l->tx_frames,
         l->tx_bytes, l->rx_bytes, l->collisions, l->echo_timeouts, d->frames, d->crc_errors,
-        d->oversize, d->bad_varint, d->garbage, d->aborted, "}");
+        d->oversize, d->bad_varint, d->garbage, d->aborted, s->fast_refusals, s->moved_back, "}");
 }
 
 static double ms_since(uint64_t t0)
@@ -209,7 +214,7 @@ static uint32_t *number_option(opts_t *o, const char *a)
         uint32_t *dst;
     } nums[] = {
         {"--baud", &o->baud},       {"--latency-ms", &o->latency_ms}, {"--gap-ms", &o->gap_ms},
-        {"--retries", &o->retries}, {"--timeout-ms", &o->timeout_ms},
+        {"--retries", &o->retries}, {"--timeout-ms", &o->timeout_ms}, {"--max-baud", &o->max_baud},
     };
     size_t i;
     for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
@@ -341,6 +346,7 @@ static int start(ctx_t *c, const opts_t *o, const uint32_t *types, size_t ntypes
     cfg.gap_us = o->gap_ms * 1000u;
     cfg.retries = (uint8_t)o->retries;
     cfg.seed = (uint32_t)getpid();
+    cfg.fast_max_baud = o->max_baud;
     c->json = o->json;
     c->timeout_us = (uint64_t)o->timeout_ms * 1000u;
     dan_master_init(&c->m, dan_posix_port(&c->port), &cfg, types, ntypes, o->baud,
@@ -373,8 +379,10 @@ static int step_configure(ctx_t *c, const char *s, uint64_t t0)
     if (c->json) {
         printf("{\"step\":\"configure\",\"result\":%d,\"error\":", r);
         tool_json_str(stdout, r == DAN_OK ? "" : dan_strerror(r));
-        printf(",\"baud\":%u,\"ms\":%.1f,\"recoveries\":%u}\n", dan_master_baud(&c->m),
-               ms_since(t0), c->m.stats.recoveries);
+        printf(",\"baud\":%u,\"ms\":%.1f,\"recoveries\":%u,\"fast_refusals\":%u,"
+               "\"moved_back\":%u}\n",
+               dan_master_baud(&c->m), ms_since(t0), c->m.stats.recoveries,
+               c->m.stats.fast_refusals, c->m.stats.moved_back);
     } else {
         printf("configure: %s, bus at %u baud (%.1f ms)\n", r == DAN_OK ? "ok" : dan_strerror(r),
                dan_master_baud(&c->m), ms_since(t0));
@@ -472,7 +480,7 @@ static int run_step(ctx_t *c, const char *s)
 int main(int argc, char **argv)
 {
     static ctx_t c;
-    opts_t o = {NULL, "vtx,can-gw", NULL, 9600, 50, 20, 2, 30000, false, false, 0};
+    opts_t o = {NULL, "vtx,can-gw", NULL, 9600, 50, 20, 2, 30000, false, false, 0, 0};
     uint32_t types[DAN_MASTER_MAX_TYPES];
     size_t ntypes = 0;
     int i, failed = 0, r;

@@ -33,11 +33,14 @@ extern "C" {
 /* Peripheral types one master can probe (and so, peers per UART):
  * DAN_MASTER_MAX_TYPES, a setting in dan/config.h. */
 
-/* Bauds a master tries during discovery (DAN_DISCOVERY_NBAUDS of them, in
- * src/master.c): the spec's 9600 first, then the mask bauds from the
- * highest (where a configured bus most likely is after a master reset)
- * down. */
+/* Bauds a master tries during discovery: the spec's 9600 first, then the
+ * fast bauds it offers (cfg.fast_max_baud; none by default), then the
+ * DAN_DISCOVERY_NBAUDS - 1 mask bauds, each from the highest (where a
+ * configured bus most likely is after a master reset) down. */
 #define DAN_DISCOVERY_NBAUDS 5u
+
+/* Fast bauds one master offers at most (the length of its list). */
+#define DAN_MASTER_MAX_FAST 8u
 
 typedef struct {
     uint32_t resp_latency_us;   /* a reply must start within this after our
@@ -51,6 +54,13 @@ typedef struct {
     uint8_t lbt_chars;          /* idle characters before talking (default DAN_LBT_CHARS, min 2) */
     bool scan_all_bauds;        /* probe types missing at 9600 at the other bauds (default true) */
     uint32_t seed;              /* backoff jitter seed (any value; default 1) */
+    /* Fast bauds (docs/PROTOCOL.md section 6): configure(0) offers the ones
+     * up to fast_max_baud (and port.max_baud), highest first, before the
+     * best mask baud; discovery and recovery scan them. 0 (the default):
+     * none, the v1 behaviour. */
+    uint32_t fast_max_baud;
+    const uint32_t *fast_bauds; /* the list, ascending (NULL: dan_fast_bauds); not copied */
+    uint8_t nfast_bauds;
 } dan_master_config_t;
 
 void dan_master_config_default(dan_master_config_t *c);
@@ -61,6 +71,7 @@ typedef struct {
     dan_identity_t identity;
     uint32_t baud; /* baud it answers at */
     bool present;
+    bool fast_refused; /* refused (or failed at) a fast baud: asked first next time */
 } dan_peer_t;
 
 typedef struct {
@@ -74,6 +85,8 @@ typedef struct {
     uint32_t busy_failures; /* line never went idle */
     uint32_t recoveries;    /* configure verification failed and was recovered */
     uint32_t bad_replies;   /* replies refused by the reply check (retried) */
+    uint32_t fast_refusals; /* CONFIGURE to a fast baud refused (ACK-FAIL, error frame) */
+    uint32_t moved_back;    /* peers moved back after another peer refused */
 } dan_master_stats_t;
 
 /* An optional check of a reply's payload beyond the frame CRC (e.g. the
@@ -118,6 +131,15 @@ typedef struct {
     size_t idx;   /* type index / baud index (internal) */
     size_t bidx;
     uint32_t target_baud;
+    /* configure's candidates (fast bauds, highest first): cand[cidx] is
+     * being tried; ntried of them were (recovery scans them) */
+    uint32_t cand[DAN_MASTER_MAX_FAST];
+    uint8_t ncand, cidx, ntried;
+    bool cfg_auto;                            /* configure(0): fall back to the best mask baud */
+    uint8_t pass;                             /* 0: peers that refused before, 1: the others */
+    int fast_error;                           /* why the last candidate was refused */
+    uint32_t back_baud[DAN_MASTER_MAX_TYPES]; /* where a moved peer was */
+    bool moved[DAN_MASTER_MAX_TYPES];         /* acknowledged the candidate */
     bool done;
     int result;
     uint32_t rng;
@@ -161,10 +183,15 @@ int dan_master_request(dan_master_t *m, uint32_t code, const uint8_t *payload, s
  * Result DAN_OK if at least one peer answered, else DAN_ERR_NOTFOUND. */
 int dan_master_discover(dan_master_t *m, uint64_t now_us);
 
-/* Starts configure: moves every present peer to baud (0: the highest baud
- * that all of them and the port support), switches the port, and verifies
- * each peer at the new baud. If a step fails, it recovers to a working
- * baud (9600) and the result tells what failed. */
+/* Starts configure: moves every present peer to baud, switches the port,
+ * and verifies each peer at the new baud. baud 0: the fast bauds of
+ * cfg.fast_max_baud from the highest down (a refusal moves the peers that
+ * had moved back; the next one is tried), then the highest mask baud that
+ * every peer and the port support. A baud outside the v1 mask is tried
+ * as one fast candidate (refused: DAN_ERR_NACK or DAN_ERR_REMOTE, the bus
+ * as before). If a verification fails, it recovers to a working baud
+ * (9600; in auto mode it then goes on with the mask baud) and the result
+ * tells what failed. */
 int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us);
 
 /* Installs a reply check (NULL: none). */

@@ -33,6 +33,15 @@ uint16_t dan_mask_bit_of_baud(uint32_t baud);
 /* Highest baud whose bit is in mask (defined bits only), or 9600. */
 uint32_t dan_baud_highest(uint16_t mask);
 
+/* Our fast bauds (docs/PROTOCOL.md section 6): not in the v1 mask (its
+ * reserved bits stay zero), offered by a master after discovery with
+ * CONFIGURE, which carries any baud; a peripheral that cannot do one
+ * answers ACK-FAIL. Ascending. */
+#define DAN_NFAST_BAUDS 6u
+extern const uint32_t dan_fast_bauds[DAN_NFAST_BAUDS];
+/* True for 9600 and the bauds of the v1 mask (19200..115200). */
+bool dan_baud_is_v1(uint32_t baud);
+
 /* DAN-PERIPHERAL-CAPABILITIES-MASK-V1: all bits reserved in v1. */
 
 /* DAN-PERIPHERAL-IDENTITY-PAYLOAD-V1 */

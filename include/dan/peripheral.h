@@ -85,6 +85,11 @@ typedef struct {
         reply_window_us; /* drop a reply not started by turnaround + this (default DAN_RESP_LATENCY_US) */
     uint32_t gap_us;   /* inter-byte gap (0: link default) */
     uint32_t max_baud; /* refuse CONFIGURE above this (0: port.max_baud) */
+    /* Bauds beyond 9600 and the identity's mask that CONFIGURE may ask
+     * for (e.g. dan_fast_bauds, or the ones the UART can do); not copied.
+     * NULL/0: none, the v1 behaviour (ACK-FAIL for anything else). */
+    const uint32_t *extra_bauds;
+    size_t nextra_bauds;
 } dan_periph_config_t;
 
 void dan_periph_config_default(dan_periph_config_t *c);

@@ -3,8 +3,9 @@
  * Not part of the portable core; link build/libdan_posix.a.
  *
  * The tty is opened O_NOCTTY|O_NONBLOCK, made raw (cfmakeraw, 8N1, no flow
- * control) at any baud (termios2/BOTHER for non-standard rates), and its
- * original settings are restored on close.
+ * control) at any baud (termios2/BOTHER for non-standard rates and the fast
+ * bauds up to 2 Mbit/s), its driver is asked for low latency where it has
+ * one, and its original settings are restored on close.
  *
  * Half-duplex modes:
  *   DAN_POSIX_ECHO    single wire: we hear our own bytes; the engine checks them
@@ -30,7 +31,8 @@ typedef struct {
     int fd;
     struct termios orig;
     bool have_orig;
-    uint32_t baud;
+    uint32_t baud;    /* as the kernel reports it after setting (the driver may round) */
+    bool low_latency; /* the driver took ASYNC_LOW_LATENCY (never on a pty) */
     dan_posix_mode_t mode;
     void *gpio_chip; /* struct gpiod_chip * (libgpiod v1) */
     void *gpio_line; /* struct gpiod_line * */
@@ -62,6 +64,13 @@ int dan_posix_read(dan_posix_port_t *p, uint8_t *buf, size_t cap);
 
 /* Sets any baud on an open fd (termios2 BOTHER on Linux). */
 int dan_posix_set_speed(int fd, uint32_t baud);
+/* Asks the serial driver for low latency (ASYNC_LOW_LATENCY through
+ * TIOCGSERIAL/TIOCSSERIAL); -1 where there is none (a pty). Open does it. */
+int dan_posix_low_latency(int fd);
+/* The bauds of list[0..n) this port's driver takes (it reports back
+ * within 2 % of each), into out (room for n); the current baud is kept.
+ * Returns the count. For a peripheral's extra_bauds. */
+size_t dan_posix_usable_bauds(dan_posix_port_t *p, const uint32_t *list, size_t n, uint32_t *out);
 /* Reads the output baud of an fd (for a pty master: the slave's). 0 on error. */
 uint32_t dan_posix_get_speed(int fd);
 /* Reads both bauds as the kernel keeps them (termios2, so non-standard

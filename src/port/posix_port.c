@@ -51,16 +51,47 @@ static int port_write(void *ctx, const uint8_t *data, size_t len)
     return (int)len;
 }
 
+/* Within 2 %: what a UART's divider gives is close, another baud is not
+ * (a receiver tolerates about 3 % in all). */
+static bool baud_close(uint32_t got, uint32_t want)
+{
+    uint32_t d = (got > want) ? got - want : want - got;
+    return (uint64_t)d * 50u <= want;
+}
+
+/* Sets baud and reads back what the kernel keeps (the driver may round). */
+static int set_and_check(dan_posix_port_t *p, uint32_t baud)
+{
+    uint32_t in = 0, out = 0;
+    if (dan_posix_set_speed(p->fd, baud) != 0) {
+        return DAN_ERR_IO;
+    }
+    if (dan_posix_get_speeds(p->fd, &in, &out) != 0) {
+        out = baud;
+    }
+    p->baud = (out != 0u) ? out : baud;
+    return baud_close(p->baud, baud) ? DAN_OK : DAN_ERR_UNSUPPORTED;
+}
+
 static int port_set_baud(void *ctx, uint32_t baud)
 {
     dan_posix_port_t *p = (dan_posix_port_t *)ctx;
     /* Let our last bytes leave at the old baud first. */
     (void)tcdrain(p->fd);
-    if (dan_posix_set_speed(p->fd, baud) != 0) {
-        return DAN_ERR_IO;
+    return set_and_check(p, baud);
+}
+
+size_t dan_posix_usable_bauds(dan_posix_port_t *p, const uint32_t *list, size_t n, uint32_t *out)
+{
+    uint32_t keep = p->baud;
+    size_t i, k = 0;
+    for (i = 0; i < n; i++) {
+        if (set_and_check(p, list[i]) == DAN_OK) {
+            out[k++] = list[i];
+        }
     }
-    p->baud = baud;
-    return DAN_OK;
+    (void)set_and_check(p, keep);
+    return k;
 }
 
 static bool port_tx_busy(void *ctx)
@@ -132,13 +163,18 @@ int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud, dan_pos
     t.c_iflag &= ~(tcflag_t)(IXON | IXOFF | IXANY);
     t.c_cc[VMIN] = 0;
     t.c_cc[VTIME] = 0;
-    if (tcsetattr(p->fd, TCSANOW, &t) != 0 || dan_posix_set_speed(p->fd, baud) != 0) {
+    if (tcsetattr(p->fd, TCSANOW, &t) != 0 || set_and_check(p, baud) == DAN_ERR_IO) {
         snprintf(err, errlen, "%s: cannot set %u baud 8N1 raw (%s)", path, baud, strerror(errno));
         dan_posix_close(p);
         return DAN_ERR_IO;
     }
+    if (!baud_close(p->baud, baud)) {
+        snprintf(err, errlen, "%s: asked for %u baud, the driver set %u", path, baud, p->baud);
+        dan_posix_close(p);
+        return DAN_ERR_UNSUPPORTED;
+    }
+    p->low_latency = (dan_posix_low_latency(p->fd) == 0);
     (void)tcflush(p->fd, TCIOFLUSH);
-    p->baud = baud;
     p->mode = mode;
     p->port.write = port_write;
     p->port.set_baud = port_set_baud;

@@ -292,6 +292,32 @@ def test_nonstandard_baud_250000(bus):
     assert b"".join(line[3] for line in lines) == msg  # bursts over 4096 bytes are split
 
 
+@pytest.mark.parametrize("baud", [1000000, 2000000])
+def test_pacing_fast_bauds(bus, baud):
+    """The fast bauds (PROTOCOL.md section 6) are paced byte by byte too:
+    a character is 10 or 5 us: 100 ms of wire time is 10000 or 20000 bytes
+    (no more: the reader reads only after the write, and a pty holds about
+    20 kB)."""
+    b = bus()
+    paced_transfer(b, baud, baud // 100, 0.097)
+    assert [ep["baud"] for ep in b.stats()["endpoints"]] == [baud, baud]
+
+
+def test_baud_mismatch_fast(bus):
+    """The 3 % rule at fast bauds: 921600 is not 1000000 (7.8 % off), a
+    UART's 1020000 is (2 % off)."""
+    b = bus(n=3)
+    a = b.open(0, 1000000)
+    off = b.open(1, 921600)
+    near = b.open(2, 1020000)
+    msg = bytes(range(200))
+    a.write(msg)
+    assert read_exact(a, 200) == msg
+    assert read_exact(near, 200) == msg
+    assert all(x != y for x, y in zip(read_exact(off, 200), msg))
+    assert b.stats()["mismatched_bytes"] == 200
+
+
 def test_baud_mismatch_corrupts(bus):
     b = bus(n=3)
     a = b.open(0, 9600)

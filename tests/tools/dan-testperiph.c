@@ -3,6 +3,13 @@
  * end-to-end tests of the engines.
  *
  *   dan-testperiph --port EP --types test-a,test-b [--mask 0x0F] [--no-echo]
+ *                  [--v1-only] [--ack-no-switch]
+ *
+ * By default it also accepts the fast bauds (dan_fast_bauds, 230400 to
+ * 2000000; docs/PROTOCOL.md section 6); --v1-only accepts only 9600 and
+ * its mask, as a peripheral that knows only DAN v1. --ack-no-switch
+ * acknowledges a CONFIGURE to a fast baud and does not switch (its UART
+ * stays where it was): the faulty peripheral the master must recover.
  *
  * Type test-a serves 0x62 (reply: the payload reversed; empty payload is
  * malformed) and 0x63 (no reply). Prints "READY" once open; on SIGTERM or
@@ -26,7 +33,7 @@
 typedef struct {
     const char *path, *types;
     unsigned long mask, window_ms, gap_ms, baud;
-    bool no_echo;
+    bool no_echo, v1_only, ack_no_switch;
 } opts_t;
 
 /* The numbers an option sets, or NULL for any other option. */
@@ -58,8 +65,12 @@ static int parse_options(int argc, char **argv, opts_t *o)
     for (i = 1; i < argc; i++) {
         const char *v = (i + 1 < argc) ? argv[i + 1] : NULL;
         unsigned long *num = number_option(o, argv[i]);
-        if (strcmp(argv[i], "--no-echo") == 0) {
-            o->no_echo = true;
+        bool *flag = strcmp(argv[i], "--no-echo") == 0         ? &o->no_echo
+                     : strcmp(argv[i], "--v1-only") == 0       ? &o->v1_only
+                     : strcmp(argv[i], "--ack-no-switch") == 0 ? &o->ack_no_switch
+                                                               : NULL;
+        if (flag != NULL) {
+            *flag = true;
             continue;
         }
         if (v == NULL) {
@@ -132,6 +143,14 @@ static void serve(dan_periph_t *p, dan_posix_port_t *port)
     }
 }
 
+/* --ack-no-switch: the real port's set_baud, and a stand-in that ignores
+ * the fast bauds (the engine believes it switched). */
+static dan_port_t real_port;
+static int set_baud_v1_only(void *ctx, uint32_t baud)
+{
+    return dan_baud_is_v1(baud) ? real_port.set_baud(ctx, baud) : DAN_OK;
+}
+
 static void print_counters(const dan_periph_t *p, unsigned silent)
 {
     printf("{\"requests\":%u,\"replies\":%u,\"unknown\":%u,\"errors_sent\":%u,\"late\":%u,"
@@ -150,7 +169,7 @@ int main(int argc, char **argv)
     static dan_identity_t ids[MAX_TYPES];
     static dan_ptype_t types[MAX_TYPES];
     static unsigned silent;
-    opts_t o = {NULL, "test-a", 0x0F, 50, 20, 9600, false};
+    opts_t o = {NULL, "test-a", 0x0F, 50, 20, 9600, false, false, false};
     size_t ntypes = 0;
     char err[256];
     dan_periph_config_t cfg;
@@ -172,6 +191,14 @@ int main(int argc, char **argv)
     dan_periph_config_default(&cfg);
     cfg.reply_window_us = (uint32_t)o.window_ms * 1000u;
     cfg.gap_us = (uint32_t)o.gap_ms * 1000u;
+    if (!o.v1_only) {
+        cfg.extra_bauds = dan_fast_bauds;
+        cfg.nextra_bauds = DAN_NFAST_BAUDS;
+    }
+    real_port = *dan_posix_port(&port);
+    if (o.ack_no_switch) {
+        port.port.set_baud = set_baud_v1_only;
+    }
     dan_periph_init(&p, dan_posix_port(&port), types, ntypes, &cfg, (uint32_t)o.baud,
                     dan_posix_now_us());
     tool_catch_signal(SIGINT);

@@ -26,7 +26,7 @@ static int node_write(void *ctx, const uint8_t *data, size_t len)
 static int node_set_baud(void *ctx, uint32_t baud)
 {
     sim_node_t *n = (sim_node_t *)ctx;
-    if (!n->ignore_baud) {
+    if (!n->ignore_baud && (n->ignore_above == 0u || baud <= n->ignore_above)) {
         n->baud = baud;
     }
     return 0;
@@ -193,5 +193,41 @@ void sim_run_for(simbus_t *b, uint64_t us)
     uint64_t end = b->now + us;
     while (b->now < end) {
         sim_step(b);
+    }
+}
+
+static int cap_write(void *ctx, const uint8_t *d, size_t n)
+{
+    sim_cap_t *c = (sim_cap_t *)ctx;
+    if (n > sizeof c->buf - c->len) {
+        return -1;
+    }
+    memcpy(c->buf + c->len, d, n);
+    c->len += n;
+    return (int)n;
+}
+
+static int cap_set_baud(void *ctx, uint32_t b)
+{
+    (void)ctx;
+    (void)b;
+    return 0;
+}
+
+void sim_cap_port(sim_cap_t *c, dan_port_t *port)
+{
+    memset(c, 0, sizeof *c);
+    memset(port, 0, sizeof *port);
+    port->write = cap_write;
+    port->set_baud = cap_set_baud;
+    port->ctx = c;
+    port->echo = true;
+}
+
+void sim_cap_wait_tx(sim_cap_t *c, dan_master_t *m, uint64_t *now, uint32_t step_us)
+{
+    while (c->len == 0u) {
+        *now += step_us;
+        (void)dan_master_poll(m, *now);
     }
 }

@@ -19,9 +19,10 @@ typedef struct {
     simbus_t *bus;
     int idx;
     uint32_t baud;
-    bool echo;        /* receives its own bytes */
-    bool ignore_baud; /* fault: set_baud does nothing (stays at baud) */
-    bool mute;        /* fault: writes are dropped */
+    bool echo;             /* receives its own bytes */
+    bool ignore_baud;      /* fault: set_baud does nothing (stays at baud) */
+    uint32_t ignore_above; /* fault: set_baud above this does nothing (0: off) */
+    bool mute;             /* fault: writes are dropped */
     uint64_t tx_free_us;
     dan_port_t port;
     dan_master_t *master;
@@ -64,5 +65,15 @@ void sim_step(simbus_t *b);
  * returns the result (or 1 if it did not complete). */
 int sim_run_master(simbus_t *b, dan_master_t *m, uint64_t max_us);
 void sim_run_for(simbus_t *b, uint64_t us);
+
+/* A port outside the bus that only records what is written (for tests
+ * that feed a master by hand with injected time): echo on, any baud. */
+typedef struct {
+    uint8_t buf[256];
+    size_t len;
+} sim_cap_t;
+void sim_cap_port(sim_cap_t *c, dan_port_t *port);
+/* Polls m every step_us from *now until it has written something. */
+void sim_cap_wait_tx(sim_cap_t *c, dan_master_t *m, uint64_t *now, uint32_t step_us);
 
 #endif

@@ -447,45 +447,23 @@ static void test_late_echo_is_not_a_reply(void **state)
 
 /* A slow host reads the last echo byte and the whole reply in one go (a
  * USB adapter's latency timer does this): the reply still counts. */
-static uint8_t cap_buf[64];
-static size_t cap_len;
-static int cap_write(void *ctx, const uint8_t *d, size_t n)
-{
-    (void)ctx;
-    memcpy(cap_buf + cap_len, d, n);
-    cap_len += n;
-    return (int)n;
-}
-static int cap_set_baud(void *ctx, uint32_t b)
-{
-    (void)ctx;
-    (void)b;
-    return 0;
-}
-
 static void test_reply_in_same_read_as_echo(void **state)
 {
+    static sim_cap_t cap;
     dan_master_t m;
     dan_port_t port;
     uint8_t rx[64];
     uint64_t now = 1000;
     int n;
     (void)state;
-    memset(&port, 0, sizeof port);
-    port.write = cap_write;
-    port.set_baud = cap_set_baud;
-    port.echo = true;
-    cap_len = 0;
+    sim_cap_port(&cap, &port);
     assert_int_equal(dan_master_init(&m, &port, NULL, probe_types, 1, 115200, now), DAN_OK);
     assert_int_equal(dan_master_request(&m, 0x62, (const uint8_t *)"abc", 3, now), DAN_OK);
-    while (cap_len == 0) {
-        now += 100;
-        (void)dan_master_poll(&m, now);
-    }
+    sim_cap_wait_tx(&cap, &m, &now, 100);
     /* one read: our echo, then the whole reply */
-    memcpy(rx, cap_buf, cap_len);
-    n = dan_frame_encode(0x62, (const uint8_t *)"cba", 3, rx + cap_len, sizeof rx - cap_len);
-    dan_master_rx(&m, rx, cap_len + (size_t)n, now + 2000);
+    memcpy(rx, cap.buf, cap.len);
+    n = dan_frame_encode(0x62, (const uint8_t *)"cba", 3, rx + cap.len, sizeof rx - cap.len);
+    dan_master_rx(&m, rx, cap.len + (size_t)n, now + 2000);
     assert_int_equal(dan_master_poll(&m, now + 2001), 1);
     assert_int_equal(dan_master_result(&m), DAN_OK);
     assert_memory_equal(m.resp, "cba", 3);

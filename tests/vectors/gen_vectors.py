@@ -190,6 +190,10 @@ def payload_vectors():
         "\t".join(["configure", "0", "115200", h(configure(0, 115200))]),
         "\t".join(["configure", "0", "9600", h(configure(0, 9600))]),
         "\t".join(["configure", "0", "19200", h(configure(0, 19200))]),
+        # fast bauds (PROTOCOL.md section 6): the same payload, a longer uvarint
+        "\t".join(["configure", "0", "230400", h(configure(0, 230400))]),
+        "\t".join(["configure", "0", "1000000", h(configure(0, 1000000))]),
+        "\t".join(["configure", "0", "2000000", h(configure(0, 2000000))]),
         "\t".join(["ack", "0", "00"]),
         "\t".join(["ack", "1", "01"]),
         "\t".join(["error", str(0x42), "0", "bad payload", h(error(0x42, 0, "bad payload"))]),
