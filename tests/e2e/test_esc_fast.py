@@ -57,6 +57,8 @@ def test_fcsim_fast_exact_values_and_telemetry_of_every_esc(stack):
     assert rc == 0, out
     run = next(line for line in out if line["step"] == "esc")
     assert run["fast"] and run["telem_every"] == 4 and run["errors"] == 0
+    assert run["baud"] == 115200
+    print(f"\nESC_FAST at {run['baud']} on dan-vbus: {run['rate']:.0f} exchanges/s")
     n = run["exchanges"]
     assert n > 40
     # a record on every 4th exchange exactly (and every ESC has reported)
