@@ -295,11 +295,12 @@ def test_nonstandard_baud_250000(bus):
 @pytest.mark.parametrize("baud", [1000000, 2000000])
 def test_pacing_fast_bauds(bus, baud):
     """The fast bauds (PROTOCOL.md section 6) are paced byte by byte too:
-    a character is 10 or 5 us: 100 ms of wire time is 10000 or 20000 bytes
-    (no more: the reader reads only after the write, and a pty holds about
-    20 kB)."""
+    a character is 10 or 5 us: 50 ms of wire time is 5000 or 10000 bytes
+    (no more: the reader reads only after the write, a pty holds about
+    20 kB, and under load the reader can lag by tens of ms: 20000 bytes at
+    2M lost some in `make test`)."""
     b = bus()
-    paced_transfer(b, baud, baud // 100, 0.097)
+    paced_transfer(b, baud, baud // 200, 0.048)
     assert [ep["baud"] for ep in b.stats()["endpoints"]] == [baud, baud]
 
 
