@@ -230,8 +230,12 @@ unit-run: unit
 	  echo "== $$t"; DAN_VECTORS=tests/vectors $$t || fail=1; \
 	done; exit $$fail
 
+# The e2e tests mostly wait on virtual wires and timers: three workers
+# (whole files each, so a file's rig is built once) keep `make test` well
+# under its 10-minute budget on 2 cores. PYTEST_JOBS=0 runs them in one process.
+PYTEST_JOBS ?= 3
 pytest: all venv firmware
-	CI=$${CI:-} $(VENV)/bin/python -m pytest -q tests/e2e
+	CI=$${CI:-} $(VENV)/bin/python -m pytest -q -n $(PYTEST_JOBS) --dist loadfile tests/e2e
 
 # One formatter for C (clang-format, .clang-format) and one for Python
 # (ruff, pyproject.toml at the top): `make style` fails on any difference.

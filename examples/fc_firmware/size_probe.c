@@ -5,7 +5,7 @@
  *
  *   SIZE_PROBE=0  vector table and reset handler only (the baseline)
  *   SIZE_PROBE=1  + the master engine (pulls in the codec and the link)
- *   SIZE_PROBE=2  + the gateway client: ESC command, telemetry, arm,
+ *   SIZE_PROBE=2  + the gateway client: ESC command (both kinds), telemetry, arm,
  *                 config, stats (what an FC's motor output needs)
  *   SIZE_PROBE=3  + the rest of the gateway client (nodes, node info,
  *                 tunnels, raw CAN, filters)
@@ -74,6 +74,8 @@ void Reset_Handler(void)
                 dan_gw_init(&probe_gw, &probe_master);
             if (probe_in == 2u)
                 dan_gw_esc_command(&probe_gw, v, 4, probe_time);
+            if (probe_in == 20u)
+                dan_gw_esc_fast(&probe_gw, v, 4, probe_in == 21u, probe_time);
             if (probe_in == 3u)
                 dan_gw_telemetry(&probe_gw, 0, probe_time);
             if (probe_in == 4u)

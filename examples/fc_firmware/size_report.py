@@ -18,7 +18,7 @@ import sys
 PARTS = [
     ("codec", ("common.o", "crc8.o", "frame.o", "payloads.o")),
     ("master engine", ("link.o", "master.o", "master_seq.o", "master_fast.o")),
-    ("gateway client", ("gw_client.o", "gw_msgs.o", "f16.o", "crc16.o")),
+    ("gateway client", ("gw_client.o", "gw_msgs.o", "gw_msgs_fast.o", "f16.o", "crc16.o")),
 ]
 LIB_PARTS = [p for p, _ in PARTS]
 

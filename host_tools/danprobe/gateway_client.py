@@ -31,7 +31,7 @@ command again, so they need no sequence numbers.
 
 import random
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 from danprobe import registry
@@ -45,6 +45,14 @@ from danprobe.gateway_can import (
     CanSendResponse,
     Filter,
     FilterTable,
+)
+from danprobe.gateway_fast import (
+    CODE_ESC_FAST,
+    CODE_ESC_FAST_T,
+    FastRecord,
+    FastResponse,
+    decode_esc_fast,
+    encode_esc_fast,
 )
 from danprobe.gateway_mgmt import (
     CALL_DONE,
@@ -92,6 +100,7 @@ from danprobe.gateway_msgs import (
     NONE,
     REQUEST,
     RESPONSE,
+    TELEM_STATUS,
     TUN_CHUNK_MAX,
     ConfigRequest,
     ConfigResponse,
@@ -152,7 +161,7 @@ def _describer(code: int, direction: int, fn: Callable) -> Callable[[bytes], dic
 
 
 def register_names():
-    """Names codes 0x42..0x4F and 0x52..0x58 in the registry, with describers
+    """Names codes 0x42..0x4F and 0x52..0x5A in the registry, with describers
     of the sealed payloads, so sniff shows and decodes them (the CLI calls
     this at start). A CAN_RECV response is decoded with the opts of the last
     CAN_RECV request described (its layout depends on them)."""
@@ -164,6 +173,9 @@ def register_names():
 
     def kept(p):
         return {"kept": u8(p)}
+
+    def fast_req(p):
+        return {"values": decode_esc_fast(p)}
 
     def recv_req(p):
         q = CanRecvRequest.decode(p)
@@ -192,6 +204,8 @@ def register_names():
         (CODE_SERVO_FAILSAFE, "SERVO_FAILSAFE", ServoFailsafeTable.decode, kept),
         (CODE_LIGHTS, "LIGHTS", LightsRequest.decode, flags),
         (CODE_BEEP, "BEEP", Beep.decode, flags),
+        (CODE_ESC_FAST, "ESC_FAST", fast_req, FastResponse.decode),
+        (CODE_ESC_FAST_T, "ESC_FAST_T", fast_req, FastResponse.decode),
     ):
         registry.register_message(
             code,
@@ -271,6 +285,27 @@ class GatewayClient:
         for r in t.records:
             self.esc[r.esc_index] = r
         return t.records[0] if t.records else None
+
+    def esc_fast(self, values: Sequence[int], telem: bool = False) -> Optional[FastRecord]:
+        """The compact exchange: ESC_FAST, or ESC_FAST_T when telem. Returns
+        the record that came back (ESC_FAST_T, once an ESC reported); its
+        esc.Status fields also update self.esc (the others stay)."""
+        code = CODE_ESC_FAST_T if telem else CODE_ESC_FAST
+        rsp = self._call(code, encode_esc_fast(values), FastResponse.decode)
+        self.flags = rsp.flags
+        rec = rsp.record
+        if rec is not None:
+            old = self.esc.get(rec.esc_index) or TelemRecord(rec.esc_index)
+            self.esc[rec.esc_index] = replace(
+                old,
+                flags=old.flags | TELEM_STATUS,
+                age_ms=rec.age_ms,
+                voltage_f16=rec.voltage_f16,
+                current_f16=rec.current_f16,
+                temperature_f16=rec.temperature_f16,
+                rpm=rec.rpm,
+            )
+        return rec
 
     def telemetry_page(self, first: int = 0) -> Telemetry:
         t = self._call(CODE_ESC_TELEM, bytes([first]), Telemetry.decode)

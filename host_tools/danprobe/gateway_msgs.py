@@ -290,8 +290,27 @@ def decode_esc_cmd(payload) -> list[int]:
 # ---- telemetry (ESC_CMD and ESC_TELEM responses) ----
 
 
+class EscStatusFloats:
+    """The esc.Status numbers of a record whose fields voltage_f16,
+    current_f16 and temperature_f16 hold binary16 bits (TelemRecord, the
+    compact FastRecord)."""
+
+    @property
+    def voltage(self) -> float:
+        return f16_to_float(self.voltage_f16)
+
+    @property
+    def current(self) -> float:
+        return f16_to_float(self.current_f16)
+
+    @property
+    def temperature(self) -> float:
+        """Kelvin, as esc.Status carries it."""
+        return f16_to_float(self.temperature_f16)
+
+
 @dataclass
-class TelemRecord:
+class TelemRecord(EscStatusFloats):
     esc_index: int = 0
     node_id: int = 0
     flags: int = 0  # TELEM_STATUS | TELEM_EXT | TELEM_DEVICE
@@ -353,19 +372,6 @@ class TelemRecord:
             t.dev_age_ms, t.dev_temp_f16 = r.uvarint("dev_age_ms"), r.u16("dev_temperature")
             t.dev_flags = r.u8("dev_error_flags")
         return t
-
-    @property
-    def voltage(self) -> float:
-        return f16_to_float(self.voltage_f16)
-
-    @property
-    def current(self) -> float:
-        return f16_to_float(self.current_f16)
-
-    @property
-    def temperature(self) -> float:
-        """Kelvin, as esc.Status carries it."""
-        return f16_to_float(self.temperature_f16)
 
     @property
     def dev_temperature(self) -> float:

@@ -32,6 +32,10 @@ from danprobe.registry import CODE_ERROR, PeripheralType
 # 9600 first (the spec's start), then the mask bauds from the highest down:
 # where a bus configured by a master that restarted most likely is.
 DISCOVERY_BAUDS = (9600, 115200, 57600, 38400, 19200)
+# Bauds above the draft's mask, offered only to a port that can do them
+# (MasterConfig.max_baud) and negotiated with plain CONFIGURE: a peripheral
+# that cannot answers ACK-FAIL (docs/PROTOCOL.md section 6, "Fast bauds").
+FAST_BAUDS = (230400, 460800, 921600, 1000000, 1500000, 2000000)
 TURNAROUND_CHARS = 2  # a peripheral replies no sooner than this after our last byte
 GAP_CHARS = 10  # libdan's inter-byte gap: max(10 C, 2 ms)
 GAP_MIN_S = 0.002
@@ -288,7 +292,7 @@ class MasterConfig:
     discovery_attempts: int = 2  # attempts per type per baud when probing
     lbt_chars: int = 3  # idle characters before talking (at least 2)
     scan_all_bauds: bool = True  # probe types missing at 9600 at the other bauds
-    max_baud: int = 0  # highest baud the port can do (0: no limit)
+    max_baud: int = 0  # highest baud the port can do (0: no limit, no fast bauds)
     seed: Optional[int] = None  # backoff jitter seed (default: the process id)
 
 
@@ -312,6 +316,7 @@ class Peer:
     identity: Optional[Identity] = None
     baud: int = 0  # the baud it answers at
     present: bool = False
+    refused_fast: bool = False  # refused a fast baud: asked first next time
 
     def as_dict(self) -> dict:
         d = {"type": self.type.name, "first_code": self.type.first, "baud": self.baud}
@@ -340,6 +345,7 @@ class Master:
         self.stats = MasterStats()
         self.rng = random.Random(os.getpid() if self.cfg.seed is None else self.cfg.seed)
         self.progress = progress or (lambda msg: None)
+        self._tried: set[int] = set()  # bauds configure tried (recovery looks there)
         self.wait_until = 0.0  # not before: backoff, or settling after a baud switch
         # An optional check of a reply's payload beyond the frame CRC (the
         # gateway's seal): reply_check(code, payload) -> bool; False makes
@@ -369,6 +375,18 @@ class Master:
 
     def _port_supports(self, baud: int) -> bool:
         return self.cfg.max_baud == 0 or baud <= self.cfg.max_baud
+
+    def fast_bauds(self) -> list[int]:
+        """The fast bauds the port can do, highest first (none without max_baud)."""
+        return [b for b in reversed(FAST_BAUDS) if b <= self.cfg.max_baud]
+
+    def scan_bauds(self) -> list[int]:
+        """Where to look for peers: 9600, the bauds this master tried to
+        configure (a peer that acknowledged and then failed may sit there),
+        the fast bauds, then the mask bauds from the highest down."""
+        order = [BASE_BAUD] + sorted(self._tried, reverse=True) + self.fast_bauds()
+        order += [b for b in DISCOVERY_BAUDS if self._port_supports(b)]
+        return list(dict.fromkeys(order))
 
     def switch_baud(self, baud: int):
         """Talks at baud from now on (the caller knows the bus is there)."""
@@ -428,7 +446,10 @@ class Master:
             t = link.polled  # every byte that came before t was handled
             until = deadline
             if t >= deadline:
-                last = deadline + MAX_FRAME * link.char
+                # The tail of a reply that started in time: at least the gap,
+                # since at fast bauds a whole frame is shorter than an
+                # adapter's burst latency (PROTOCOL.md section 6).
+                last = deadline + max(MAX_FRAME * link.char, link.gap)
                 if link.idle(t) >= link.gap or t >= last:
                     self.stats.timeouts += 1
                     raise DanTimeout(f"no answer to 0x{code:02X} at {link.baud} baud")
@@ -513,7 +534,7 @@ class Master:
         found. Raises NotFound if nobody answered."""
         for p in self.peers:
             p.present, p.identity = False, None
-        for i, baud in enumerate(b for b in DISCOVERY_BAUDS if self._port_supports(b)):
+        for i, baud in enumerate(self.scan_bauds()):
             missing = [p for p in self.peers if not p.present]
             if not missing or (i > 0 and not self.cfg.scan_all_bauds):
                 break
@@ -540,11 +561,100 @@ class Master:
         return BASE_BAUD
 
     def configure(self, baud: int = 0) -> int:
-        """Moves every present peer to baud (0: best_baud()), switches, and
-        verifies each one there. On failure, recovers the bus to 9600 and
-        raises the original error. Returns the bus baud."""
+        """Moves every present peer to baud (0: the fast bauds of the port
+        from the highest down, then best_baud()), switches, and verifies each
+        one there. On failure, recovers the bus to 9600 and raises the
+        original error. A fast baud some peer refuses (ACK-FAIL) leaves the
+        bus where it was: for an explicit baud the refusal is raised.
+        Returns the bus baud."""
+        if baud and baud > BASE_BAUD and baud not in payloads.MASK_BAUDS:
+            if not self._try_fast(baud):
+                raise Nack(f"a peripheral refused {baud} baud; bus kept at {self.baud}")
+            return baud
+        if not baud:
+            for c in self.fast_bauds():
+                try:
+                    if self._try_fast(c):
+                        return c
+                except OperationTimeout:
+                    raise
+                except DanError as e:
+                    # Recovered to 9600: a peer acknowledged and was not
+                    # there. It is not trusted with another fast baud.
+                    self.progress(f"{c} baud failed ({e}); going on with the draft's bauds")
+                    break
+        return self._configure_mask(baud or self.best_baud())
+
+    def _try_fast(self, target: int) -> bool:
+        """One fast-baud offer. True: every peer verified at target. False:
+        some peer refused; the peers already moved were moved back and the
+        bus is where it was. Any other failure: recovery, raised."""
         found = self.present()
-        target = baud or self.best_baud()
+        if not found:
+            raise NotFound("no peripheral discovered")
+        if not self._port_supports(target):
+            raise Unsupported(f"the port does not do {target} baud")
+        self._tried.add(target)
+        back = {id(p): p.baud for p in found}
+        moved: list[Peer] = []
+        try:
+            for p in sorted(found, key=lambda q: not q.refused_fast):
+                if p.baud == target:
+                    continue
+                if not self._offer(p, target):
+                    self._move_back(moved, target, back)
+                    return False
+                moved.append(p)
+            self._verify(found, target)
+        except OperationTimeout:
+            raise
+        except DanError as e:
+            for p in found:
+                if p.baud == target or p in moved:
+                    p.refused_fast = True  # failed it: asked first from now on
+            self._recover(e)
+        return True
+
+    def _offer(self, p: Peer, target: int) -> bool:
+        """CONFIGURE(target) at the peer's baud: False if it refused."""
+        self._switch_baud(p.baud)
+        self.progress(f"CONFIGURE {p.type.name} to {target} baud (at {p.baud})")
+        try:
+            self._configure_peer(p, target)
+        except (Nack, RemoteError):
+            p.refused_fast = True
+            self.progress(f"{p.type.name} refused {target} baud")
+            return False
+        except OperationTimeout:
+            raise
+        except DanTimeout:
+            pass  # maybe moved with another type of its device: verification decides
+        p.baud = target
+        return True
+
+    def _move_back(self, moved: list[Peer], target: int, back: dict):
+        """The peers that accepted a fast baud another refused go back to
+        where they were, and are verified there."""
+        if not moved:
+            return
+        self._switch_baud(target)
+        for p in moved:
+            self.progress(f"CONFIGURE {p.type.name} back to {back[id(p)]} baud")
+            self._configure_peer(p, back[id(p)])
+            p.baud = back[id(p)]
+        for p in moved:
+            self._switch_baud(p.baud)
+            self._identify(p, self.cfg.retries + 1)
+
+    def _verify(self, peers: list[Peer], baud: int):
+        self._switch_baud(baud)
+        self.progress(f"verifying at {baud} baud")
+        for p in peers:
+            self._identify(p, self.cfg.retries + 1)
+
+    def _configure_mask(self, target: int) -> int:
+        """configure() to a baud of the draft's mask."""
+        found = self.present()
         for p in found:
             if not payloads.supports(p.identity.baud_mask, target):
                 raise Unsupported(
@@ -570,10 +680,7 @@ class Master:
                     # with its first CONFIGURE. Verification decides.
                     pass
                 p.baud = target  # it switches once its ACK has left
-            self._switch_baud(target)
-            self.progress(f"verifying at {target} baud")
-            for p in found:
-                self._identify(p, self.cfg.retries + 1)
+            self._verify(found, target)
         except OperationTimeout:
             raise
         except DanError as e:
@@ -586,9 +693,7 @@ class Master:
         self.stats.recoveries += 1
         self.progress(f"configure failed ({why}); recovering the bus to {BASE_BAUD} baud")
         for p in self.present():
-            candidates = [p.baud] + [
-                b for b in DISCOVERY_BAUDS if b != p.baud and self._port_supports(b)
-            ]
+            candidates = [p.baud] + [b for b in self.scan_bauds() if b != p.baud]
             for b in candidates:
                 self._switch_baud(b)
                 try:

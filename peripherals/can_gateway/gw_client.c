@@ -69,6 +69,16 @@ int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t n
                          dan_gw_msg_esc_cmd_encode(values, n, buf, sizeof buf), now_us);
 }
 
+int dan_gw_esc_fast(dan_gw_t *gw, const int16_t *values, size_t n, bool telem, uint64_t now_us)
+{
+    uint8_t buf[DAN_GW_ESC_FAST_SIZE(DAN_GW_ESC_MAX)];
+    if (!dan_gwc_idle(gw)) {
+        return DAN_ERR_BUSY;
+    }
+    return dan_gwc_start(gw, telem ? DAN_GW_CODE_ESC_FAST_T : DAN_GW_CODE_ESC_FAST, buf,
+                         dan_gw_msg_esc_fast_encode(values, n, buf, sizeof buf), now_us);
+}
+
 int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
     if (!dan_gwc_idle(gw)) {
@@ -282,6 +292,35 @@ static int complete_telem(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t 
     return DAN_OK;
 }
 
+/* ESC_FAST / ESC_FAST_T: flags, and the compact record into gw->esc. */
+static int complete_fast(dan_gw_t *gw, const uint8_t *p, size_t len)
+{
+    dan_gw_fast_rec_t rec;
+    bool has;
+    dan_gw_telem_t *t;
+    if (dan_gw_msg_esc_fast_rsp_decode(&gw->gw_flags, &rec, &has, p, len) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
+    }
+    gw->last_telem = has ? rec.esc_index : DAN_GW_NONE;
+    gw->telem_fresh = has && rec.fresh;
+    if (!has) {
+        return DAN_OK;
+    }
+    if (rec.esc_index >= DAN_GW_MAX_ESC) {
+        gw->telem_ignored++;
+        return DAN_OK;
+    }
+    t = &gw->esc[rec.esc_index];
+    t->esc_index = rec.esc_index;
+    t->flags |= DAN_GW_TELEM_STATUS;
+    t->age_ms = (uint32_t)rec.age_4ms * DAN_GW_FAST_AGE_UNIT;
+    t->voltage_f16 = rec.voltage_f16;
+    t->current_f16 = rec.current_f16;
+    t->temperature_f16 = rec.temperature_f16;
+    t->rpm = rec.rpm;
+    return DAN_OK;
+}
+
 static int complete_xfer(dan_gw_t *gw, const uint8_t *p, size_t len)
 {
     dan_gw_tun_xfer_t x;
@@ -323,6 +362,8 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)
     switch (code) {
     case DAN_GW_CODE_ESC_CMD:
     case DAN_GW_CODE_ESC_TELEM: rc = complete_telem(gw, code, p, len); break;
+    case DAN_GW_CODE_ESC_FAST:
+    case DAN_GW_CODE_ESC_FAST_T: rc = complete_fast(gw, p, len); break;
     case DAN_GW_CODE_ARM:
     case DAN_GW_CODE_SAFETY:
     case DAN_GW_CODE_SERVO:

@@ -3,6 +3,7 @@
 
 #include "dan/codes.h"
 #include "dan/can_gw/msgs.h"
+#include "dan/can_gw/msgs_fast.h"
 
 static int finish_reader(const dan_reader_t *r)
 {
@@ -13,46 +14,19 @@ static int finish_reader(const dan_reader_t *r)
 
 int dan_gw_msg_esc_cmd_encode(const int16_t *values, size_t n, uint8_t *out, size_t cap)
 {
-    size_t size, i;
-    uint32_t acc = 0;
-    unsigned bits = 0;
-    size_t pos = 1;
-    if (values == NULL || n == 0u || n > DAN_GW_ESC_MAX) {
-        return DAN_ERR_ARG;
+    int len = dan_gw_msg_esc_fast_encode(values, n, out != NULL ? out + 1 : NULL,
+                                         cap > 0u ? cap - 1u : 0u);
+    if (len >= 0 && out != NULL) {
+        out[0] = (uint8_t)n;
     }
-    for (i = 0; i < n; i++) {
-        if (values[i] < DAN_DC_ESC_RAW_CMD_MIN || values[i] > DAN_DC_ESC_RAW_CMD_MAX) {
-            return DAN_ERR_ARG;
-        }
-    }
-    size = DAN_GW_ESC_CMD_SIZE(n);
-    if (out == NULL) {
-        return (int)size;
-    }
-    if (cap < size) {
-        return DAN_ERR_OVERFLOW;
-    }
-    out[0] = (uint8_t)n;
-    for (i = 0; i < n; i++) {
-        acc |= ((uint32_t)(uint16_t)values[i] & 0x3FFFu) << bits;
-        bits += 14u;
-        while (bits >= 8u) {
-            out[pos++] = (uint8_t)(acc & 0xFFu);
-            acc >>= 8;
-            bits -= 8u;
-        }
-    }
-    if (bits > 0u) {
-        out[pos] = (uint8_t)(acc & 0xFFu);
-    }
-    return (int)size;
+    return len >= 0 ? len + 1 : len;
 }
 
+/* The padding bits are not checked here (ESC_FAST checks them): ESC_CMD
+ * decoders never did, and senders that set them must keep working. */
 int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, size_t *n)
 {
-    size_t cnt, i, pos = 1;
-    uint32_t acc = 0;
-    unsigned bits = 0;
+    size_t cnt;
     if (p == NULL || values == NULL || n == NULL) {
         return DAN_ERR_ARG;
     }
@@ -63,17 +37,7 @@ int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, siz
     if (cnt == 0u || cnt > DAN_GW_ESC_MAX || len < DAN_GW_ESC_CMD_SIZE(cnt)) {
         return DAN_ERR_MALFORMED;
     }
-    for (i = 0; i < cnt; i++) {
-        uint32_t v;
-        while (bits < 14u) {
-            acc |= (uint32_t)p[pos++] << bits;
-            bits += 8u;
-        }
-        v = acc & 0x3FFFu;
-        acc >>= 14;
-        bits -= 14u;
-        values[i] = (int16_t)((v & 0x2000u) ? (int32_t)v - 0x4000 : (int32_t)v);
-    }
+    (void)dan_gw_msg_esc_unpack(p + 1, cnt, values);
     *n = cnt;
     return DAN_OK;
 }

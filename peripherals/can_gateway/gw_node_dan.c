@@ -340,6 +340,8 @@ const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_SERVO_FAILSAFE, dan_gwn_h_servo_failsafe},
     {DAN_GW_CODE_LIGHTS, dan_gwn_h_lights},
     {DAN_GW_CODE_BEEP, dan_gwn_h_beep},
+    {DAN_GW_CODE_ESC_FAST, dan_gwn_h_esc_fast},
+    {DAN_GW_CODE_ESC_FAST_T, dan_gwn_h_esc_fast},
 };
 const size_t dan_gwn_nhandlers = sizeof dan_gwn_handlers / sizeof dan_gwn_handlers[0];
 

@@ -95,6 +95,24 @@ const dan_gw_telem_t *dan_gwn_esc_next_telem(dan_gw_node_t *g, uint64_t now_us)
     return t;
 }
 
+/* ESC_FAST_T: the next ESC with esc.Status after the last one reported
+ * (the compact record has nothing else); the same round robin as ESC_CMD. */
+bool dan_gwn_esc_next_fast(dan_gw_node_t *g, dan_gw_fast_rec_t *rec, uint64_t now_us)
+{
+    size_t i;
+    for (i = 1; i <= DAN_GW_NODE_ESC_SLOTS; i++) {
+        size_t idx = ((size_t)g->esc.rr + i) % DAN_GW_NODE_ESC_SLOTS;
+        dan_gw_node_esc_t *e = &g->esc.slot[idx];
+        if (e->t.flags & DAN_GW_TELEM_STATUS) {
+            g->esc.rr = (uint8_t)idx;
+            *rec = dan_gw_fast_rec_make(dan_gwn_esc_telem(g, idx, now_us), e->fresh);
+            e->fresh = false;
+            return true;
+        }
+    }
+    return false;
+}
+
 uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g)
 {
     size_t i;
@@ -123,6 +141,7 @@ void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_
     e->t.power_pct = s.power_rating_pct;
     e->t.error_count = s.error_count;
     e->status_us = now_us;
+    e->fresh = true;
 }
 
 /* device.Temperature joins the telemetry of every ESC index the same node

@@ -5,6 +5,7 @@
 #ifndef DAN_CAN_GW_NODE_INTERNAL_H
 #define DAN_CAN_GW_NODE_INTERNAL_H
 
+#include "dan/can_gw/msgs_fast.h"
 #include "dan/can_gw/node.h"
 
 /* Milliseconds between two microsecond times, saturated to 32 bits. */
@@ -31,6 +32,9 @@ const dan_gw_telem_t *dan_gwn_esc_telem(dan_gw_node_t *g, size_t idx, uint64_t n
 /* The next ESC with telemetry after the last one reported (round robin). */
 const dan_gw_telem_t *dan_gwn_esc_next_telem(dan_gw_node_t *g, uint64_t now_us);
 uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g);
+/* The next ESC with esc.Status as a compact record (ESC_FAST_T), marked
+ * not fresh; false if no ESC sent esc.Status. */
+bool dan_gwn_esc_next_fast(dan_gw_node_t *g, dan_gw_fast_rec_t *rec, uint64_t now_us);
 void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_on_temperature(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
@@ -160,6 +164,8 @@ int dan_gwn_h_servo_failsafe(void *user, uint32_t code, const uint8_t *req, size
                              dan_writer_t *resp, const char **err, uint64_t now_us);
 int dan_gwn_h_lights(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                      const char **err, uint64_t now_us);
+int dan_gwn_h_esc_fast(void *user, uint32_t code, const uint8_t *req, size_t len,
+                       dan_writer_t *resp, const char **err, uint64_t now_us);
 int dan_gwn_h_beep(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                    const char **err, uint64_t now_us);
 extern const dan_handler_t dan_gwn_handlers[];

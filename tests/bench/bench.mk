@@ -9,7 +9,7 @@
 
 BENCH_DIR   := $(BUILD)/bench
 BENCH_CFLAGS = $(WARN) -O2 -g $(INCLUDES) -D_GNU_SOURCE
-BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway
+BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway $(BENCH_DIR)/bench_esc_sim
 SOAK        ?=
 BENCH_ARGS  ?=
 
@@ -18,6 +18,16 @@ BENCH_ARGS  ?=
 $(BENCH_DIR)/bench_%: tests/bench/bench_%.c $(ALL_LIBS)
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_CFLAGS) -o $@ $^ $(LDLIBS)
+
+# The gateway benchmarks share bench_escs.c; the ESC loops in simulated
+# time run on the unit tests' simulated wire.
+$(BENCH_DIR)/bench_gateway: tests/bench/bench_gateway.c tests/bench/bench_escs.c $(ALL_LIBS)
+	@mkdir -p $(@D)
+	$(CC) $(BENCH_CFLAGS) -o $@ $^ $(LDLIBS)
+
+$(BENCH_DIR)/bench_esc_sim: tests/bench/bench_esc_sim.c tests/bench/bench_escs.c tests/unit/simbus.c $(ALL_LIBS)
+	@mkdir -p $(@D)
+	$(CC) $(BENCH_CFLAGS) -Itests/unit -o $@ $^ $(LDLIBS)
 
 bench-build: deps all $(BENCH_BINS)
 

@@ -9,6 +9,15 @@ Rows:
              dan-vbus at 115200, esc_sim ESCs behind the SLCAN hub; bounds from
              the bytes in the vbus capture (8N1), with and without the mandatory
              gaps (turnaround 2 C + listen-before-talk 3 C per exchange)
+  esc_sim    ESC loops in simulated time through the real engines on the unit
+             tests' simulated wire (tests/bench/bench_esc_sim.c): 4 and 8 ESCs at
+             115200, 1000000 and 2000000; ESC_CMD, ESC_FAST, ESC_FAST_T every N-th
+             exchange (the largest N keeping every ESC at >= 25 Hz on the bound)
+             and every exchange; exchanges/s against the bound of the same bytes
+             with the gaps, telemetry records per ESC per second (the slowest
+             ESC). Goals: >= 0.97 of the bound; 4 ESCs at 115200 >= 400/s with
+             >= 25 Hz per ESC; 8 ESCs at 1000000 with a record every exchange
+             >= 1800/s
   raw_can    raw CAN frames/s drained with CAN_RECV from a frame source on the
              hub, against the DAN wire bound of the same messages, and against
              SLCAN and MAVLink2 CAN_FRAME at 115200
@@ -252,6 +261,65 @@ def bench_esc(build, seconds):
         "ratio": run["rate"] / bound,
         "ratio_gaps": run["rate"] / bound_gaps,
     }
+
+
+def bench_esc_sim(build):
+    p = subprocess.run(
+        [str(build / "bench" / "bench_esc_sim"), "1"], capture_output=True, text=True, timeout=600
+    )
+    rows = [json.loads(line) for line in p.stdout.splitlines() if line.startswith("{")]
+    if p.returncode != 0 or not rows:
+        raise RuntimeError(f"bench_esc_sim failed: {p.stderr[-500:]}")
+
+    def find(escs, baud, mode, every=None):
+        return next(
+            r
+            for r in rows
+            if (r["escs"], r["baud"], r["mode"]) == (escs, baud, mode)
+            and (every is None or r["every"] == every)
+        )
+
+    t4 = [r for r in rows if (r["escs"], r["baud"], r["mode"]) == (4, 115200, "fast_t")]
+    goals = {
+        "ratio_min": min(r["ratio"] for r in rows),
+        "esc4_115200_rate": t4[0]["rate"],
+        "esc4_115200_telem_hz": t4[0]["telem_hz_min"],
+        "esc8_1000000_telem_every_rate": find(8, 1000000, "fast_t", 1)["rate"],
+    }
+    goals["met"] = (
+        goals["ratio_min"] >= 0.97
+        and goals["esc4_115200_rate"] >= 400
+        and goals["esc4_115200_telem_hz"] >= 25
+        and goals["esc8_1000000_telem_every_rate"] >= 1800
+    )
+    return {"rows": rows, **goals}
+
+
+def esc_sim_rows(e):
+    out = []
+    for r in e["rows"]:
+        mode = {"cmd": "ESC_CMD", "fast": "ESC_FAST"}.get(r["mode"], f"FAST_T 1/{r['every']}")
+        telem = "" if r["mode"] == "fast" else f", {r['telem_hz_min']:.1f} Hz/ESC"
+        out.append(
+            (
+                f"  sim {r['escs']} ESC {r['baud']} {mode}",
+                f"{r['rate']:.1f}/s{telem}",
+                f"bound {r['bound']:.1f}/s ({r['bytes_per_exchange']:.2f} B + 5 C)",
+                f"{r['ratio']:.3f}",
+            )
+        )
+    goal = "met" if e["met"] else "NOT met"
+    out.insert(
+        0,
+        (
+            "ESC loops, simulated time",
+            f"min ratio {e['ratio_min']:.3f}",
+            f"goals {goal}: 4 ESC 115200 {e['esc4_115200_rate']:.0f}/s "
+            f"{e['esc4_115200_telem_hz']:.1f} Hz; 8 ESC 1M telem {e['esc8_1000000_telem_every_rate']:.0f}/s",
+            "",
+        ),
+    )
+    return out
 
 
 def bench_raw(build, seconds):
@@ -657,6 +725,8 @@ def table(r):
                 f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
             )
         )
+    if r.get("esc_sim"):
+        rows += esc_sim_rows(r["esc_sim"])
     w = r.get("raw_can")
     if w:
         rows.append(
@@ -747,6 +817,9 @@ def table(r):
 KEYS = [
     ("esc", "rate"),
     ("esc", "ratio"),
+    ("esc_sim", "ratio_min"),
+    ("esc_sim", "esc4_115200_rate"),
+    ("esc_sim", "esc8_1000000_telem_every_rate"),
     ("raw_can", "rate"),
     ("raw_can", "ratio"),
     ("discovery", "seconds"),
@@ -781,7 +854,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
     ap.add_argument(
         "--only",
-        help="comma-separated rows (esc,raw_can,discovery,parser,gateway,latency,params)",
+        help="comma-separated rows (esc,esc_sim,raw_can,discovery,parser,gateway,latency,params)",
     )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
@@ -813,6 +886,7 @@ def main():
     else:
         todo = [
             ("esc", lambda: bench_esc(build, a.seconds)),
+            ("esc_sim", lambda: bench_esc_sim(build)),
             ("raw_can", lambda: bench_raw(build, a.seconds)),
             ("discovery", lambda: bench_discovery(build)),
             ("parser", lambda: bench_parser(build)),

@@ -17,6 +17,7 @@ import pytest
 from bus_util import danprobe, ready
 from conftest import BIN, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
+from danprobe import gateway_fast as F
 from danprobe import gateway_mgmt as M
 from danprobe import gateway_msgs as G
 from danprobe import gateway_out as O
@@ -242,10 +243,40 @@ def vector_object(msg, d, fields):
     return mgmt_vector_object(msg, d, f, rep)
 
 
+def check_fast_vector(line, msg, d, fields, payload):
+    """ESC_FAST / ESC_FAST_T: exact lengths (no trailing bytes: a request's
+    length is its value count), and the "bad" payloads refused."""
+    if d == "bad":
+        decode = F.decode_esc_fast if msg == "esc_fast" else F.FastResponse.decode
+        with pytest.raises(PayloadError):
+            decode(payload)
+        return
+    f = dict(fields)
+    if d == "req":
+        values = ints(f["values"])
+        assert F.encode_esc_fast(values) == payload, line
+        assert F.decode_esc_fast(payload) == values, line
+        return
+    rec = None
+    if "rec" in f:
+        idx, fresh, age, *f16s, rpm = f["rec"].split("/")
+        rec = F.FastRecord(int(idx), bool(int(fresh)), int(age), *(int(x, 16) for x in f16s))
+        rec.rpm = int(rpm)
+    want = F.FastResponse(int(f["flags"]), rec)
+    assert want.encode() == payload, line
+    assert F.FastResponse.decode(payload) == want, line
+    with pytest.raises(PayloadError):
+        F.FastResponse.decode(payload + b"\x00")
+
+
 def test_codec_every_vector():
     kinds = set()
     n = 0
     for line, msg, d, fields, payload in vector_lines():
+        if msg.startswith("esc_fast"):
+            check_fast_vector(line, msg, d, fields, payload)
+            kinds.add((msg, d))
+            continue
         encoded, decode, want = vector_object(msg, d, fields)
         assert encoded == payload, f"encode: {line}\n got {encoded.hex()}"
         got = decode(payload)

@@ -8,6 +8,7 @@ values and the failsafe on time. Generous reply windows: these tests check
 behaviour, not speed (the rates are printed for the report). The QEMU
 firmware runs at its fastest baud."""
 
+import json
 import os
 import time
 
@@ -15,6 +16,7 @@ import dronecan
 import pytest
 
 from bus_util import (
+    danprobe,
     periph_stats,
     read_capture,
     start_mixed_periphs,
@@ -142,6 +144,33 @@ def test_restarted_master_finds_fast_bus(procs, tmp_path):
     assert req["payload"] == "01"
     rc, out = master(eps[0], "discover", types=TYPES, check=False)
     assert rc != 0 and out[0]["peers"] == []
+
+
+def danprobe_doc(*args):
+    rc, out, err = danprobe(*args, "--json", "-q")
+    assert rc == 0, (rc, out, err)
+    return json.loads(out)
+
+
+def test_danprobe_negotiates_and_finds_fast_bauds(procs, tmp_path):
+    """danprobe follows the same rules: --max-baud 2000000 with a v1-only
+    peripheral mixed in settles on 115200; alone with fast peripherals it
+    reaches 2M, and a later discover --max-baud finds the bus there."""
+    _, eps, _ = start_vbus(procs, tmp_path, 4)
+    start_two(procs, eps)
+    old = start_periph(procs, eps[3], "test-b", "0x0F", "--v1-only")
+    conf = danprobe_doc("configure", "--port", eps[0], "--types", TYPES, "--max-baud", 2000000)
+    assert conf["result"] == 0 and conf["baud"] == 115200 and conf["target"] == 115200, conf
+    assert periph_stats(procs, old)["nacks"] == len(FAST)
+    # Without the v1 peripheral (stopped above): 115200 -> 2M.
+    conf = danprobe_doc(
+        "configure", "--port", eps[0], "--types", "test-a,can-gw", "--max-baud", 2000000
+    )
+    assert conf["result"] == 0 and conf["baud"] == 2000000, conf
+    print("danprobe configure 115200 -> 2000000: %.1f ms" % conf["ms"])
+    disc = danprobe_doc("discover", "--port", eps[0], "--types", "test-a,can-gw", "--baud", 2000000)
+    assert [p["baud"] for p in disc["peers"]] == [2000000, 2000000]
+    assert talkers_at(tmp_path, 2000000) == {0, 1, 2}
 
 
 # ---- the gateway: dan-gatewayd with dan-fcsim at 1M and 2M ----

@@ -32,10 +32,12 @@
 
 static const char HELP[] =
     "usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N]\n"
-    "                 [--baud B] [--max-baud B] STEP...\n"
+    "                 [--baud B] [--max-baud B] [--fast [--telem-every N]] STEP...\n"
     "  --baud B       the port's starting baud (default 9600)\n"
     "  --max-baud B   configure offers the fast bauds up to B (230400..2000000)\n"
     "                 first, and discovery scans them (default 0: DAN v1 bauds)\n"
+    "  --fast         esc and esc-ramp send ESC_FAST, and ESC_FAST_T (a telemetry\n"
+    "                 record) every N-th exchange (--telem-every, default 1; 0: never)\n"
     "Steps (each prints one JSON line):\n"
     "  discover                      find the gateway (9600 first, then the others)\n"
     "  configure[:BAUD]              move the bus to BAUD (default: the fastest the\n"
@@ -189,6 +191,20 @@ static int parse_values(char *s, int16_t *v, size_t *n)
  * configure again (the gateway was power-cycled: back at 9600), as an FC
  * should; 0 = never. */
 static uint32_t g_recover;
+/* --fast, --telem-every N: the compact exchanges (ESC_FAST / ESC_FAST_T). */
+static bool g_fast;
+static uint32_t g_telem_every = 1u;
+
+/* One ESC exchange started: ESC_CMD, or with --fast ESC_FAST with a
+ * record asked for on every g_telem_every-th attempt. */
+static int esc_start(const int16_t *v, size_t n, uint32_t attempt)
+{
+    if (g_fast) {
+        bool telem = g_telem_every > 0u && attempt % g_telem_every == 0u;
+        return dan_gw_esc_fast(&g_gw, v, n, telem, dan_posix_now_us());
+    }
+    return dan_gw_esc_command(&g_gw, v, n, dan_posix_now_us());
+}
 
 static int recover_bus(void)
 {
@@ -213,7 +229,7 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
                    uint32_t hz)
 {
     uint64_t start = dan_posix_now_us(), end = start + (uint64_t)ms * 1000u, next = start;
-    uint32_t count = 0, errors = 0, telem = 0, in_row = 0, recoveries = 0;
+    uint32_t count = 0, errors = 0, telem = 0, fresh = 0, in_row = 0, recoveries = 0;
     int16_t v[DAN_GW_ESC_MAX];
     int rc;
     size_t i;
@@ -234,7 +250,7 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
                 v[i] = from[i];
             }
         }
-        rc = dan_gw_esc_command(&g_gw, v, n, dan_posix_now_us());
+        rc = esc_start(v, n, count + errors);
         if (rc == DAN_OK) {
             rc = run();
         }
@@ -250,16 +266,18 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
             count++;
             in_row = 0;
             telem += g_gw.last_telem != DAN_GW_NONE;
+            fresh += g_fast && g_gw.telem_fresh;
         }
     } while (dan_posix_now_us() < end);
     {
         double secs = (double)(dan_posix_now_us() - start) / 1e6;
         printf("{\"step\": \"%s\", \"ok\": %s, \"exchanges\": %u, \"errors\": %u, "
                "\"telemetry_records\": %u, \"seconds\": %.3f, \"rate\": %.1f, \"esc_seen\": %u, "
-               "\"flags\": %u, \"baud\": %u, \"recoveries\": %u, ",
+               "\"flags\": %u, \"baud\": %u, \"recoveries\": %u, \"fast\": %s, "
+               "\"telem_every\": %u, \"fresh_records\": %u, ",
                step, errors == 0 ? "true" : "false", count, errors, telem, secs,
                secs > 0 ? count / secs : 0.0, g_gw.esc_seen, g_gw.gw_flags, dan_master_baud(&g_m),
-               recoveries);
+               recoveries, g_fast ? "true" : "false", g_telem_every, fresh);
         print_all_telem();
         printf("}\n");
     }
@@ -1106,6 +1124,10 @@ int main(int argc, char **argv)
             no_echo = true;
         } else if (!strcmp(argv[i], "--recover") && i + 1 < argc) {
             g_recover = (uint32_t)strtoul(argv[++i], NULL, 0);
+        } else if (!strcmp(argv[i], "--fast")) {
+            g_fast = true;
+        } else if (!strcmp(argv[i], "--telem-every") && i + 1 < argc) {
+            g_telem_every = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--help")) {
             fputs(HELP, stdout);
             return 0;

@@ -165,6 +165,16 @@ int teardown(void **state)
     return 0;
 }
 
+void config_timeout(uint32_t ms)
+{
+    dan_gw_config_t set;
+    memset(&set, 0, sizeof set);
+    set.set_mask = DAN_GW_CFG_ESC_TIMEOUT;
+    set.esc_timeout_ms = ms;
+    assert_int_equal(dan_gw_config(&R->gw, &set, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+}
+
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm)
 {
     dan_dc_esc_status_t s;

@@ -55,6 +55,8 @@ cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from);
 /* A transfer from fake node src into the gateway. */
 void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
             const uint8_t *payload, int len);
+/* CONFIG esc_timeout_ms through the client, completed. */
+void config_timeout(uint32_t ms);
 /* An esc.Status from fake node src. */
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm);
 int setup(void **state);

@@ -30,16 +30,6 @@ static int last_safety(size_t *from)
     return v;
 }
 
-static void config_timeout(uint32_t ms)
-{
-    dan_gw_config_t set;
-    memset(&set, 0, sizeof set);
-    set.set_mask = DAN_GW_CFG_ESC_TIMEOUT;
-    set.esc_timeout_ms = ms;
-    assert_int_equal(dan_gw_config(&R->gw, &set, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-}
-
 static void test_safety_state(void **state)
 {
     const int16_t v[4] = {100, 200, 300, 400};

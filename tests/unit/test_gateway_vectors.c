@@ -136,11 +136,51 @@ static int vec_result(const char *msg, const char *dir, const uint8_t *p, size_t
     }
 }
 
+/* ESC_FAST / ESC_FAST_T; "bad" payloads must be refused (and are
+ * returned as they are, so the caller's byte comparison holds). */
+static int vec_fast(const char *msg, const char *dir, const uint8_t *p, size_t len, char *txt,
+                    size_t cap, uint8_t *enc, size_t ecap)
+{
+    int16_t v[DAN_GW_ESC_MAX];
+    dan_gw_fast_rec_t rec;
+    uint8_t flags;
+    bool has;
+    size_t i, n;
+    if (!strcmp(dir, "bad")) {
+        if (!strcmp(msg, "esc_fast")) {
+            assert_int_equal(dan_gw_msg_esc_fast_decode(p, len, v, &n), DAN_ERR_MALFORMED);
+        } else {
+            assert_int_equal(dan_gw_msg_esc_fast_rsp_decode(&flags, &rec, &has, p, len),
+                             DAN_ERR_MALFORMED);
+        }
+        memcpy(enc, p, len);
+        return (int)len;
+    }
+    if (!strcmp(dir, "req")) {
+        assert_int_equal(dan_gw_msg_esc_fast_decode(p, len, v, &n), DAN_OK);
+        cat(txt, cap, "values=");
+        for (i = 0; i < n; i++) {
+            cat(txt, cap, i ? ",%d" : "%d", v[i]);
+        }
+        return dan_gw_msg_esc_fast_encode(v, n, enc, ecap);
+    }
+    assert_int_equal(dan_gw_msg_esc_fast_rsp_decode(&flags, &rec, &has, p, len), DAN_OK);
+    cat(txt, cap, "flags=%u", flags);
+    if (has) {
+        cat(txt, cap, " rec=%u/%u/%u/%04x/%04x/%04x/%ld", rec.esc_index, rec.fresh, rec.age_4ms,
+            rec.voltage_f16, rec.current_f16, rec.temperature_f16, (long)rec.rpm);
+    }
+    return dan_gw_msg_esc_fast_rsp_encode(flags, has ? &rec : NULL, enc, ecap);
+}
+
 /* SAFETY, SERVO, SERVO_FAILSAFE, LIGHTS, BEEP. */
 static int vec_out(const char *msg, const char *dir, const uint8_t *p, size_t len, char *txt,
                    size_t cap, uint8_t *enc, size_t ecap)
 {
     size_t i, n;
+    if (!strncmp(msg, "esc_fast", 8)) {
+        return vec_fast(msg, dir, p, len, txt, cap, enc, ecap);
+    }
     if (!strcmp(dir, "rsp") || !strcmp(msg, "safety")) {
         const char *key = !strcmp(msg, "servo_fs") ? "kept" : "flags";
         assert_int_equal(len, 1);

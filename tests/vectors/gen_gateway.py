@@ -9,6 +9,8 @@ Usage: python3 tests/vectors/gen_gateway.py > tests/vectors/gateway.txt
 import os
 
 from _wire import array, frame, u8, u16, u24, u32, uvarint
+from gen_gateway_fast import __doc__ as FAST_DOC
+from gen_gateway_fast import fast_vectors
 from gen_gateway_mgmt import __doc__ as MGMT_DOC
 from gen_gateway_mgmt import mgmt_vectors
 from gen_gateway_out import __doc__ as OUT_DOC
@@ -340,12 +342,14 @@ def main():
     print(HEADER, end="")
     print("".join("# " + line + "\n" for line in MGMT_DOC.strip().splitlines()[5:]), end="")
     print("".join("# " + line + "\n" for line in OUT_DOC.strip().splitlines()[5:]), end="")
+    print("".join("# " + line + "\n" for line in FAST_DOC.strip().splitlines()[5:]), end="")
     esc_vectors()
     node_vectors()
     tunnel_vectors()
     can_vectors()
     mgmt_vectors(emit)
     out_vectors(emit)
+    fast_vectors(emit)
 
 
 def crc16_ccitt_false(data):
@@ -377,6 +381,10 @@ def sealed_vectors():
         (0x4E, req, u16(1) + u8(20) + u8(0) + uvarint(0)),  # NODE_CALL: 2nd block rules too
         (0x52, req, b""),  # HEALTH, the second block
         (0x52, rsp, bytes([1, 2, 30, 0, 1])),
+        (0x59, req, bytes.fromhex("000019800cb004")),  # ESC_FAST 0,100,200,300: 13-byte frame
+        (0x5A, req, bytes.fromhex("000019800cb004")),  # ESC_FAST_T, same values
+        (0x59, rsp, u8(5)),  # flags only: a 7-byte frame
+        (0x5A, rsp, bytes.fromhex("05334c0043d85c8a138803")),  # + the record: 17 bytes
     ]
     lines = [
         "# Sealed gateway messages (docs/PROTOCOL.md section 7, the seal).",

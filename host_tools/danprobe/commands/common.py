@@ -12,7 +12,15 @@ from contextlib import contextmanager
 from typing import Callable, Optional
 
 from danprobe import gateway_client, gateway_msgs, registry
-from danprobe.master import DanError, DanTimeout, Master, MasterConfig, NotFound, OperationTimeout
+from danprobe.master import (
+    DanError,
+    DanTimeout,
+    Master,
+    MasterConfig,
+    NotFound,
+    OperationTimeout,
+)
+from danprobe.payloads import MASK_BAUDS
 from danprobe.port import PortError, SerialPort, now
 from danprobe.ptyport import Pty
 
@@ -185,12 +193,27 @@ def add_master_options(p: argparse.ArgumentParser, *, types_default: str = DEFAU
     )
     add_gap_option(g)
     g.add_argument(
+        "--max-baud",
+        type=positive_int,
+        default=0,
+        metavar="N",
+        help="the fastest baud the adapter can do: discovery also looks at the fast bauds "
+        "up to N and configure offers them, highest first (default: the draft's bauds only)",
+    )
+    g.add_argument(
         "--retries",
         type=non_negative_int,
         default=2,
         metavar="N",
         help="extra attempts per transaction (default 2)",
     )
+
+
+def port_max_baud(a: argparse.Namespace) -> int:
+    """--max-baud; else a fast --baud says the adapter does that much;
+    else 0 (no limit within the draft's bauds, no fast bauds)."""
+    baud = getattr(a, "baud", None) or 0
+    return a.max_baud or (baud if baud > MASK_BAUDS[-1] else 0)
 
 
 # ---- the run-time context ----
@@ -218,7 +241,10 @@ class Context:
     def master(self, port: SerialPort, baud: int) -> Master:
         a = self.args
         cfg = MasterConfig(
-            resp_latency_s=a.latency_ms / 1000, gap_s=a.gap_ms / 1000, retries=a.retries
+            resp_latency_s=a.latency_ms / 1000,
+            gap_s=a.gap_ms / 1000,
+            retries=a.retries,
+            max_baud=port_max_baud(a),
         )
         m = Master(port, a.types, baud, cfg, echo=not a.no_echo, progress=self.progress)
         m.set_time_limit(a.timeout)
@@ -343,7 +369,7 @@ def add_gateway_options(p: argparse.ArgumentParser, *, long_running: bool = Fals
         "--configure",
         action="store_true",
         help="first move the bus to the best baud of every peripheral found "
-        "(--types; 115200 for the gateway alone)",
+        "(--types; 115200 for the gateway alone, or up to --max-baud)",
     )
 
 
@@ -366,7 +392,7 @@ def find_gateway(ctx: Context, m: Master):
             "no CAN gateway answered"
             + (f" ({others} did)" if others else "")
             + " at "
-            + ", ".join(map(str, sorted({a.baud or 9600, 9600, 19200, 38400, 57600, 115200})))
+            + ", ".join(map(str, sorted({a.baud or 9600, *m.scan_bauds()})))
             + " baud"
         )
     m.switch_baud(peer.baud)

@@ -20,7 +20,9 @@ DESCRIPTION = (
 
 def add_arguments(p):
     add_common_options(
-        p, baud_help="the target baud (default: the highest every peripheral supports)"
+        p,
+        baud_help="the target baud, any value the adapter can do (default: the fastest "
+        "every peripheral accepts, up to --max-baud)",
     )
     add_master_options(p)
 
@@ -32,8 +34,7 @@ def run(ctx) -> int:
     def op(m):
         nonlocal target
         m.discover()
-        target = target or m.best_baud()
-        m.configure(target)
+        target = m.configure(target)
 
     m, failure, ms = master_operation(ctx, DEFAULT_BAUD, op)
 

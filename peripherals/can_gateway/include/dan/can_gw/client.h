@@ -32,6 +32,7 @@
 #define DAN_GATEWAY_H
 
 #include "dan/can_gw/msgs.h"
+#include "dan/can_gw/msgs_fast.h"
 #include "dan/can_gw/msgs_mgmt.h"
 #include "dan/can_gw/msgs_out.h"
 #include "dan/master.h"
@@ -62,6 +63,7 @@ typedef struct {
     uint8_t esc_seen;   /* ESCs the gateway knows (ESC_CMD rsp) */
     uint8_t telem_next; /* ESC_TELEM: next page (DAN_GW_NONE: end) */
     uint8_t last_telem; /* index of the last record received, or DAN_GW_NONE */
+    bool telem_fresh;   /* ESC_FAST_T: that record was a new esc.Status sample */
     dan_gw_telem_t esc[DAN_GW_MAX_ESC];
     uint32_t telem_ignored;
     dan_gw_config_t config; /* last CONFIG response */
@@ -94,6 +96,14 @@ int dan_gw_complete(dan_gw_t *gw, uint64_t now_us);
 /* ESC command: n (1..20) raw values -8192..8191 (RawCommand semantics). The
  * response's telemetry record (round-robin over the ESCs) updates gw->esc. */
 int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t now_us);
+/* Compact ESC command (ESC_FAST, or ESC_FAST_T with telem): the same
+ * broadcast as dan_gw_esc_command() in 13 bytes for 4 ESCs; the response
+ * is the gateway flags, and with telem one ESC's esc.Status (round robin)
+ * into gw->esc[gw->last_telem] (voltage, current, temperature, rpm, age_ms
+ * to 4 ms; its other fields keep their last values) and gw->telem_fresh.
+ * gw->last_telem is DAN_GW_NONE when no record came. Ask for telemetry
+ * every N-th exchange to trade it for rate (docs/PROTOCOL.md). */
+int dan_gw_esc_fast(dan_gw_t *gw, const int16_t *values, size_t n, bool telem, uint64_t now_us);
 /* Telemetry page from esc_index first (0 for the first page); next page
  * index in gw->telem_next. */
 int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us);

@@ -173,6 +173,7 @@ typedef struct {
 typedef struct {
     dan_gw_telem_t t; /* age fields filled when sent */
     uint64_t status_us, ext_us, dev_us;
+    bool fresh; /* esc.Status not yet in a compact record (ESC_FAST_T) */
 } dan_gw_node_esc_t;
 
 /* ESC commands, telemetry and the failsafe (gw_node_esc.c). */
