@@ -18,6 +18,9 @@
 
 #define BOARD_CPU_HZ       25000000u /* mps2-an386 SYSCLK (and UART PCLK) */
 #define BOARD_UART_MIN_DIV 16u       /* CMSDK UART: BAUDDIV >= 16 */
+/* The fast bauds (docs/PROTOCOL.md section 6) this board's UART can do,
+ * ascending (board.c says which and why); n gets the count. */
+const uint32_t *board_fast_bauds(size_t *n);
 
 /* ---- clock ---- */
 void clock_init(void);

@@ -14,6 +14,9 @@
  * Command line (QEMU: -append "..." or -semihosting-config ...,arg=...):
  *   gw=off|try|require   the gateway phase (default try: run it when a
  *                        can-gw is present, report but do not fail on it)
+ *   fast=on|N            configure offers the fast bauds the UART can do
+ *                        (board_fast_bauds(), highest first), or every fast
+ *                        baud up to N (default: none, DAN v1 bauds only)
  */
 #include <string.h>
 
@@ -217,6 +220,8 @@ static step_t configure_done(app_t *a, int r, uint64_t now)
     o_u64((now - a->op_t0) / 1000u);
     o_key("recoveries");
     o_u32(a->m.stats.recoveries);
+    o_key("fast_refusals");
+    o_u32(a->m.stats.fast_refusals);
     o_end();
     return (r == DAN_OK) ? STEP_NEXT : STEP_FAIL;
 }
@@ -503,6 +508,28 @@ static int parse_gw_mode(const char *cmdline)
     return GW_TRY;
 }
 
+/* fast=on|N into the master's configuration (absent: no fast bauds). */
+static void parse_fast(const char *cmdline, dan_master_config_t *cfg)
+{
+    const char *p = strstr(cmdline, "fast=");
+    uint32_t n = 0;
+    size_t nb;
+    if (p == NULL) {
+        return;
+    }
+    p += 5;
+    if (strncmp(p, "on", 2) == 0) {
+        cfg->fast_bauds = board_fast_bauds(&nb);
+        cfg->nfast_bauds = (uint8_t)nb;
+        cfg->fast_max_baud = UINT32_MAX; /* the list and the port's maximum decide */
+        return;
+    }
+    while (*p >= '0' && *p <= '9' && n < 100000000u) {
+        n = n * 10u + (uint32_t)(*p++ - '0');
+    }
+    cfg->fast_max_baud = n;
+}
+
 static void next_phase(app_t *a)
 {
     a->phase++;
@@ -584,6 +611,8 @@ static void print_boot(const app_t *a, const char *cmdline)
     o_jstr(cmdline);
     o_key("gw_mode");
     o_jstr(a->gw_mode == GW_OFF ? "off" : a->gw_mode == GW_REQUIRE ? "require" : "try");
+    o_key("fast_max");
+    o_u32(a->m.cfg.fast_max_baud);
     o_key("rxring");
     o_u32(DAN_RXRING_SIZE);
     o_key("master_bytes");
@@ -611,6 +640,7 @@ int main(void)
     cfg.gap_us = GAP_US;
     cfg.retries = RETRIES;
     cfg.seed = BACKOFF_SEED;
+    parse_fast(cmdline, &cfg);
     now = clock_now_us();
     deadline = now + FW_RUN_LIMIT_US;
     if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types, sizeof bus_types / sizeof bus_types[0],

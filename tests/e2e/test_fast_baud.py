@@ -5,18 +5,29 @@ settles on the best common baud; a peripheral that acknowledges and does
 not switch is recovered; a restarted master finds a bus left at a fast
 baud; dan-gatewayd and dan-fcsim run an ESC loop at 1M and 2M with exact
 values and the failsafe on time. Generous reply windows: these tests check
-behaviour, not speed (the rates are printed for the report)."""
+behaviour, not speed (the rates are printed for the report). The QEMU
+firmware runs at its fastest baud."""
 
 import json
+import os
 import time
 
 import dronecan
 import pytest
 
-from bus_util import danprobe, periph_stats, read_capture, start_periph, start_vbus
+from bus_util import (
+    danprobe,
+    periph_stats,
+    read_capture,
+    start_mixed_periphs,
+    start_periph,
+    start_vbus,
+    vbus_stats,
+)
 from conftest import closing_factory, wait_for
 from gw_rig import ESC_LOOP, Rig, f16, step
 from test_bus import master
+from test_firmware import FW_ELF, QEMU, run_firmware
 
 U = dronecan.uavcan
 
@@ -231,3 +242,30 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
     zero = min(zeros_after())
     print(f"failsafe at {baud}: zeros {1000 * (zero - last):.0f} ms after the last command")
     assert 0.25 <= zero - last <= 2.0
+
+
+# ---- the QEMU firmware (examples/fc_firmware) at its fastest baud ----
+
+
+def test_firmware_at_its_fastest_baud(procs, tmp_path):
+    """fc_firmware with fast=on offers the fast bauds its UART can do
+    (board_fast_bauds(): QEMU's tty backend turns 1000000 into 921600 at
+    the pty, so the board leaves it out) and the bus ends at 1500000: the
+    divisor 17 gives 1470588, which QEMU sets on the pty as 1500000."""
+    if QEMU is None or not os.path.exists(FW_ELF):
+        pytest.fail(f"needs qemu-system-arm and {FW_ELF}: make test installs and builds both")
+    _, eps, ctl = start_vbus(procs, tmp_path, 4)
+    ps = start_mixed_periphs(procs, eps)
+    rc, steps, text = run_firmware(procs, tmp_path, eps[0], append="fast=on gw=off")
+    assert rc == 0, text
+    assert steps["boot"]["fast_max"] > 0
+    conf = steps["configure"]
+    assert conf["result"] == 0 and conf["baud"] == 1500000, conf
+    assert conf["uart_baud"] == 1470588 and conf["recoveries"] == 0
+    txn = steps["transactions"]
+    assert txn["ok"] == txn["count"] == 40 and txn["bad"] == 0 and txn["baud"] == 1500000
+    print(f"\nfirmware: configure 9600 -> 1500000 in {conf['ms']} ms (QEMU time)")
+    assert vbus_stats(ctl)["endpoints"][0]["baud"] == 1500000
+    assert talkers_at(tmp_path, 1500000) == {0, 1, 2, 3}
+    for p in ps:
+        assert periph_stats(procs, p)["baud"] == 1500000

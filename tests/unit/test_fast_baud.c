@@ -204,6 +204,28 @@ static void test_ack_without_switch_recovered(void **state)
     assert_all_answer();
 }
 
+/* The gateway switches to 2M and then never answers (it died there):
+ * recovery looks for it at every baud tried and scanned, drops it, and
+ * configure goes on with device 1 alone at the best mask baud. */
+static void test_switched_then_silent_dropped(void **state)
+{
+    (void)state;
+    rig_setup(dan_fast_bauds, DAN_NFAST_BAUDS, false);
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(dan_master_configure(&rig.m, 0, rig.bus.now), DAN_OK);
+    while (rig.dev2.stats.baud_changes == 0u && rig.bus.now < 10000000u) {
+        sim_step(&rig.bus);
+    }
+    assert_int_equal(rig.n2->baud, 2000000u);
+    rig.n2->mute = true;
+    assert_int_equal(run(), DAN_OK);
+    assert_int_equal(rig.m.stats.recoveries, 1);
+    assert_null(dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST));
+    assert_int_equal(dan_master_baud(&rig.m), 115200u);
+    assert_int_equal(rig.n1->baud, 115200u);
+    assert_all_answer();
+}
+
 /* The same lie when the caller names the baud: the failure is reported,
  * the bus is left working at 9600 with every peer. */
 static void test_named_baud_lie_recovered(void **state)
@@ -384,6 +406,7 @@ int main(void)
         cmocka_unit_test(test_refusal_moves_back),
         cmocka_unit_test(test_v1_peer_best_common),
         cmocka_unit_test(test_ack_without_switch_recovered),
+        cmocka_unit_test(test_switched_then_silent_dropped),
         cmocka_unit_test(test_named_baud_lie_recovered),
         cmocka_unit_test(test_named_baud),
         cmocka_unit_test(test_restart_finds_fast_bus),
