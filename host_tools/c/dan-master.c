@@ -341,6 +341,7 @@ static int start(ctx_t *c, const opts_t *o, const uint32_t *types, size_t ntypes
     }
     tool_catch_signal(SIGINT);
     tool_catch_signal(SIGTERM);
+    tool_fine_timers();
     dan_master_config_default(&cfg);
     cfg.resp_latency_us = o->latency_ms * 1000u;
     cfg.gap_us = o->gap_ms * 1000u;

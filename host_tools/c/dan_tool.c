@@ -4,6 +4,8 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/prctl.h>
+#include <time.h>
 
 #include "dan/identity_json.h"
 #include "dan/posix.h"
@@ -51,13 +53,32 @@ int tool_ms_until(uint64_t deadline_us, uint64_t now_us, int cap_ms)
     return ms > (uint64_t)cap_ms ? cap_ms : (int)ms;
 }
 
+int tool_poll_until(struct pollfd *p, nfds_t n, uint64_t deadline_us, int cap_ms)
+{
+    struct timespec ts;
+    uint64_t now = dan_posix_now_us();
+    uint64_t us = (deadline_us > now) ? deadline_us - now : 0u;
+    uint64_t cap = (uint64_t)(cap_ms > 0 ? cap_ms : 0) * 1000u;
+    if (us > cap) {
+        us = cap;
+    }
+    ts.tv_sec = (time_t)(us / 1000000u);
+    ts.tv_nsec = (long)(us % 1000000u) * 1000L;
+    return ppoll(p, n, &ts, NULL);
+}
+
 int tool_wait_fd(int fd, short events, uint64_t deadline_us, int cap_ms)
 {
     struct pollfd p;
     p.fd = fd;
     p.events = events;
     p.revents = 0;
-    return poll(&p, 1, tool_ms_until(deadline_us, dan_posix_now_us(), cap_ms));
+    return tool_poll_until(&p, 1, deadline_us, cap_ms);
+}
+
+void tool_fine_timers(void)
+{
+    (void)prctl(PR_SET_TIMERSLACK, 1000UL, 0UL, 0UL, 0UL);
 }
 
 void tool_json_str(FILE *f, const char *s)

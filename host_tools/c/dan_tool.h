@@ -37,8 +37,15 @@ void tool_verror(const char *fmt, va_list ap) __attribute__((format(printf, 1, 0
 int tool_ms_until(uint64_t deadline_us, uint64_t now_us, int cap_ms);
 
 /* poll() on one fd for events until deadline_us (UINT64_MAX: none), for at
- * most cap_ms; poll()'s result. */
+ * most cap_ms; poll()'s result. To the microsecond (ppoll): at 1-2 Mbit/s
+ * a turnaround is 10-20 us, and a timeout rounded up to whole ms would
+ * add up to 1 ms to every reply. */
 int tool_wait_fd(int fd, short events, uint64_t deadline_us, int cap_ms);
+/* The same for n fds. */
+int tool_poll_until(struct pollfd *p, nfds_t n, uint64_t deadline_us, int cap_ms);
+/* Timer slack 1 us (PR_SET_TIMERSLACK; default 50 us): a process that
+ * answers on a fast wire wakes when its deadline is due. */
+void tool_fine_timers(void);
 
 /* s as a JSON string on f, escaped as libdan's dan_json_str() does. */
 void tool_json_str(FILE *f, const char *s);

@@ -152,8 +152,11 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_CAN_ERRORS] = g->stats.can_errors;
     v[DAN_GW_STAT_DC_TRANSFERS] = g->rx.stats.transfers;
     v[DAN_GW_STAT_DC_CRC] = g->rx.stats.crc_errors;
+    /* tid_errors too: replayed transfers and frames without their start
+     * are what a hostile node sends, and STATS is where the FC sees them. */
     v[DAN_GW_STAT_DC_ERRORS] = g->rx.stats.toggle_errors + g->rx.stats.timeouts +
-                               g->rx.stats.malformed + g->rx.stats.overflow + g->rx.stats.no_slot;
+                               g->rx.stats.malformed + g->rx.stats.overflow + g->rx.stats.no_slot +
+                               g->rx.stats.tid_errors;
     v[DAN_GW_STAT_ESC_CMDS] = g->stats.esc_cmds;
     v[DAN_GW_STAT_FAILSAFES] = g->stats.failsafes;
     v[DAN_GW_STAT_FAILSAFE_ACTIVE] = g->esc.failsafe ? 1u : 0u;

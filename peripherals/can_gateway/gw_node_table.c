@@ -139,6 +139,9 @@ void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64
         n->duplicate = false; /* it was gone: judge it afresh */
         n->drops = 0;
     }
+    if (t->source_node == g->cfg.node_id) {
+        flag_duplicate(g, n); /* another device sends with our node ID */
+    }
     n->seen_us = now_us;
 }
 

@@ -8,6 +8,7 @@ import json
 import os
 import random
 import select
+import struct
 import sys
 import threading
 import time
@@ -23,6 +24,24 @@ from conftest import BIN, ROOT, wait_for
 U = dronecan.uavcan
 
 GW_NODE = 10
+
+# The ESC loop the gateway tests run: 4 and 8 channels with the extreme
+# values at 50 Hz, then 4 channels back to back (its rate is printed).
+ESC_LOOP = (
+    "esc:0,100,-8192,8191@1500@50",
+    "esc:1,2,3,4,5,6,7,-8@1000@50",
+    "esc:0,100,200,300@3000@0",
+)
+
+
+def f16(x):
+    """x rounded to float16, as it travels in esc.Status."""
+    return struct.unpack("<e", struct.pack("<e", x))[0]
+
+
+def step(lines, name):
+    """The JSON lines of dan-fcsim's steps called name."""
+    return [line for line in lines if line["step"] == name]
 
 
 class Rig:
@@ -92,9 +111,9 @@ class Rig:
         t.start()
         self.threads.append(t)
 
-    def fcsim(self, *steps, timeout=120):
+    def fcsim(self, *steps, timeout=120, opts=()):
         p = self.procs.start(
-            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *steps]
+            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *opts, *steps]
         )
         out, _ = p.communicate(timeout=timeout)
         lines = [json.loads(line) for line in out.decode().splitlines() if line.strip()]

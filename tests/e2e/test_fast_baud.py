@@ -3,12 +3,22 @@ dan-vbus: dan-master negotiates 1000000 and 2000000 with dan-testperiph
 peripherals; a v1-only peripheral on the same bus refuses and the bus
 settles on the best common baud; a peripheral that acknowledges and does
 not switch is recovered; a restarted master finds a bus left at a fast
-baud. Generous reply windows: these tests check behaviour, not speed."""
+baud; dan-gatewayd and dan-fcsim run an ESC loop at 1M and 2M with exact
+values and the failsafe on time. Generous reply windows: these tests check
+behaviour, not speed (the rates are printed for the report)."""
 
 import json
+import time
+
+import dronecan
+import pytest
 
 from bus_util import danprobe, periph_stats, read_capture, start_periph, start_vbus
+from conftest import closing_factory, wait_for
+from gw_rig import ESC_LOOP, Rig, f16, step
 from test_bus import master
+
+U = dronecan.uavcan
 
 TYPES = "test-a,test-b,can-gw"
 FAST = [230400, 460800, 921600, 1000000, 1500000, 2000000]
@@ -150,3 +160,74 @@ def test_danprobe_negotiates_and_finds_fast_bauds(procs, tmp_path):
     disc = danprobe_doc("discover", "--port", eps[0], "--types", "test-a,can-gw", "--baud", 2000000)
     assert [p["baud"] for p in disc["peers"]] == [2000000, 2000000]
     assert talkers_at(tmp_path, 2000000) == {0, 1, 2}
+
+
+# ---- the gateway: dan-gatewayd with dan-fcsim at 1M and 2M ----
+
+
+@pytest.fixture
+def gw_rig(procs, tmp_path):
+    yield from closing_factory(lambda **kw: Rig(procs, tmp_path, **kw))
+
+
+@pytest.mark.parametrize("baud", [1000000, 2000000])
+def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
+    """dan-gatewayd accepts the fast bauds by default; dan-fcsim moves the
+    bus to 1M / 2M; ESC values reach the ESC node exactly, telemetry comes
+    back exactly, and the failsafe (300 ms) still fires on time."""
+    r = gw_rig(gw_args=["--esc-timeout-ms", "300"])
+    esc = r.node(1, 20, "org.test.esc_a")
+    raw = []
+    esc.add_handler(
+        U.equipment.esc.RawCommand, lambda e: raw.append((time.monotonic(), list(e.message.cmd)))
+    )
+    tele = {0: (12.5, 1.25, 300.0, 1000), 1: (16.8, -3.14159, 310.15, -2000)}
+
+    def publish():
+        for idx, (v, c, t, rpm) in tele.items():
+            esc.broadcast(
+                U.equipment.esc.Status(
+                    voltage=v, current=c, temperature=t, rpm=rpm, esc_index=idx, error_count=idx
+                )
+            )
+
+    r.spin(esc, publish, 0.1)
+    fast = ("--max-baud", str(baud))
+    rc, out = r.fcsim(
+        "discover",
+        "configure",
+        "arm",
+        *ESC_LOOP,
+        "telemetry",
+        opts=fast,
+    )
+    assert rc == 0, [line for line in out if not line.get("ok", True)] or out
+    conf = step(out, "configure")[0]
+    assert conf["baud"] == baud and conf["fast_refusals"] == 0 and conf["recoveries"] == 0
+    cmds = [c for _, c in raw]
+    assert [0, 100, -8192, 8191] in cmds
+    assert [1, 2, 3, 4, 5, 6, 7, -8] in cmds
+    assert [0, 100, 200, 300] in cmds
+    tel = {e["index"]: e for e in step(out, "telemetry")[0]["esc"]}
+    for idx, (v, c, t, rpm) in tele.items():
+        e = tel[idx]
+        assert e["voltage"] == f16(v) and e["current"] == f16(c)
+        assert e["temperature"] == f16(t) and e["rpm"] == rpm and e["node"] == 20
+    loop = step(out, "esc")[2]
+    assert loop["errors"] == 0
+    print(f"\nESC exchanges at {baud} (4 ESCs, back to back, dan-vbus): {loop['rate']:.1f}/s")
+
+    # failsafe: a new FC process finds the bus at the fast baud, commands,
+    # stops; zeros arrive no sooner than the timeout after the last command
+    n = len(raw)
+    rc, out = r.fcsim("discover", "esc:500,500,500,500@500@50", "stop", opts=fast)
+    assert rc == 0 and step(out, "discover")[0]["baud"] == baud, out
+    last = max(t for t, c in raw[n:] if c == [500, 500, 500, 500])
+
+    def zeros_after():  # (the earlier FC's failsafe zeros come before)
+        return [t for t, c in raw[n:] if c == [0, 0, 0, 0] and t > last]
+
+    wait_for(zeros_after, 10, what="zero throttle after the last command")
+    zero = min(zeros_after())
+    print(f"failsafe at {baud}: zeros {1000 * (zero - last):.0f} ms after the last command")
+    assert 0.25 <= zero - last <= 2.0

@@ -30,11 +30,12 @@ class Rig:
     """vbus endpoints: 0 FC, 1 gateway, 2 jammer. Hub ports: 0 gateway,
     1..4 ESCs, 5 a frame source."""
 
-    def __init__(self, procs, tmp, gw_bin=None, gw_env=None, gw_args=()):
+    def __init__(self, procs, tmp, gw_bin=None, gw_env=None, gw_args=(), fc_opts=()):
         for b in ("dan-vbus", "dan-gatewayd", "dan-fcsim"):
             if not (BIN / b).exists():
                 pytest.fail(f"{b} not built: run make test (it builds everything)")
         self.procs, self.tmp = procs, tmp
+        self.fc_opts = tuple(fc_opts)  # every dan-fcsim gets them (e.g. --max-baud)
         self.vbus = procs.start(
             [
                 BIN / "dan-vbus",
@@ -119,7 +120,8 @@ class Rig:
             if s.startswith("esc:"):
                 self.sent.add(tuple(int(v) for v in s[4:].split("@")[0].split(",")))
         p = self.procs.start(
-            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", *opts, *steps], name="dan-fcsim"
+            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", *self.fc_opts, *opts, *steps],
+            name="dan-fcsim",
         )
         out = []
         end = time.monotonic() + timeout
@@ -186,10 +188,16 @@ def report_esc(what, e, wrong, extra=""):
     report(what, e["exchanges"] + e["errors"], e["errors"], wrong, extra)
 
 
-def test_noise_levels_and_recovery(rig):
-    r = rig()
+def fast_rig(rig, baud):
+    """The rig with the FC offering fast bauds up to baud (115200: DAN v1)."""
+    return rig(fc_opts=("--max-baud", str(baud)) if baud > 115200 else ())
+
+
+@pytest.mark.parametrize("baud", [115200, 1000000])
+def test_noise_levels_and_recovery(rig, baud):
+    r = fast_rig(rig, baud)
     rc, out = r.fcsim("discover", "configure", "arm")
-    assert rc == 0, out
+    assert rc == 0 and steps_of(out, "configure")[0]["baud"] == baud, out
     rows = []
     for k, ber in enumerate(("1e-4", "1e-3", "5e-3")):
         vals = f"{100 + k},{200 + k},{300 + k},{400 + k}"
@@ -220,7 +228,7 @@ def test_noise_levels_and_recovery(rig):
     wrong = r.wrong_values()
     for ber, tried, failed, retries, nb in rows:
         report(
-            f"BER {ber}",
+            f"{baud} baud, BER {ber}",
             tried,
             failed,
             len(wrong),
@@ -232,15 +240,15 @@ def test_noise_levels_and_recovery(rig):
     t0 = time.monotonic()
     rc, out = r.fcsim("discover", "esc:7,8,9,10@1500@100")
     e = steps_of(out, "esc")[0]
-    report_esc("after noise", e, len(r.wrong_values()))
+    report_esc(f"{baud} baud, after noise", e, len(r.wrong_values()))
     assert rc == 0 and e["errors"] == 0, out
     assert any(ev["cmd"] == [7, 8, 9, 10] for ev in r.esc_events(since=t0))
 
 
-def jammer(path, stop, count):
-    """Random 1..4-byte bursts at 115200 on the bus every 30..80 ms (idle gaps
+def jammer(path, stop, count, baud=115200):
+    """Random 1..4-byte bursts at baud on the bus every 30..80 ms (idle gaps
     longer than the gateway's 20 ms frame gap remain, so it can resynchronise)."""
-    s = serial.Serial(str(path), 115200, timeout=0)
+    s = serial.Serial(str(path), baud, timeout=0)
     rnd = random.Random(3)
     try:
         while not stop.is_set():
@@ -252,16 +260,18 @@ def jammer(path, stop, count):
         s.close()
 
 
-def test_collisions_with_a_jammer(rig):
+@pytest.mark.parametrize("baud", [115200, 1000000])
+def test_collisions_with_a_jammer(rig, baud):
     """A third talker jams ESC commands. Frames it corrupts still pass crc8
     about 1 time in 256; before gateway messages were sealed (CRC-16,
     docs/PROTOCOL.md 7) this delivered wrong throttle values (4 in 301
-    exchanges). Now none may reach an ESC."""
-    r = rig()
+    exchanges). Now none may reach an ESC. Also at 1 Mbit/s (the jammer at
+    the bus's baud)."""
+    r = fast_rig(rig, baud)
     rc, out = r.fcsim("discover", "configure")
-    assert rc == 0, out
+    assert rc == 0 and steps_of(out, "configure")[0]["baud"] == baud, out
     stop, count = threading.Event(), [0]
-    t = threading.Thread(target=jammer, args=(r.tmp / "dan2", stop, count), daemon=True)
+    t = threading.Thread(target=jammer, args=(r.tmp / "dan2", stop, count, baud), daemon=True)
     before = vbus_stats(r.tmp / "vbus.ctl")
 
     def on_line(line):
@@ -283,7 +293,7 @@ def test_collisions_with_a_jammer(rig):
     wrong = r.wrong_values()
     coll = after["collisions"] - before["collisions"]
     report_esc(
-        "jammer",
+        f"jammer at {baud} baud",
         e,
         len(wrong),
         f"jam bursts {count[0]}, collisions {coll}, distinct wrong commands "

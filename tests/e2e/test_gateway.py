@@ -6,7 +6,6 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
 
 import os
-import struct
 import sys
 import time
 
@@ -14,23 +13,14 @@ import dronecan
 import pytest
 
 from conftest import BIN, ROOT, closing_factory, wait_for
-from gw_rig import GW_NODE, Rig, TunnelFarEnd
+from gw_rig import ESC_LOOP, GW_NODE, Rig, TunnelFarEnd, f16, step
 
 U = dronecan.uavcan
-
-
-def f16(x):
-    """x rounded to float16, as it travels in esc.Status."""
-    return struct.unpack("<e", struct.pack("<e", x))[0]
 
 
 @pytest.fixture
 def rig(procs, tmp_path):
     yield from closing_factory(lambda **kw: Rig(procs, tmp_path, **kw))
-
-
-def step(lines, name):
-    return [line for line in lines if line["step"] == name]
 
 
 def test_esc_telemetry_arming_nodes_failsafe(rig):
@@ -78,9 +68,7 @@ def test_esc_telemetry_arming_nodes_failsafe(rig):
         "discover",
         "configure",
         "arm",
-        "esc:0,100,-8192,8191@1500@50",
-        "esc:1,2,3,4,5,6,7,-8@1000@50",
-        "esc:0,100,200,300@3000@0",
+        *ESC_LOOP,
         "telemetry",
         "nodes",
         "stats",

@@ -31,13 +31,17 @@
 #define CANDUMP_IDLE_US        10000u /* candump's pause when nothing was queued */
 
 static const char HELP[] =
-    "usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N] "
-    "[--fast [--telem-every N]] STEP...\n"
-    "  --fast: esc and esc-ramp send ESC_FAST, and ESC_FAST_T (a telemetry record)\n"
-    "  every N-th exchange (--telem-every, default 1; 0: never)\n"
+    "usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N]\n"
+    "                 [--baud B] [--max-baud B] [--fast [--telem-every N]] STEP...\n"
+    "  --baud B       the port's starting baud (default 9600)\n"
+    "  --max-baud B   configure offers the fast bauds up to B (230400..2000000)\n"
+    "                 first, and discovery scans them (default 0: DAN v1 bauds)\n"
+    "  --fast         esc and esc-ramp send ESC_FAST, and ESC_FAST_T (a telemetry\n"
+    "                 record) every N-th exchange (--telem-every, default 1; 0: never)\n"
     "Steps (each prints one JSON line):\n"
     "  discover                      find the gateway (9600 first, then the others)\n"
-    "  configure[:BAUD]              move the bus to BAUD (default: best common)\n"
+    "  configure[:BAUD]              move the bus to BAUD (default: the fastest the\n"
+    "                                gateway accepts, fast bauds first)\n"
     "  arm | disarm\n"
     "  config[:timeout=MS][:rate=HZ][:telem=MS][:dna=0|1]\n"
     "                                read / change gateway settings\n"
@@ -421,7 +425,9 @@ static int step_configure(const char *name, const char *step, char *args)
     if (rc != DAN_OK) {
         return fail(step, rc);
     }
-    printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u}\n", dan_master_baud(&g_m));
+    printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u, \"fast_refusals\": %u, "
+           "\"recoveries\": %u}\n",
+           dan_master_baud(&g_m), g_m.stats.fast_refusals, g_m.stats.recoveries);
     return 0;
 }
 
@@ -1097,7 +1103,7 @@ int main(int argc, char **argv)
 {
     static const uint32_t types[] = {DAN_TYPE_CAN_GW_FIRST};
     const char *port = NULL;
-    uint32_t latency_ms = 50, gap_ms = 20;
+    uint32_t latency_ms = 50, gap_ms = 20, baud = 9600, max_baud = 0;
     bool no_echo = false;
     dan_master_config_t mc;
     char err[256];
@@ -1110,6 +1116,10 @@ int main(int argc, char **argv)
             latency_ms = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--gap-ms") && i + 1 < argc) {
             gap_ms = (uint32_t)strtoul(argv[++i], NULL, 0);
+        } else if (!strcmp(argv[i], "--baud") && i + 1 < argc) {
+            baud = (uint32_t)strtoul(argv[++i], NULL, 0);
+        } else if (!strcmp(argv[i], "--max-baud") && i + 1 < argc) {
+            max_baud = (uint32_t)strtoul(argv[++i], NULL, 0);
         } else if (!strcmp(argv[i], "--no-echo")) {
             no_echo = true;
         } else if (!strcmp(argv[i], "--recover") && i + 1 < argc) {
@@ -1128,12 +1138,13 @@ int main(int argc, char **argv)
             break;
         }
     }
-    if (port == NULL) {
-        tool_error("--port is required");
+    if (port == NULL || baud == 0u) {
+        tool_error("--port is required (and --baud is not 0)");
         return 2;
     }
     signal(SIGPIPE, SIG_IGN);
-    if (dan_posix_open(&g_port, port, 9600, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
+    tool_fine_timers();
+    if (dan_posix_open(&g_port, port, baud, no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
                        sizeof err) != DAN_OK) {
         tool_error("%s", err);
         return 2;
@@ -1142,7 +1153,8 @@ int main(int argc, char **argv)
     mc.resp_latency_us = latency_ms * 1000u;
     mc.gap_us = gap_ms * 1000u;
     mc.retries = 3;
-    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, 9600, dan_posix_now_us()) !=
+    mc.fast_max_baud = max_baud;
+    if (dan_master_init(&g_m, dan_posix_port(&g_port), &mc, types, 1, baud, dan_posix_now_us()) !=
         DAN_OK) {
         tool_error("master init failed");
         return 2;

@@ -203,6 +203,7 @@ int main(int argc, char **argv)
                     dan_posix_now_us());
     tool_catch_signal(SIGINT);
     tool_catch_signal(SIGTERM);
+    tool_fine_timers();
     printf("READY\n");
     fflush(stdout);
     serve(&p, &port);

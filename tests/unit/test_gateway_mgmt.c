@@ -653,6 +653,22 @@ static void test_health_verdicts(void **state)
     assert_int_equal(h.subject, 30);
 }
 
+/* A device on the bus claiming the gateway's own node ID (a hostile node,
+ * or a misconfigured one) is a duplicate from its first NodeStatus. */
+static void test_own_id_claimed(void **state)
+{
+    dan_gw_health_t h;
+    (void)state;
+    node_status(R->g.cfg.node_id, 10, DAN_DC_HEALTH_OK);
+    health(&h);
+    assert_int_equal(h.reason, DAN_GW_REASON_DUPLICATE);
+    assert_int_equal(h.subject, R->g.cfg.node_id);
+    assert_int_equal(R->g.stats.duplicates, 1);
+    advance(500000);
+    node_status(R->g.cfg.node_id, 11, DAN_DC_HEALTH_OK);
+    assert_int_equal(R->g.stats.duplicates, 1); /* counted once */
+}
+
 static void test_health_esc_telemetry(void **state)
 {
     static const int16_t v[2] = {100, 100};
@@ -732,6 +748,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_call_timeout_and_busy, setup, teardown),
         cmocka_unit_test_setup_teardown(test_restart_magic, setup, teardown),
         cmocka_unit_test_setup_teardown(test_health_verdicts, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_own_id_claimed, setup, teardown),
         cmocka_unit_test_setup_teardown(test_health_esc_telemetry, setup, teardown),
         cmocka_unit_test_setup_teardown(test_own_frames_and_times, setup, teardown),
     };

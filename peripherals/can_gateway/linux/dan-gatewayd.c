@@ -44,6 +44,7 @@
 #define TX_RETRY_MS         2        /* queued CAN frames retry on this timer (no POLLOUT) */
 #define CAN_RX_BURST        64       /* CAN frames read per wakeup, so DAN is never starved */
 #define UART_READ_MAX       512u     /* bytes read from the UART at a time */
+#define ANSWER_SPIN_US      250u     /* a reply due this soon is waited for in the same pass */
 
 /* Command-line defaults and limits. */
 #define DEFAULT_BAUD      9600u /* the DAN power-up baud */
@@ -86,6 +87,9 @@ static void usage(FILE *o)
                "  --can SPEC            socketcan:IFNAME | slcan:/dev/TTY[@BAUD]\n"
                "  --node-id N           DroneCAN node id, 1..127 (default 10)\n"
                "  --uart-baud B         start baud (default 9600, the DAN power-up baud)\n"
+               "  --max-baud B          accept CONFIGURE to fast bauds (230400..2000000) up to B\n"
+               "                        (default: every fast baud the UART's driver takes)\n"
+               "  --no-fast-bauds       accept only 9600 and the mask bauds (DAN v1)\n"
                "  --can-bitrate N       SLCAN adapters: CAN bitrate in bit/s, one of 10000 20000\n"
                "                        50000 100000 125000 250000 500000 800000 1000000 (S0..S8;\n"
                "                        default 1000000); SocketCAN: set it with ip link\n"
@@ -130,6 +134,8 @@ typedef struct {
     uint32_t failsafes_logged;
     const char *dna_db; /* --dna-db, or NULL */
     dan_dna_file_t dna_file;
+    uint32_t fast[DAN_NFAST_BAUDS]; /* the fast bauds CONFIGURE may ask for */
+    size_t nfast;
     uint32_t dna_stores_logged, dna_errors_logged;
 } gwd_t;
 
@@ -140,6 +146,8 @@ typedef struct {
     bool no_echo, de_low;
     const char *uid;         /* --uid, or NULL: derived */
     const char *can_bitrate; /* --can-bitrate, or NULL: 1 Mbit/s */
+    uint32_t max_baud;       /* --max-baud, or 0: what the UART takes */
+    bool no_fast;            /* --no-fast-bauds */
 } opts_t;
 
 static void can_down(gwd_t *d, const char *why, uint64_t now)
@@ -257,6 +265,7 @@ static int number_option(int c, const char *arg, opts_t *o, dan_gw_node_config_t
          &nc->arming_rate_hz, true},
         {'G', "--gap-ms", 1, GAP_MS_MAX, &o->gap_ms, false},
         {'W', "--reply-window-ms", 1, WINDOW_MS_MAX, &o->window_ms, false},
+        {'M', "--max-baud", UART_BAUD_MIN, UART_BAUD_MAX, &o->max_baud, true},
     };
     size_t i;
     for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
@@ -313,6 +322,8 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
                                          {"can", required_argument, NULL, 'c'},
                                          {"node-id", required_argument, NULL, 'n'},
                                          {"uart-baud", required_argument, NULL, 'b'},
+                                         {"max-baud", required_argument, NULL, 'M'},
+                                         {"no-fast-bauds", no_argument, NULL, 'F'},
                                          {"no-echo", no_argument, NULL, 'E'},
                                          {"de-gpio", required_argument, NULL, 'g'},
                                          {"de-active-low", no_argument, NULL, 'L'},
@@ -342,6 +353,7 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
         case 'u': d->uart_path = optarg; break;
         case 'c': d->can_spec = optarg; break;
         case 'E': o->no_echo = true; break;
+        case 'F': o->no_fast = true; break;
         case 'g': o->de_gpio = optarg; break;
         case 'L': o->de_low = true; break;
         case 's': d->stats_file = optarg; break;
@@ -454,6 +466,29 @@ static int check_dna_db(gwd_t *d)
     return r == 0 ? 0 : 2;
 }
 
+/* The fast bauds to accept: those up to --max-baud that the UART's driver
+ * sets (a pty takes them all; a real UART's divider may not reach some). */
+static void find_fast_bauds(gwd_t *d, const opts_t *o)
+{
+    uint32_t want[DAN_NFAST_BAUDS];
+    size_t i, n = 0;
+    char list[128];
+    int len = 0;
+    for (i = 0; i < DAN_NFAST_BAUDS && !o->no_fast; i++) {
+        if (o->max_baud == 0u || dan_fast_bauds[i] <= o->max_baud) {
+            want[n++] = dan_fast_bauds[i];
+        }
+    }
+    d->nfast = dan_posix_usable_bauds(&d->uart, want, n, d->fast);
+    list[0] = '\0';
+    for (i = 0; i < d->nfast && len >= 0 && (size_t)len < sizeof list; i++) {
+        len += snprintf(list + len, sizeof list - (size_t)len, " %u", d->fast[i]);
+    }
+    logmsg(LOG_INFO, "fast bauds accepted:%s%s (ASYNC_LOW_LATENCY %s)", list,
+           d->nfast == 0u ? " none (DAN v1 bauds only)" : "",
+           d->uart.low_latency ? "on" : "not offered by the driver");
+}
+
 /* The DroneCAN node and the DAN peripheral engine on the UART; 0 or 2. */
 static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
 {
@@ -478,6 +513,9 @@ static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     dan_periph_config_default(&pc);
     pc.gap_us = o->gap_ms * 1000u;
     pc.reply_window_us = o->window_ms * 1000u;
+    find_fast_bauds(d, o);
+    pc.extra_bauds = d->fast;
+    pc.nextra_bauds = d->nfast;
     if (dan_periph_init(&d->periph, dan_posix_port(&d->uart), &d->ptype, 1, &pc, o->baud, now) !=
         DAN_OK) {
         logmsg(LOG_ERR, "peripheral engine init failed");
@@ -489,13 +527,14 @@ static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     return 0;
 }
 
-/* poll()'s timeout: until the engines', the reopen's or the stats' next
- * deadline; 0 while received CAN bytes wait to be parsed. */
-static int poll_timeout_ms(gwd_t *d, uint64_t now)
+/* When poll() must return: the engines', the reopen's or the stats' next
+ * deadline, to the microsecond (a reply is due 2 characters after its
+ * request: 10 us at 2 Mbit/s); now while received CAN bytes wait to be
+ * parsed. */
+static uint64_t poll_deadline_us(gwd_t *d, uint64_t now)
 {
     uint64_t next = dan_periph_next_us(&d->periph);
     uint64_t t2 = dan_gw_node_next_us(&d->node, now);
-    int ms;
     if (t2 < next) {
         next = t2;
     }
@@ -506,13 +545,12 @@ static int poll_timeout_ms(gwd_t *d, uint64_t now)
         next = d->stats_due_us;
     }
     if (d->can_up && dan_canif_rx_pending(&d->can)) {
-        return 0;
+        return now;
     }
-    ms = tool_ms_until(next, now, POLL_CAP_MS);
-    if (dan_gw_node_tx_pending(&d->node) > 0u && d->can_up && ms > TX_RETRY_MS) {
-        ms = TX_RETRY_MS;
+    if (dan_gw_node_tx_pending(&d->node) > 0u && d->can_up && next > now + TX_RETRY_MS * 1000u) {
+        next = now + TX_RETRY_MS * 1000u;
     }
-    return ms;
+    return next;
 }
 
 /* pf[0] the UART, pf[1] the CAN interface while it is up; the count. */
@@ -610,15 +648,27 @@ static void housekeeping(gwd_t *d, uint64_t now)
     }
 }
 
+/* A reply due within ANSWER_SPIN_US (its turnaround: 2 characters, 10 us
+ * at 2 Mbit/s, 174 us at 115200) goes out in this loop pass: a sleep until
+ * then would cost a wakeup latency of tens of us or more on a busy host. */
+static void answer_in_this_pass(gwd_t *d, uint64_t now)
+{
+    uint64_t end = now + ANSWER_SPIN_US;
+    while (d->periph.pending && now < end && dan_periph_next_us(&d->periph) <= end) {
+        now = dan_posix_now_us();
+        dan_periph_poll(&d->periph, now);
+    }
+}
+
 /* The poll loop, until a signal or a lost UART. */
 static void run(gwd_t *d)
 {
     while (!tool_stop) {
         struct pollfd pf[2];
         uint64_t now = dan_posix_now_us();
-        int timeout_ms = poll_timeout_ms(d, now);
+        uint64_t deadline = poll_deadline_us(d, now);
         nfds_t nfd = fill_pollfds(d, pf);
-        int r = poll(pf, nfd, timeout_ms);
+        int r = tool_poll_until(pf, nfd, deadline, POLL_CAP_MS);
         if (r < 0 && errno != EINTR) {
             logmsg(LOG_ERR, "poll: %s", strerror(errno));
             break;
@@ -633,6 +683,7 @@ static void run(gwd_t *d)
             can_read(d, now);
         }
         dan_periph_poll(&d->periph, now);
+        answer_in_this_pass(d, now);
         dan_gw_node_poll(&d->node, now);
         can_drain(d, now);
         housekeeping(d, now);
@@ -661,7 +712,8 @@ int main(int argc, char **argv)
 {
     gwd_t *d = &g_d;
     dan_gw_node_config_t nc;
-    opts_t o = {NULL, DEFAULT_BAUD, DEFAULT_GAP_MS, DEFAULT_WINDOW_MS, 0, false, false, NULL, NULL};
+    opts_t o = {NULL, DEFAULT_BAUD, DEFAULT_GAP_MS, DEFAULT_WINDOW_MS, 0, false, false, NULL, NULL,
+                0,    false};
     int r;
 
     tool_prog = "dan-gatewayd";
@@ -679,6 +731,7 @@ int main(int argc, char **argv)
     tool_catch_signal(SIGHUP); /* a dropped SSH session: stop with the failsafe too */
     tool_catch_signal(SIGQUIT);
     signal(SIGPIPE, SIG_IGN);
+    tool_fine_timers();
     if (open_devices(d, &o) != 0 || start_engines(d, &o, &nc) != 0) {
         return 2;
     }
