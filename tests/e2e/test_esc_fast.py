@@ -12,6 +12,7 @@ import pytest
 
 from bus_util import danprobe, read_capture
 from conftest import BIN, closing_factory, wait_for
+from danprobe import gateway_fast as F
 from gw_rig import GW_NODE, Stack
 
 
@@ -134,3 +135,25 @@ def test_danprobe_esc_fast(stack):
         "esc", "--port", s.dan, "--values", "0", "--fast", "--telem-every", "-1", "-q"
     )
     assert rc != 0 and "--telem-every" in err
+
+
+def test_sniff_names_and_decodes_the_fast_codes(monkeypatch):
+    """danprobe sniff names ESC_FAST / ESC_FAST_T and decodes both directions
+    (the wire bytes of tests/vectors/gateway_sealed.txt)."""
+    from danprobe import gateway_client, registry
+
+    monkeypatch.setattr(registry, "_MESSAGES", dict(registry._MESSAGES))
+    gateway_client.register_names()
+    assert registry.code_name(F.CODE_ESC_FAST) == "can-gw ESC_FAST"
+    assert registry.code_name(F.CODE_ESC_FAST_T) == "can-gw ESC_FAST_T"
+    req = bytes.fromhex("000019800cb0043ba1")  # 0,100,200,300 sealed for 0x5A
+    role, fields, _ = registry.describe(F.CODE_ESC_FAST_T, req, registry.REQUEST)
+    assert role == registry.REQUEST and fields == {"values": [0, 100, 200, 300]}
+    rsp = bytes.fromhex("05334c0043d85c8a13880361a6")
+    _, fields, _ = registry.describe(F.CODE_ESC_FAST_T, rsp, registry.RESPONSE)
+    rec = fields["record"]
+    assert fields["armed"] and fields["can_up"] and not fields["failsafe"]
+    assert (rec["index"], rec["fresh"], rec["age_ms"], rec["rpm"]) == (2, True, 12, 5002)
+    assert rec["voltage"] == 16.796875 and rec["current"] == 3.5 and rec["temperature"] == 310.0
+    _, fields, _ = registry.describe(F.CODE_ESC_FAST, bytes.fromhex("05576f"), registry.RESPONSE)
+    assert fields["record"] is None and fields["flags"] == 5
