@@ -9,6 +9,10 @@ Rows:
              dan-vbus at 115200, esc_sim ESCs behind the SLCAN hub; bounds from
              the bytes in the vbus capture (8N1), with and without the mandatory
              gaps (turnaround 2 C + listen-before-talk 3 C per exchange)
+  esc_fast   the same loop with dan-fcsim --fast (ESC_FAST, a record by
+             ESC_FAST_T every N-th exchange) at 115200 (4 ESCs, N 4), 1000000
+             and 2000000 (4 and 8 ESCs, N 1), bounds the same way (host ptys:
+             compare with the latency row's bare hops)
   esc_sim    ESC loops in simulated time through the real engines on the unit
              tests' simulated wire (tests/bench/bench_esc_sim.c): 4 and 8 ESCs at
              115200, 1000000 and 2000000; ESC_CMD, ESC_FAST, ESC_FAST_T every N-th
@@ -215,51 +219,77 @@ def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
 # ---- rows --------------------------------------------------------------------
 
 
-def bench_esc(build, seconds):
+def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4):
+    """The ESC loop through dan-gatewayd on dan-vbus with n_esc esc_sim ESCs:
+    ESC_CMD, or with fast_every=N the compact ESC_FAST with ESC_FAST_T every
+    N-th; the bus configured to baud."""
+    opts = ["--fast", "--telem-every", str(fast_every)] if fast_every else []
+    codes = (0x59, 0x5A) if fast_every else (0x42,)
+    values = ",".join(str(100 * k) for k in range(n_esc))
+    c_us = (10_000_000 + baud - 1) // baud
     with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
         tmp = Path(tmp)
         st = Stack(tmp)
         try:
-            gw_rig(st, build, tmp)
+            gw_rig(st, build, tmp, n_esc=n_esc)
             rc, out = fcsim(
                 st,
                 build,
                 tmp / "dan0",
                 [
+                    *opts,
                     "discover",
-                    "configure",
+                    f"configure:{baud}",
                     "arm",
-                    "esc:0,100,200,300@1000@50",
-                    f"esc:0,100,200,300@{int(seconds * 1000)}@0",
+                    f"esc:{values}@1000@50",
+                    f"esc:{values}@{int(seconds * 1000)}@0",
                     "disarm",
                 ],
             )
-            if rc != 0:
-                raise RuntimeError(f"dan-fcsim failed: {out}")
-            run = step(out, "esc")[1]
+            runs = step(out, "esc")
+            if len(runs) < 2:  # a failed exchange on a loaded host is counted, not fatal
+                raise RuntimeError(f"dan-fcsim failed ({rc}): {out}")
+            run = runs[1]
         finally:
             st.close()
         cap = [
             b
             for b in read_capture(tmp / "bus.cap")
-            if b[2] == BAUD and b[3][:1] == b"D" and frame_code(b[3]) == 0x42
+            if b[2] == baud and b[3][:1] == b"D" and frame_code(b[3]) in codes
         ]
     req = [len(b[3]) for b in cap if b[1] == 0]
     rsp = [len(b[3]) for b in cap if b[1] == 1]
     nbytes = statistics.mean(req) + statistics.mean(rsp)
-    bound = BAUD / 10 / nbytes
-    bound_gaps = 1e6 / ((nbytes + 2 + 3) * C_US)
+    bound = baud / 10 / nbytes
+    bound_gaps = 1e6 / ((nbytes + 2 + 3) * c_us)
     return {
+        "baud": baud,
+        "escs": n_esc,
+        "telem_every": fast_every or 1,
         "rate": run["rate"],
         "exchanges": run["exchanges"],
         "errors": run["errors"],
         "telemetry_records": run["telemetry_records"],
+        "telem_hz_per_esc": run["telemetry_records"] / run["seconds"] / n_esc,
         "req_bytes": statistics.mean(req),
         "rsp_bytes": statistics.mean(rsp),
         "bound": bound,
         "bound_gaps": bound_gaps,
         "ratio": run["rate"] / bound,
         "ratio_gaps": run["rate"] / bound_gaps,
+    }
+
+
+# dan-vbus rows of the fast loop: (ESCs, baud, a record every N-th exchange)
+VBUS_FAST = [(4, 115200, 4), (4, 1000000, 1), (4, 2000000, 1), (8, 1000000, 1), (8, 2000000, 1)]
+
+
+def bench_esc_fast_vbus(build, seconds):
+    return {
+        "rows": [
+            bench_esc(build, seconds, fast_every=every, baud=baud, n_esc=n)
+            for n, baud, every in VBUS_FAST
+        ]
     }
 
 
@@ -725,6 +755,15 @@ def table(r):
                 f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
             )
         )
+    for e in (r.get("esc_fast") or {}).get("rows", []):
+        rows.append(
+            (
+                f"vbus ESC_FAST {e['escs']} ESC {e['baud']} T 1/{e['telem_every']}",
+                f"{e['rate']:.1f}/s, {e['telem_hz_per_esc']:.1f} Hz/ESC",
+                f"wire {e['bound']:.0f}/s ({e['req_bytes']:.0f}+{e['rsp_bytes']:.1f} B); +gaps {e['bound_gaps']:.0f}/s",
+                f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
+            )
+        )
     if r.get("esc_sim"):
         rows += esc_sim_rows(r["esc_sim"])
     w = r.get("raw_can")
@@ -854,7 +893,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
     ap.add_argument(
         "--only",
-        help="comma-separated rows (esc,esc_sim,raw_can,discovery,parser,gateway,latency,params)",
+        help="comma-separated rows (esc,esc_fast,esc_sim,raw_can,discovery,parser,gateway,latency,params)",
     )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
@@ -886,6 +925,7 @@ def main():
     else:
         todo = [
             ("esc", lambda: bench_esc(build, a.seconds)),
+            ("esc_fast", lambda: bench_esc_fast_vbus(build, min(a.seconds, 3.0))),
             ("esc_sim", lambda: bench_esc_sim(build)),
             ("raw_can", lambda: bench_raw(build, a.seconds)),
             ("discovery", lambda: bench_discovery(build)),

@@ -37,6 +37,8 @@ GW_CODES = {
     "servo_fs": 0x56,
     "lights": 0x57,
     "beep": 0x58,
+    "esc_fast": 0x59,  # ESC_FAST_T (0x5A) takes the same requests
+    "esc_fast_rsp": 0x59,  # refused response lengths
 }
 # call result blobs (read through CALL_RESULT), not messages of their own
 GW_RESULTS = {"opcode", "param"}
@@ -164,7 +166,11 @@ def main():
             continue
         payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
         code = GW_CODES[msg]
-        if d == "req":
+        if msg == "esc_fast" and d == "rsp":
+            code = 0x5A  # the record-bearing response
+        if msg == "esc_fast_rsp":
+            d = "rsp"
+        if d in ("req", "bad"):
             req = bytes([handler_op(code), len(payload)]) + payload
             add("gw_handlers", req)
             add("gw_handlers", bytes([req[0] | SEALED_OP]) + req[1:])
