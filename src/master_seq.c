@@ -61,9 +61,12 @@ static size_t scan_add(const dan_master_t *m, uint32_t *list, size_t n, uint32_t
 /* The bauds to look for a peer at: p's believed baud and the bauds this
  * configure tried (recovery only, p != NULL), then discovery's: 9600, the
  * fast bauds, the mask bauds, each from the highest. Returns the count. */
-static size_t scan_list(const dan_master_t *m, const dan_peer_t *p, uint32_t *list)
+static size_t scan_list(const dan_master_t *m, const dan_peer_t *p, uint32_t list[SCAN_MAX])
 {
-    uint32_t fast[DAN_MASTER_MAX_FAST];
+    /* The fast list goes to list's tail, not a second array (stack): at
+     * most 1 + ntried + 1 <= SCAN_MAX - DAN_MASTER_MAX_FAST entries come
+     * before it, so list[n] is written below each fast entry still unread. */
+    uint32_t *fast = list + (SCAN_MAX - DAN_MASTER_MAX_FAST);
     size_t n = 0, i, nf = dan_mst_fast_list(m, fast);
     if (p != NULL) {
         n = scan_add(m, list, n, p->baud);
@@ -104,14 +107,14 @@ void dan_mst_probe(dan_master_t *m, uint32_t first, uint8_t attempts, uint64_t n
 
 void dan_mst_send_configure(dan_master_t *m, uint32_t first, uint32_t baud, uint64_t now_us)
 {
-    uint8_t p[8];
-    dan_configure_t c;
-    int n;
-    c.type = DAN_CONFIGURE_BPS;
-    c.baud = baud;
-    n = dan_configure_encode(&c, p, sizeof p);
-    dan_mst_txn_start(m, DAN_TYPE_CONFIGURE(first), p, (size_t)n, (uint8_t)(m->cfg.retries + 1u),
-                      now_us);
+    /* DAN-CONFIGURE-PAYLOAD-V1 with type BPS: the type byte, the baud as a
+     * uvarint (what dan_configure_encode writes, without its struct and
+     * writer on the deepest stack path) */
+    uint8_t p[1u + DAN_UVARINT_MAX_BYTES];
+    p[0] = DAN_CONFIGURE_BPS;
+    dan_mst_txn_start(m, DAN_TYPE_CONFIGURE(first), p,
+                      1u + (size_t)dan_uvarint_encode(baud, p + 1, DAN_UVARINT_MAX_BYTES),
+                      (uint8_t)(m->cfg.retries + 1u), now_us);
 }
 
 bool dan_mst_ack_ok(const dan_master_t *m)

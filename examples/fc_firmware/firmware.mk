@@ -27,6 +27,8 @@ FW_ARCH   := -mcpu=cortex-m4 -mthumb
 # The budget README.md states (see "Size budget" there).
 FW_FLASH_BUDGET ?= 10752
 FW_RAM_BUDGET   ?= 2304
+# Worst-case stack of any public call (-fcallgraph-info=su, summed along the calls).
+FW_STACK_BUDGET ?= 320
 
 DEBS_FW   := gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qemu-system-arm clang
 DEBS_RV   := gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf
@@ -35,7 +37,7 @@ DEBS_RV   := gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf
 FW_GW_SRC := $(GW_CLIENT_SRC) src/crc16.c
 
 FW_CFLAGS  = $(FW_ARCH) -Os -g $(WARN) -ffunction-sections -fdata-sections \
-             $(INCLUDES) -I$(FW_DIR) -MMD -MP
+             -fcallgraph-info=su $(INCLUDES) -I$(FW_DIR) -MMD -MP
 FW_LDFLAGS = $(FW_ARCH) --specs=nano.specs -nostartfiles -Wl,--gc-sections \
              -T $(FW_DIR)/fc_firmware.ld
 
@@ -103,7 +105,8 @@ $(FW_BUILD)/size/probe%.elf: $(FW_BUILD)/size/probe%.o $(FW_SIZE_OBJS) $(FW_GW_O
 
 size: $(foreach p,$(FW_PROBES),$(FW_BUILD)/size/probe$(p).elf)
 	@$(FW_SIZE) $^
-	@$(PYTHON) $(FW_DIR)/size_report.py --nm $(FW_NM) \
+	@$(PYTHON) $(FW_DIR)/size_report.py --nm $(FW_NM) --objdump arm-none-eabi-objdump \
+	  --ci-dir $(FW_BUILD)/obj --stack-budget $(FW_STACK_BUDGET) \
 	  --base $(FW_BUILD)/size/probe0.map --image $(FW_BUILD)/size/probe$(FW_PROBE_TOP).map \
 	  --elf $(FW_BUILD)/size/probe$(FW_PROBE_TOP).elf \
 	  --full $(FW_BUILD)/size/probe3.map \

@@ -11,9 +11,13 @@ too; its sizes come from the probe's symbols. Exit 1 if over a budget.
 """
 
 import argparse
+import os
 import re
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import stack_usage  # noqa: E402
 
 PARTS = [
     ("codec", ("common.o", "crc8.o", "frame.o", "payloads.o")),
@@ -21,12 +25,23 @@ PARTS = [
     ("gateway client", ("gw_client.o", "gw_msgs.o", "gw_msgs_fast.o", "f16.o", "crc16.o")),
 ]
 LIB_PARTS = [p for p, _ in PARTS]
+LIBC = "libc/libgcc helpers"
+# Every firmware links these anyway (issue 17): any other helper (64-bit
+# division, float, printf-like) the library pulls in fails the budget.
+FAIR_HELPERS = ("memcpy", "memmove", "memset", "memcmp", "memchr")
+# ../shared/notes/size-anchors.md (same compiler, -Os, --gc-sections).
+ANCHORS = [
+    ("MAVLink2 parser only (common.xml, no signing)", 3392, 632),
+    ("MAVLink2 parser + one send (no signing)", 3716, 632),
+    ("libcanard DroneCAN transport + 1 KiB pool", 3992, 1072),
+    ("bare DAN-style decoder, 256-byte crc8 table", 508, 272),
+]
 
 
 def part_of(obj):
     name = obj.rsplit("/", 1)[-1]
     if "(" in obj or obj.startswith("/usr"):
-        return "libc/libgcc (memcpy, 64-bit division, ...)"
+        return LIBC
     for part, objs in PARTS:
         if name in objs:
             return part
@@ -71,6 +86,8 @@ def parse_map(path):
             s[0] += size
         if out_sec in (".data", ".bss"):
             s[1] += size
+        if part == LIBC:  # one object per helper: lib_a-memcpy.o, _udivmoddi4.o
+            name = re.sub(r"^(lib_a-|_arm_|_)|\.o\)$", "", obj.rsplit("(", 1)[-1])
         key = (part, name)
         sections[key] = sections.get(key, 0) + size
     return sizes, sections
@@ -97,6 +114,72 @@ def symbol_sizes(nm, elf):
     return syms
 
 
+def print_libc(secs):
+    """Each helper the library pulls in; False if one is not fair."""
+    helpers = sorted(
+        ((sz, name) for (part, name), sz in secs.items() if part == LIBC), reverse=True
+    )
+    unfair = [n for _, n in helpers if n not in FAIR_HELPERS]
+    print("  libc/libgcc: " + ", ".join(f"{n} {sz}" for sz, n in helpers))
+    if unfair:
+        print(f"FAIL: helpers beyond mem* pulled in: {', '.join(unfair)}", file=sys.stderr)
+    return not unfair
+
+
+def print_anchors(lib_flash, ram_bus):
+    print("anchors (../shared/notes/size-anchors.md)           flash   RAM   libdan's / anchor")
+    for name, f, r in ANCHORS:
+        print(f"  {name:<48} {f:>6} {r:>5}   {lib_flash / f:4.1f}x / {ram_bus / r:4.1f}x")
+
+
+def print_stack(a, syms):
+    """Worst-case stack per public call; False over the budget or on recursion."""
+    linked = {name for name, (_, kind) in syms.items() if kind.lower() == "t"}
+    try:
+        rows, port_calls, notes = stack_usage.report(a.ci_dir, a.objdump, a.elf, linked)
+    except ValueError as e:
+        print(f"FAIL: stack: {e}", file=sys.stderr)
+        return False
+    print(
+        "worst-case stack per public call (-fcallgraph-info=su, call-graph sum; "
+        f"the port callbacks' own stack not included, {port_calls} call sites):"
+    )
+    for fn, n, path in rows[:6]:
+        print(f"  {n:>5}  {fn:<28} via {' > '.join(p.split(':')[-1] for p in path[1:4])}")
+    for note in notes:
+        print(f"  note: {note}")
+    worst = rows[0][1] if rows else 0
+    print(f"budget: stack {worst} / {a.stack_budget} bytes (worst public call)")
+    if worst > a.stack_budget:
+        print(f"FAIL: stack {worst} > budget {a.stack_budget}", file=sys.stderr)
+        return False
+    return True
+
+
+def print_parts(img, full_map):
+    print(f"{'part':<44} {'flash':>6} {'RAM':>5}")
+    for part in LIB_PARTS + [p for p in img if p not in LIB_PARTS and p != "probe"]:
+        f, r = img.get(part, (0, 0))
+        print(f"{part:<44} {f:>6} {r:>5}")
+    lf, lr = total(img, LIB_PARTS)
+    print(f"{'libdan total (codec + master + gateway)':<44} {lf:>6} {lr:>5}")
+    if full_map:
+        full, _ = parse_map(full_map)
+        ff, fr = full.get("gateway client", (0, 0))
+        print(f"{'gateway client, whole API (tunnels, CAN, ...)':<44} {ff:>6} {fr:>5}")
+    return lf, lr
+
+
+def print_symbols(secs):
+    print("biggest libdan symbols (flash):")
+    lib_secs = sorted(
+        ((sz, part, name) for (part, name), sz in secs.items() if part in LIB_PARTS), reverse=True
+    )[:12]
+    for sz, part, name in lib_secs:
+        sym = re.sub(r"^\.(text|rodata|data|bss)\.", "", name)
+        print(f"  {sz:>5}  {sym:<36} {part}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--base", required=True)
@@ -104,8 +187,11 @@ def main():
     ap.add_argument("--full")
     ap.add_argument("--elf", required=True)
     ap.add_argument("--nm", default="arm-none-eabi-nm")
+    ap.add_argument("--objdump", default="arm-none-eabi-objdump")
+    ap.add_argument("--ci-dir", required=True, help="where the objects' .ci files are")
     ap.add_argument("--flash-budget", type=int, required=True)
     ap.add_argument("--ram-budget", type=int, required=True)
+    ap.add_argument("--stack-budget", type=int, required=True)
     a = ap.parse_args()
 
     base, _ = parse_map(a.base)
@@ -120,31 +206,18 @@ def main():
         "libdan on Cortex-M4 (arm-none-eabi-gcc -mcpu=cortex-m4 -mthumb -Os, "
         "-ffunction-sections -fdata-sections, --gc-sections)"
     )
-    print(f"{'part':<44} {'flash':>6} {'RAM':>5}")
-    for part in LIB_PARTS + [p for p in img if p not in LIB_PARTS and p != "probe"]:
-        f, r = img.get(part, (0, 0))
-        print(f"{part:<44} {f:>6} {r:>5}")
-    lf, lr = total(img, LIB_PARTS)
-    print(f"{'libdan total (codec + master + gateway)':<44} {lf:>6} {lr:>5}")
+    lf, lr = print_parts(img, a.full)
+    ok = print_libc(secs)
     print(
         f"{'image delta over a minimal image':<44} {tf - bf:>6} {tr - br:>5}"
         "   (includes the per-bus state below)"
     )
     print(f"{'per bus: dan_master_t (caller-owned)':<44} {'':>6} {master_ram:>5}")
     print(f"{'per bus: dan_gw_t (caller-owned)':<44} {'':>6} {gw_ram:>5}")
-    if a.full:
-        full, _ = parse_map(a.full)
-        ff, fr = full.get("gateway client", (0, 0))
-        print(f"{'gateway client, whole API (tunnels, CAN, ...)':<44} {ff:>6} {fr:>5}")
-    print("biggest libdan symbols (flash):")
-    lib_secs = sorted(
-        ((sz, part, name) for (part, name), sz in secs.items() if part in LIB_PARTS), reverse=True
-    )[:12]
-    for sz, part, name in lib_secs:
-        sym = re.sub(r"^\.(text|rodata|data|bss)\.", "", name)
-        print(f"  {sz:>5}  {sym:<36} {part}")
+    print_symbols(secs)
     ram_bus = lr + master_ram + gw_ram
-    ok = True
+    print_anchors(lf, ram_bus)
+    ok = print_stack(a, syms) and ok
     print(
         f"budget: flash {lf} / {a.flash_budget} bytes, "
         f"RAM per bus {ram_bus} / {a.ram_budget} bytes (library static {lr} + state {master_ram + gw_ram})"

@@ -33,25 +33,28 @@ void dan_gw_init(dan_gw_t *gw, dan_master_t *m)
 }
 
 /* Starts a transaction with the payload in buf, sealed. */
-int dan_gwc_start(dan_gw_t *gw, uint32_t code, const uint8_t *buf, int len, uint64_t now_us)
+int dan_gwc_start(dan_gw_t *gw, uint32_t code, uint8_t *buf, int len, size_t cap, uint64_t now_us)
 {
-    uint8_t sealed[DAN_MAX_PAYLOAD];
     int rc;
     if (len < 0) {
         return len;
     }
-    if ((size_t)len > 0u) {
-        memcpy(sealed, buf, (size_t)len);
-    }
-    len = dan_gw_seal(code, DAN_GW_REQUEST, sealed, (size_t)len, sizeof sealed);
+    len = dan_gw_seal(code, DAN_GW_REQUEST, buf, (size_t)len, cap);
     if (len < 0) {
         return len;
     }
-    rc = dan_master_request(gw->m, code, sealed, (size_t)len, now_us);
+    rc = dan_master_request(gw->m, code, buf, (size_t)len, now_us);
     if (rc == DAN_OK) {
         gw->code = code;
     }
     return rc;
+}
+
+int dan_gwc_start_byte(dan_gw_t *gw, uint32_t code, uint8_t v, size_t n, uint64_t now_us)
+{
+    uint8_t buf[DAN_GWC_BUF(1u)];
+    buf[0] = v;
+    return dan_gwc_start(gw, code, buf, (int)n, sizeof buf, now_us);
 }
 
 bool dan_gwc_idle(const dan_gw_t *gw)
@@ -61,22 +64,24 @@ bool dan_gwc_idle(const dan_gw_t *gw)
 
 int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t now_us)
 {
-    uint8_t buf[DAN_GW_ESC_CMD_SIZE(DAN_GW_ESC_MAX)];
+    uint8_t buf[DAN_GWC_BUF(DAN_GW_ESC_CMD_SIZE(DAN_GW_ESC_MAX))];
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     return dan_gwc_start(gw, DAN_GW_CODE_ESC_CMD, buf,
-                         dan_gw_msg_esc_cmd_encode(values, n, buf, sizeof buf), now_us);
+                         dan_gw_msg_esc_cmd_encode(values, n, buf, DAN_GWC_CAP(buf)), sizeof buf,
+                         now_us);
 }
 
 int dan_gw_esc_fast(dan_gw_t *gw, const int16_t *values, size_t n, bool telem, uint64_t now_us)
 {
-    uint8_t buf[DAN_GW_ESC_FAST_SIZE(DAN_GW_ESC_MAX)];
+    uint8_t buf[DAN_GWC_BUF(DAN_GW_ESC_FAST_SIZE(DAN_GW_ESC_MAX))];
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
     return dan_gwc_start(gw, telem ? DAN_GW_CODE_ESC_FAST_T : DAN_GW_CODE_ESC_FAST, buf,
-                         dan_gw_msg_esc_fast_encode(values, n, buf, sizeof buf), now_us);
+                         dan_gw_msg_esc_fast_encode(values, n, buf, DAN_GWC_CAP(buf)), sizeof buf,
+                         now_us);
 }
 
 int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us)
@@ -84,7 +89,7 @@ int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_ESC_TELEM, &first, 1, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_ESC_TELEM, first, 1u, now_us);
 }
 
 int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us)
@@ -93,12 +98,12 @@ int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_ARM, &v, 1, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_ARM, v, 1u, now_us);
 }
 
 int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us)
 {
-    uint8_t buf[DAN_GW_CONFIG_REQ_MAX];
+    uint8_t buf[DAN_GWC_BUF(DAN_GW_CONFIG_REQ_MAX)];
     dan_gw_config_t none;
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
@@ -108,7 +113,8 @@ int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us)
         set = &none;
     }
     return dan_gwc_start(gw, DAN_GW_CODE_CONFIG, buf,
-                         dan_gw_msg_config_req_encode(set, buf, sizeof buf), now_us);
+                         dan_gw_msg_config_req_encode(set, buf, DAN_GWC_CAP(buf)), sizeof buf,
+                         now_us);
 }
 
 int dan_gw_stats(dan_gw_t *gw, uint64_t now_us)
@@ -116,7 +122,7 @@ int dan_gw_stats(dan_gw_t *gw, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_STATS, NULL, 0, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_STATS, 0u, 0u, now_us);
 }
 
 int dan_gw_nodes(dan_gw_t *gw, uint8_t first, uint64_t now_us)
@@ -124,7 +130,7 @@ int dan_gw_nodes(dan_gw_t *gw, uint8_t first, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_NODES, &first, 1, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_NODES, first, 1u, now_us);
 }
 
 int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us)
@@ -132,12 +138,12 @@ int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_NODE_INFO, &node_id, 1, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_NODE_INFO, node_id, 1u, now_us);
 }
 
 int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_us)
 {
-    uint8_t buf[DAN_GW_TUN_OPEN_REQ_MAX];
+    uint8_t buf[DAN_GWC_BUF(DAN_GW_TUN_OPEN_REQ_MAX)];
     int rc;
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
@@ -146,7 +152,7 @@ int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_
         return DAN_ERR_ARG;
     }
     rc = dan_gwc_start(gw, DAN_GW_CODE_TUN_OPEN, buf,
-                       dan_gw_msg_tun_open_encode(cfg, buf, sizeof buf), now_us);
+                       dan_gw_msg_tun_open_encode(cfg, buf, DAN_GWC_CAP(buf)), sizeof buf, now_us);
     if (rc == DAN_OK) {
         gw->port = cfg->port;
     }
@@ -156,7 +162,7 @@ int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_
 int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len, size_t rd_max,
                        uint64_t now_us)
 {
-    uint8_t buf[DAN_MAX_PAYLOAD];
+    uint8_t buf[DAN_MAX_PAYLOAD]; /* the seal fits in it */
     dan_gw_tun_xfer_t x;
     int rc;
     if (!dan_gwc_idle(gw)) {
@@ -173,7 +179,8 @@ int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t l
     x.data = data;
     x.len = len > DAN_GW_TUN_CHUNK_MAX ? DAN_GW_TUN_CHUNK_MAX : len;
     rc = dan_gwc_start(gw, DAN_GW_CODE_TUN_XFER, buf,
-                       dan_gw_msg_tun_xfer_req_encode(&x, buf, sizeof buf), now_us);
+                       dan_gw_msg_tun_xfer_req_encode(&x, buf, DAN_GWC_CAP(buf)), sizeof buf,
+                       now_us);
     if (rc == DAN_OK) {
         gw->port = port;
         gw->tun[port].accepted = 0;
@@ -183,7 +190,7 @@ int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t l
 
 int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint64_t now_us)
 {
-    uint8_t buf[DAN_MAX_PAYLOAD];
+    uint8_t buf[DAN_MAX_PAYLOAD]; /* the seal fits in it */
     dan_writer_t w;
     dan_gw_can_send_t s;
     size_t i;
@@ -197,12 +204,12 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
     s.seq = (uint8_t)(gw->can_seq + 1u);
     s.count = (uint8_t)n;
     s.queue_free = 0;
-    dan_writer_init(&w, buf, sizeof buf);
+    dan_writer_init(&w, buf, DAN_GWC_CAP(buf));
     dan_gw_msg_can_send_req_put(&w, &s);
     for (i = 0; i < n; i++) {
         dan_gw_msg_can_frame_put(&w, &frames[i]);
     }
-    rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_SEND, buf, dan_writer_finish(&w), now_us);
+    rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_SEND, buf, dan_writer_finish(&w), sizeof buf, now_us);
     if (rc == DAN_OK) {
         /* a new number per call, not per attempt: the master's retries repeat it */
         gw->can_seq = s.seq;
@@ -217,7 +224,7 @@ int dan_gw_can_recv(dan_gw_t *gw, uint8_t max, uint64_t now_us)
 
 int dan_gw_can_recv_opts(dan_gw_t *gw, uint8_t max, uint8_t opts, uint64_t now_us)
 {
-    uint8_t buf[DAN_GW_CAN_RECV_REQ_MAX];
+    uint8_t buf[DAN_GWC_BUF(DAN_GW_CAN_RECV_REQ_MAX)];
     dan_gw_can_recv_t q;
     int rc;
     if (!dan_gwc_idle(gw)) {
@@ -228,7 +235,8 @@ int dan_gw_can_recv_opts(dan_gw_t *gw, uint8_t max, uint8_t opts, uint64_t now_u
     q.count = max > DAN_GW_CAN_FRAMES_MAX ? (uint8_t)DAN_GW_CAN_FRAMES_MAX : max;
     q.opts = opts;
     rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_RECV, buf,
-                       dan_gw_msg_can_recv_req_encode(&q, buf, sizeof buf), now_us);
+                       dan_gw_msg_can_recv_req_encode(&q, buf, DAN_GWC_CAP(buf)), sizeof buf,
+                       now_us);
     if (rc == DAN_OK) {
         gw->recv_opts = opts;
     }
@@ -237,7 +245,7 @@ int dan_gw_can_recv_opts(dan_gw_t *gw, uint8_t max, uint8_t opts, uint64_t now_u
 
 int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t n, uint64_t now_us)
 {
-    uint8_t buf[DAN_MAX_PAYLOAD];
+    uint8_t buf[DAN_MAX_PAYLOAD]; /* the seal fits in it */
     dan_writer_t w;
     size_t i;
     if (!dan_gwc_idle(gw)) {
@@ -246,12 +254,13 @@ int dan_gw_can_filter(dan_gw_t *gw, uint8_t op, const dan_gw_filter_t *f, size_t
     if ((f == NULL && n > 0u) || n > DAN_GW_FILTERS_MAX || op > DAN_GW_FILTER_READ) {
         return DAN_ERR_ARG;
     }
-    dan_writer_init(&w, buf, sizeof buf);
+    dan_writer_init(&w, buf, DAN_GWC_CAP(buf));
     dan_gw_msg_filter_hdr_put(&w, op, (uint8_t)n);
     for (i = 0; i < n; i++) {
         dan_gw_msg_filter_put(&w, &f[i]);
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_CAN_FILTER, buf, dan_writer_finish(&w), now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_CAN_FILTER, buf, dan_writer_finish(&w), sizeof buf,
+                         now_us);
 }
 
 /* ---- completion ---- */

@@ -4,9 +4,18 @@
 
 #include "dan/can_gw/client.h"
 
-/* Starts a transaction with the payload in buf (len < 0: an encoder's
- * error, passed through), sealed. */
-int dan_gwc_start(dan_gw_t *gw, uint32_t code, const uint8_t *buf, int len, uint64_t now_us);
+/* Request buffers keep room for the seal after the payload, so it is
+ * sealed in place: no second frame-sized copy on the stack (the worst-case
+ * stack of an ESC command, issue 17). The encoder gets DAN_GWC_CAP(buf). */
+#define DAN_GWC_BUF(n)   ((n) + DAN_GW_SEAL_SIZE)
+#define DAN_GWC_CAP(buf) (sizeof(buf) - DAN_GW_SEAL_SIZE)
+
+/* Starts a transaction with the len-byte payload in buf (cap bytes, room
+ * for the seal included; len < 0: an encoder's error, passed through),
+ * sealed in place. */
+int dan_gwc_start(dan_gw_t *gw, uint32_t code, uint8_t *buf, int len, size_t cap, uint64_t now_us);
+/* Starts a request whose payload is one byte (n 1) or none (n 0). */
+int dan_gwc_start_byte(dan_gw_t *gw, uint32_t code, uint8_t v, size_t n, uint64_t now_us);
 /* True when no operation runs on the master. */
 bool dan_gwc_idle(const dan_gw_t *gw);
 /* A reader over the completed response of code (inner payload). */

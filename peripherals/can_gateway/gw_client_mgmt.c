@@ -6,12 +6,12 @@
 
 int dan_gw_node_call(dan_gw_t *gw, const dan_gw_call_t *c, uint64_t now_us)
 {
-    uint8_t buf[DAN_MAX_PAYLOAD];
+    uint8_t buf[DAN_MAX_PAYLOAD]; /* the seal fits in it */
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_NODE_CALL, buf, dan_gw_msg_call_encode(c, buf, sizeof buf),
-                         now_us);
+    return dan_gwc_start(gw, DAN_GW_CODE_NODE_CALL, buf,
+                         dan_gw_msg_call_encode(c, buf, DAN_GWC_CAP(buf)), sizeof buf, now_us);
 }
 
 static void call_init(dan_gw_call_t *c, uint16_t call_id, uint8_t node_id, uint8_t op)
@@ -80,7 +80,7 @@ int dan_gw_restart(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t mag
 int dan_gw_call_result(dan_gw_t *gw, uint16_t call_id, uint32_t offset, uint8_t max,
                        uint64_t now_us)
 {
-    uint8_t buf[DAN_GW_RESULT_REQ_MAX];
+    uint8_t buf[DAN_GWC_BUF(DAN_GW_RESULT_REQ_MAX)];
     dan_gw_result_t q;
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
@@ -90,7 +90,8 @@ int dan_gw_call_result(dan_gw_t *gw, uint16_t call_id, uint32_t offset, uint8_t 
     q.offset = offset;
     q.max = max;
     return dan_gwc_start(gw, DAN_GW_CODE_CALL_RESULT, buf,
-                         dan_gw_msg_result_req_encode(&q, buf, sizeof buf), now_us);
+                         dan_gw_msg_result_req_encode(&q, buf, DAN_GWC_CAP(buf)), sizeof buf,
+                         now_us);
 }
 
 int dan_gw_call_result_get(const dan_gw_t *gw, dan_gw_result_t *res)
@@ -105,7 +106,7 @@ int dan_gw_health(dan_gw_t *gw, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_HEALTH, NULL, 0, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_HEALTH, 0u, 0u, now_us);
 }
 
 int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
@@ -113,7 +114,7 @@ int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_DNA, &first, 1, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_DNA, first, 1u, now_us);
 }
 
 int dan_gw_dna_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_dna_hdr_t *hdr)
