@@ -115,8 +115,16 @@ def report(ci_dir, objdump, elf, linked, public_prefixes=("dan_",)):
         frames[fn] = (size, True)
     worst = worst_case(frames, calls, linked)
     rows = sorted(
-        ((fn, n, p) for fn, (n, p) in worst.items() if ":" not in fn and fn.startswith(public_prefixes) and not fn.startswith(INTERNAL_PREFIXES)),
+        (
+            (fn, n, p)
+            for fn, (n, p) in worst.items()
+            if ":" not in fn
+            and fn.startswith(public_prefixes)
+            and not fn.startswith(INTERNAL_PREFIXES)
+        ),
         key=lambda r: -r[1],
     )
-    port_calls = sum(n for fn, n in indirect.items() if fn not in INDIRECT and fn.split(":")[-1] in linked)
+    port_calls = sum(
+        n for fn, n in indirect.items() if fn not in INDIRECT and fn.split(":")[-1] in linked
+    )
     return rows, port_calls, notes
