@@ -60,6 +60,7 @@
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
+#include "dan/can_gw/file_store.h"
 #include "dan/can_gw/msgs.h"
 #include "dan/can_gw/msgs_mgmt.h"
 #include "dan/can_gw/msgs_out.h"
@@ -133,6 +134,7 @@ typedef struct {
     bool dna;                            /* serve dynamic node ID allocation (default true) */
     const dan_gw_storage_t *dna_storage; /* NULL: the table lives in RAM only */
     uint32_t telem_timeout_ms;           /* HEALTH: commanded ESC without telemetry (1000; 0 off) */
+    const dan_gw_file_store_t *files;    /* file server and uploads (NULL: none) */
 } dan_gw_node_config_t;
 
 void dan_gw_node_config_default(dan_gw_node_config_t *c);
@@ -211,6 +213,18 @@ typedef struct {
     dan_gw_node_servo_t servo[DAN_GW_NODE_SERVOS];
 } dan_gw_node_servos_t;
 
+/* Firmware-update progress of one node (NODE_INFO's appended fields): the
+ * file server (gw_node_file.c) fills it as the node reads, FW_BEGIN
+ * (gw_node_call.c) resets it. */
+#define DAN_GW_FW_BEGUN   0x01u /* BeginFirmwareUpdate answered OK */
+#define DAN_GW_FW_READING 0x02u /* it has read since */
+typedef struct {
+    uint8_t flags;         /* DAN_GW_FW_* */
+    uint32_t bytes_read;   /* highest offset + length served */
+    uint32_t file_size;    /* of the file it read (0 none) */
+    uint64_t last_read_us; /* 0: never */
+} dan_gw_node_fw_t;
+
 /* One node of the table (gw_node_table.c). */
 typedef struct {
     dan_gw_node_entry_t e; /* age_ms filled when sent */
@@ -224,6 +238,7 @@ typedef struct {
     uint64_t drops_since_us;
     uint8_t prev_uid[DAN_DC_UNIQUE_ID_SIZE];
     dan_gw_node_info_t info;
+    dan_gw_node_fw_t fw;
 } dan_gw_node_slot_t;
 
 /* The dynamic node ID allocation server (gw_node_dna.c). */
