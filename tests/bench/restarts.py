@@ -140,7 +140,7 @@ def fc_restarts(build, count, baud, rng):
                     time.sleep(rng.uniform(0, 0.4))
                 else:
                     seen = wait_until(
-                        lambda: log.first_at_all(values, t0), t0 + RECOVER_DEADLINE_S, log
+                        lambda v=values, t=t0: log.first_at_all(v, t), t0 + RECOVER_DEADLINE_S, log
                     )
                     if seen is None:
                         failed += 1
@@ -155,7 +155,9 @@ def fc_restarts(build, count, baud, rng):
                 pause = rng.uniform(0, 1.2)
                 time.sleep(pause)
                 if pause > ESC_TIMEOUT_MS / 1000 + FAILSAFE_MARGIN_S + 0.1:
-                    z = wait_until(lambda: log.zeros_at_all(kill, kill + pause), kill + pause, log)
+                    z = wait_until(
+                        lambda k=kill, p=pause: log.zeros_at_all(k, k + p), kill + pause, log
+                    )
                     failsafe.append(None if z is None else z - kill)
             time.sleep(0.5)
             log.poll()
@@ -202,7 +204,9 @@ def gateway_restarts(build, count, baud, rng):
             time.sleep(1.0)
             t0 = time.monotonic()
             fc = start_fcsim(st, build, tmp, baud, values, "fc", recover=True)
-            first = wait_until(lambda: log.first_at_all(values, t0), t0 + RECOVER_DEADLINE_S, log)
+            first = wait_until(
+                lambda v=values, t=t0: log.first_at_all(v, t), t0 + RECOVER_DEADLINE_S, log
+            )
             if first is None:
                 raise RuntimeError("the ESC loop never started: see " + str(tmp))
             for k in range(count):
@@ -212,7 +216,7 @@ def gateway_restarts(build, count, baud, rng):
                 g0 = time.monotonic()
                 gwd = start_gwd(st, build, tmp, gw_args, name=f"dan-gatewayd{k}")
                 seen = wait_until(
-                    lambda: log.first_at_all(values, g0), g0 + RECOVER_DEADLINE_S, log
+                    lambda t=g0: log.first_at_all(values, t), g0 + RECOVER_DEADLINE_S, log
                 )
                 if seen is None:
                     failed += 1
