@@ -545,3 +545,4 @@ def test_restart_runner_recovers_and_checks_values(tmp_path):
     assert res["gateway"]["recovered"] == 2 and res["gateway"]["wrong_commands"] == 0
     assert res["fc"]["not_recovered"] == 0 and res["fc"]["wrong_commands"] == 0
     assert res["fc"]["commands"] > 0 and res["gateway"]["commands"] > 0
+    assert res["fc"]["failsafe_late"] == 0

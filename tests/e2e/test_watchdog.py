@@ -121,6 +121,7 @@ def test_sigkill_mid_flight_what_the_escs_see(stack, procs):
 
     arming = wait_for(lambda: first("arming", 0), 30, 0.1, what="ArmingStatus DISARMED")
     safety = wait_for(lambda: first("safety", 0), 30, 0.1, what="SafetyState ON")
+
     def moving():
         return [
             e

@@ -22,8 +22,8 @@ static uint64_t watchdog_usec(void)
     if (usec == NULL) {
         return 0;
     }
-    if (pid != NULL && (tool_parse_ulong(pid, 10, 1, 0x7FFFFFFFul, &v) != 0 ||
-                        (pid_t)v != getpid())) {
+    if (pid != NULL &&
+        (tool_parse_ulong(pid, 10, 1, 0x7FFFFFFFul, &v) != 0 || (pid_t)v != getpid())) {
         return 0;
     }
     if (tool_parse_ulong(usec, 10, 1, 0xFFFFFFFFul, &v) != 0) {

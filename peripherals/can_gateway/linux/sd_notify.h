@@ -19,9 +19,9 @@
 #include <stdint.h>
 
 typedef struct {
-    int fd;              /* -1: no notify socket */
-    uint64_t period_us;  /* watchdog ping period (0: no watchdog) */
-    uint64_t due_us;     /* next ping */
+    int fd;             /* -1: no notify socket */
+    uint64_t period_us; /* watchdog ping period (0: no watchdog) */
+    uint64_t due_us;    /* next ping */
     uint32_t sent, send_errors;
 } dan_sd_t;
 
