@@ -22,12 +22,16 @@ static bool name_ok(const char *s)
 static void test_names(void **state)
 {
     static const char *const good[] = {
-        "a", "fw.bin", "AP_Periph-1.2.apj", "x.", "a..b", "0", "_x", "-x",
-        "abcdefghijklmnopqrstuvwxyz012345", /* 32 */
+        "a",  "fw.bin", "AP_Periph-1.2.apj",
+        "x.", "a..b",   "0",
+        "_x", "-x",     "abcdefghijklmnopqrstuvwxyz012345", /* 32 */
     };
     static const char *const bad[] = {
-        "", ".", "..", ".hidden", "../x", "/etc/passwd", "a/b", "a/b/c", "a\\b", "a b",
-        "~x", "x~", "\xc3\xa9", "a:b", "abcdefghijklmnopqrstuvwxyz0123456", /* 33 */
+        "",         ".",     "..",
+        ".hidden",  "../x",  "/etc/passwd",
+        "a/b",      "a/b/c", "a\\b",
+        "a b",      "~x",    "x~",
+        "\xc3\xa9", "a:b",   "abcdefghijklmnopqrstuvwxyz0123456", /* 33 */
     };
     size_t i;
     (void)state;
@@ -37,8 +41,8 @@ static void test_names(void **state)
     for (i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         assert_false(name_ok(bad[i]));
     }
-    assert_false(dan_gw_file_name_ok("ab\0c", 4));   /* NUL inside */
-    assert_true(dan_gw_file_name_ok("ab\0c", 2));    /* len counts, not the NUL */
+    assert_false(dan_gw_file_name_ok("ab\0c", 4)); /* NUL inside */
+    assert_true(dan_gw_file_name_ok("ab\0c", 2));  /* len counts, not the NUL */
     assert_false(dan_gw_file_name_ok(NULL, 1));
 }
 
@@ -50,8 +54,17 @@ static bool path_ok(const char *s, char *name)
 static void test_paths(void **state)
 {
     static const char *const bad[] = {
-        "", "/", "//fw.bin", "../fw.bin", "/../fw.bin", "/etc/passwd", "a/b/c", "fw.bin/",
-        "/.hidden", "./fw.bin", "/abcdefghijklmnopqrstuvwxyz0123456",
+        "",
+        "/",
+        "//fw.bin",
+        "../fw.bin",
+        "/../fw.bin",
+        "/etc/passwd",
+        "a/b/c",
+        "fw.bin/",
+        "/.hidden",
+        "./fw.bin",
+        "/abcdefghijklmnopqrstuvwxyz0123456",
     };
     char name[DAN_GW_FILE_NAME_MAX + 1u];
     size_t i;
@@ -73,8 +86,8 @@ static void test_paths(void **state)
 /* Read request, offset 0x12345, path "/fw.bin": uint40 offset as its
  * little-endian bytes (45 23 01 00 00), then the path's bytes with no
  * length prefix (Path is the last field: tail array). */
-static const uint8_t READ_REQ_BYTES[] = {0x45, 0x23, 0x01, 0x00, 0x00, '/', 'f', 'w',
-                                         '.',  'b',  'i',  'n'};
+static const uint8_t READ_REQ_BYTES[] = {0x45, 0x23, 0x01, 0x00, 0x00, '/',
+                                         'f',  'w',  '.',  'b',  'i',  'n'};
 
 static void test_read_req(void **state)
 {

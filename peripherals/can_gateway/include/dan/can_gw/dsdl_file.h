@@ -24,8 +24,8 @@
 extern "C" {
 #endif
 
-#define DAN_DC_FILE_PATH_MAX   200u /* Path.path bytes */
-#define DAN_DC_FILE_READ_MAX   256u /* Read response data bytes */
+#define DAN_DC_FILE_PATH_MAX   200u            /* Path.path bytes */
+#define DAN_DC_FILE_READ_MAX   256u            /* Read response data bytes */
 #define DAN_DC_FILE_OFFSET_MAX 0xFFFFFFFFFFull /* uint40 */
 
 /* uavcan.protocol.file.Error values (int16). */
