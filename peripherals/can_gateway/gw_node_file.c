@@ -19,8 +19,7 @@ static int16_t store_error(int32_t r)
 
 /* The request's path as a store name; false for a malformed request or a
  * path that is not a name (never handed to the store). */
-static bool request_name(dan_gw_node_t *g, const dan_dc_transfer_t *t, char *name,
-                         uint64_t *offset)
+static bool request_name(dan_gw_node_t *g, const dan_dc_transfer_t *t, char *name, uint64_t *offset)
 {
     dan_dc_file_req_t *q = &g->scratch.file_req;
     int r = t->data_type_id == DAN_DC_FILE_READ_ID
@@ -46,8 +45,9 @@ static void answer_getinfo(dan_gw_node_t *g, const dan_dc_transfer_t *t, const c
         r.entry_type = DAN_DC_FILE_FLAG_FILE | DAN_DC_FILE_FLAG_READABLE;
     }
     g->stats.file_errors += r.error != 0;
-    (void)dan_gwn_respond(g, t, DAN_DC_FILE_GETINFO_SIGNATURE, g->scratch_buf,
-                          dan_dc_file_getinfo_rsp_encode(&r, g->scratch_buf, sizeof g->scratch_buf));
+    (void)dan_gwn_respond(
+        g, t, DAN_DC_FILE_GETINFO_SIGNATURE, g->scratch_buf,
+        dan_dc_file_getinfo_rsp_encode(&r, g->scratch_buf, sizeof g->scratch_buf));
 }
 
 /* The node's firmware-update progress (NODE_INFO): a read from 0 starts a
