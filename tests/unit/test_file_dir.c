@@ -96,8 +96,8 @@ static void test_committed(void **state)
     (void)state;
     put_file("b.bin", "bravo");
     put_file("a.bin", "alpha!");
-    put_file("~c.bin", "partial");  /* never listed */
-    put_file(".hidden", "dot");     /* not a valid name */
+    put_file("~c.bin", "partial"); /* never listed */
+    put_file(".hidden", "dot");    /* not a valid name */
     path_of("sub", p, sizeof p);
     assert_int_equal(mkdir(p, 0700), 0); /* a directory is no file */
     assert_int_equal(fs->size(fs->ctx, "a.bin"), 6);

@@ -318,35 +318,55 @@ static void test_getinfo(void **state)
     assert_int_equal(r.error, DAN_DC_FILE_IO_ERROR);
 }
 
-/* Two reads in flight before the bus drains: each answered with its own
- * transfer ID and data; three 38-frame answers fill the bulk queue, the
- * fourth is dropped whole (the reader asks again). */
+/* Reads in flight before the bus drains: each answered with its own
+ * transfer ID and data, in order. Three 38-frame answers fill the bulk
+ * queue; the next ones wait for room (nothing dropped) and go out as it
+ * drains; a request that waited too long is dropped (its reader has
+ * asked again by then), as is one beyond the wait list. */
 static void test_reads_in_flight(void **state)
 {
     static dan_dc_file_read_rsp_t r;
     size_t from = R->ncap;
-    uint8_t tid0;
+    uint8_t tid0 = 0;
     cap_t *c;
     int i;
     (void)state;
-    send_read(LISTEN_NODE, 0, "fw.bin");
-    send_read(LISTEN_NODE, 256, "fw.bin");
-    drain();
-    c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
-    tid0 = c->tid;
-    assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
-    assert_memory_equal(r.data, img, 256);
-    c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
-    assert_int_equal(c->tid, (tid0 + 1u) & 31u);
-    assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
-    assert_memory_equal(r.data, img + 256, 256);
-    for (i = 0; i < 4; i++) {
-        send_read((uint8_t)(50 + i), 0, "fw.bin");
+    advance(10000); /* our own timers in the future */
+    from = R->ncap;
+    for (i = 0; i < 5; i++) {
+        send_read(LISTEN_NODE, (uint64_t)(i % 2) * 256u, "fw.bin"); /* 256 bytes each */
     }
-    assert_int_equal(R->g.stats.can_tx_dropped, 38);
-    assert_int_equal(R->g.stats.file_reads, 6);
+    assert_int_equal(R->g.file_nwait, 2);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
+    assert_true(dan_gw_node_next_us(&R->g, R->bus.now) > R->bus.now); /* no room yet */
+    drain();
+    assert_int_equal(dan_gw_node_next_us(&R->g, R->bus.now), R->bus.now); /* room now */
+    advance(1000);
+    assert_int_equal(R->g.file_nwait, 0);
+    for (i = 0; i < 5; i++) {
+        c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
+        assert_non_null(c);
+        if (i == 0) {
+            tid0 = c->tid;
+        }
+        assert_int_equal(c->tid, (tid0 + (unsigned)i) & 31u);
+        assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
+        assert_int_equal(r.data_len, 256);
+        assert_memory_equal(r.data, img + (i % 2) * 256, 256);
+    }
+    assert_int_equal(R->g.stats.file_reads, 5);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
+    /* 3 answered, 8 wait, 1 dropped; then the 8 go stale */
+    for (i = 0; i < 12; i++) {
+        send_read((uint8_t)(60 + i), 0, "fw.bin");
+    }
+    assert_int_equal(R->g.file_nwait, DAN_GW_NODE_FILE_WAIT);
+    assert_int_equal(R->g.stats.file_dropped, 1);
+    dan_gw_node_poll(&R->g, R->bus.now + DAN_GW_NODE_FILE_WAIT_US + 1u);
+    assert_int_equal(R->g.file_nwait, 0);
+    assert_int_equal(R->g.stats.file_dropped, 1u + DAN_GW_NODE_FILE_WAIT);
+    assert_int_equal(R->g.stats.file_reads, 8);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
 }
 
 static void test_no_store(void **state)
