@@ -161,6 +161,10 @@ typedef struct {
     uint32_t call_timeouts;   /* calls no attempt of which was answered */
     uint32_t servo_cmds;      /* SERVO requests */
     uint32_t servo_dropped;   /* actuators beyond DAN_GW_NODE_SERVOS */
+    uint32_t file_bytes;      /* upload bytes written to the store */
+    uint32_t file_commits;    /* uploads committed */
+    uint32_t file_errors;     /* store failures */
+    uint32_t fw_begins;       /* BeginFirmwareUpdate answered OK */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
