@@ -17,6 +17,11 @@ void dan_gwn_txq_push(dan_gw_node_txq_t *q, const dan_can_frame_t *f);
 /* Queues one transfer whole (source node = ours), or drops it whole
  * (counted in can_tx_dropped): DAN_ERR_OVERFLOW. */
 int dan_gwn_send_transfer(dan_gw_node_t *g, dan_gw_node_txq_t *q, dan_dc_transfer_t *t);
+/* The response to a service request req: same data type, priority and
+ * transfer ID, to its source (len < 0: the encoder's error, passed
+ * through). Queued on the bulk queue. */
+int dan_gwn_respond(dan_gw_node_t *g, const dan_dc_transfer_t *req, uint64_t sig,
+                    const uint8_t *payload, int len);
 /* A broadcast of an encoded payload (len < 0: the encoder's error, passed
  * through). */
 int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uint64_t sig,
@@ -127,6 +132,11 @@ dan_gw_node_call_t *dan_gwn_call_find(dan_gw_node_t *g, uint16_t call_id);
 void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_calls_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_calls_next_us(const dan_gw_node_t *g, uint64_t t);
+
+/* ---- file server (gw_node_file.c) ---- */
+/* True for file.GetInfo and file.Read when a store is configured. */
+bool dan_gwn_file_service(const dan_gw_node_t *g, uint16_t dtid);
+void dan_gwn_on_file_request(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 
 /* ---- DAN side (gw_node_dan*.c) ---- */
 /* A request reached us: the master is alive (NodeStatus health). */

@@ -82,8 +82,8 @@ static int vec_fw(const char *msg, const uint8_t *p, size_t len, char *txt, size
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
         assert_true(ni.follow);
         vec_cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
-                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags,
-                (unsigned long)ni.vcs_commit, ni.hw_major, ni.hw_minor);
+                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
+                ni.hw_major, ni.hw_minor);
         vec_cat_hex(txt, cap, ni.unique_id, 16);
         vec_cat(txt, cap, " name=");
         vec_cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
@@ -214,9 +214,9 @@ static void test_file_vectors(void **state)
             size_t dl = vec_hex(kv[0] + 5, data, sizeof data);
             assert_int_equal(dan_gw_crc32(0, data, dl), strtoul(kv[1] + 4, NULL, 10));
             /* chained over two pieces: the same */
-            assert_int_equal(dan_gw_crc32(dan_gw_crc32(0, data, dl / 3u), data + dl / 3u,
-                                          dl - dl / 3u),
-                             strtoul(kv[1] + 4, NULL, 10));
+            assert_int_equal(
+                dan_gw_crc32(dan_gw_crc32(0, data, dl / 3u), data + dl / 3u, dl - dl / 3u),
+                strtoul(kv[1] + 4, NULL, 10));
             crcs++;
             continue;
         }

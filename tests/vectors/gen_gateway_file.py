@@ -60,7 +60,9 @@ def open_vectors(emit):
             array(name) + u32(size) + u8(flags),
         )
     for result, have in [(0, 0), (0, 123456), (3, 0), (7, 300), (8, 0), (0, 4294967295)]:
-        emit("file_open", "rsp", ["result=%d" % result, "have=%d" % have], u8(result) + uvarint(have))
+        emit(
+            "file_open", "rsp", ["result=%d" % result, "have=%d" % have], u8(result) + uvarint(have)
+        )
     emit("file_open", "bad", [], array(b"") + u32(1) + u8(0))  # empty name
     emit("file_open", "bad", [], array(b"B" * 33) + u32(1) + u8(0))  # name too long
     emit("file_open", "bad", [], array(b"fw.bin") + u32(1) + u8(2))  # unknown flag
@@ -78,7 +80,10 @@ def write_vectors(emit):
         )
     for result, have in [(0, 154), (1, 0), (2, 300), (3, 1000)]:
         emit(
-            "file_write", "rsp", ["result=%d" % result, "have=%d" % have], u8(result) + uvarint(have)
+            "file_write",
+            "rsp",
+            ["result=%d" % result, "have=%d" % have],
+            u8(result) + uvarint(have),
         )
     emit("file_write", "bad", [], uvarint(0) + array(b""))  # no data
     emit("file_write", "bad", [], uvarint(0) + array(chunk + b"\x01"))  # 151 bytes
@@ -158,7 +163,8 @@ def node_info_vectors(emit):
             + ["since=%d" % since],
             u8(33) + u8(1) + u8(st) + u8(fl) + uvarint(rd) + uvarint(sz) + u32(since),
         )
-    vals = list(range(28)) + [300000, 2, 1, 3]  # ... file_bytes, file_commits, file_errors, fw_begins
+    # ... file_reads, file_bytes, file_errors, upload_bytes, file_commits, upload_errors, fw_begins
+    vals = list(range(28)) + [4000, 1000000, 2, 300000, 2, 1, 3]
     emit(
         "stats",
         "rsp",

@@ -194,9 +194,12 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */                \
     X(SERVO_CMDS, servo_cmds)           /* SERVO requests */                              \
     X(SERVO_DROPPED, servo_dropped)     /* actuators beyond the node's table */           \
-    X(FILE_BYTES, file_bytes)           /* upload bytes written to the store */           \
+    X(FILE_READS, file_reads)           /* file.Read requests served */                   \
+    X(FILE_BYTES, file_bytes)           /* file bytes served to nodes */                  \
+    X(FILE_ERRORS, file_errors)         /* file.GetInfo / Read answered an error */       \
+    X(UPLOAD_BYTES, upload_bytes)       /* upload bytes written to the store */           \
     X(FILE_COMMITS, file_commits)       /* uploads committed */                           \
-    X(FILE_ERRORS, file_errors)         /* file store failures (IO_ERROR) */              \
+    X(UPLOAD_ERRORS, upload_errors)     /* store failures of the DAN file messages */     \
     X(FW_BEGINS, fw_begins)             /* BeginFirmwareUpdate answered OK */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,

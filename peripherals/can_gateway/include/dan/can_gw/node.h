@@ -41,13 +41,17 @@
  *     failsafe value or hold per actuator), LightsCommand, BeepCommand.
  *   - gw_node_table.c: the node table from NodeStatus; GetNodeInfo asked of
  *     every new node up to DAN_GW_NODE_INFO_TRIES times a second apart (and
- *     again after the node restarts: its uptime went down).
+ *     again after the node restarts: its uptime went down, or its mode
+ *     went from SOFTWARE_UPDATE to OPERATIONAL).
  *   - gw_node_tunnel.c: uavcan.tunnel.Targetted as ArduPilot's
  *     AP_DroneCAN_serial does it (chunks <= 120 bytes, an empty keepalive
  *     every 500 ms while idle, options from TUN_OPEN, received only from
  *     the target node with target_node == our id and the port's serial_id)
  *     and tunnel.Broadcast (chunks <= 60, received by protocol and
  *     channel_id).
+ *   - gw_node_file.c: the file server (uavcan.protocol.file.GetInfo and
+ *     Read from cfg.files; no store: the requests are not answered); notes
+ *     each reader's progress in its node table slot (fw).
  *   - gw_node_raw.c: every received CAN frame, processed or not, goes
  *     through the raw filter into the raw receive ring; raw frames out.
  *   - gw_node_dan.c: the DAN handlers (decode, call the subsystem, encode)
@@ -58,6 +62,7 @@
 
 #include "dan/can_gw/dronecan.h"
 #include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/dsdl_file.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
 #include "dan/can_gw/file_store.h"
@@ -161,9 +166,12 @@ typedef struct {
     uint32_t call_timeouts;   /* calls no attempt of which was answered */
     uint32_t servo_cmds;      /* SERVO requests */
     uint32_t servo_dropped;   /* actuators beyond DAN_GW_NODE_SERVOS */
-    uint32_t file_bytes;      /* upload bytes written to the store */
+    uint32_t file_reads;      /* file.Read requests answered with data or the end */
+    uint32_t file_bytes;      /* file bytes served by them */
+    uint32_t file_errors;     /* file.GetInfo / Read answered with an error */
+    uint32_t upload_bytes;    /* upload bytes written to the store */
     uint32_t file_commits;    /* uploads committed */
-    uint32_t file_errors;     /* store failures */
+    uint32_t upload_errors;   /* store failures of uploads, lists, removals (IO_ERROR) */
     uint32_t fw_begins;       /* BeginFirmwareUpdate answered OK */
 } dan_gw_node_stats_t;
 
@@ -331,6 +339,8 @@ typedef struct {
         dan_dc_tunnel_broadcast_t bcast;
         dan_dc_param_getset_req_t getset_req;
         dan_dc_param_getset_rsp_t getset_rsp;
+        dan_dc_file_req_t file_req;
+        dan_dc_file_read_rsp_t file_rsp;
     } scratch;
     uint8_t scratch_buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
 } dan_gw_node_t;
