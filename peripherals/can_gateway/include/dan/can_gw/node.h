@@ -54,6 +54,10 @@
  *     each reader's progress in its node table slot (fw).
  *   - gw_node_raw.c: every received CAN frame, processed or not, goes
  *     through the raw filter into the raw receive ring; raw frames out.
+ *   - gw_node_dan_file.c: the DAN file messages: one upload at a time
+ *     into cfg.files (resumable, also from a partial the store kept through
+ *     a restart; retried writes write nothing; committed only with its
+ *     CRC-32), listing and removal.
  *   - gw_node_dan.c: the DAN handlers (decode, call the subsystem, encode)
  *     and the seal, as the type's envelope.
  */
@@ -285,6 +289,16 @@ typedef struct {
 } dan_gw_node_call_t;
 #define DAN_GW_NODE_CALL_FREE 0xFFu
 
+/* The one upload into the file store (gw_node_dan_file.c). */
+typedef struct {
+    bool open;      /* an upload is held */
+    bool committed; /* closed by a commit: a retried FILE_COMMIT of crc is OK */
+    char name[DAN_GW_FILE_NAME_MAX + 1u];
+    uint32_t size; /* declared by FILE_OPEN */
+    uint32_t have; /* bytes held, contiguous from 0 */
+    uint32_t crc;  /* CRC-32 of them (zlib's, chained) */
+} dan_gw_node_upload_t;
+
 /* One tunnel port (gw_node_tunnel.c). */
 typedef struct {
     dan_gw_tun_open_t cfg; /* cfg.mode DAN_GW_TUN_CLOSED: unused */
@@ -331,6 +345,7 @@ typedef struct {
     dan_gw_node_raw_t raw;
     dan_gw_node_dna_t dna;
     dan_gw_node_call_t calls[DAN_GW_NODE_CALLS];
+    dan_gw_node_upload_t upload;
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
