@@ -173,6 +173,13 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_CALL_TIMEOUTS] = g->stats.call_timeouts;
     v[DAN_GW_STAT_SERVO_CMDS] = g->stats.servo_cmds;
     v[DAN_GW_STAT_SERVO_DROPPED] = g->stats.servo_dropped;
+    v[DAN_GW_STAT_FILE_READS] = g->stats.file_reads;
+    v[DAN_GW_STAT_FILE_BYTES] = g->stats.file_bytes;
+    v[DAN_GW_STAT_FILE_ERRORS] = g->stats.file_errors;
+    v[DAN_GW_STAT_UPLOAD_BYTES] = g->stats.upload_bytes;
+    v[DAN_GW_STAT_FILE_COMMITS] = g->stats.file_commits;
+    v[DAN_GW_STAT_UPLOAD_ERRORS] = g->stats.upload_errors;
+    v[DAN_GW_STAT_FW_BEGINS] = g->stats.fw_begins;
 }
 
 /* ---- our own DroneCAN presence ---- */

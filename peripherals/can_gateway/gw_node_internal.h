@@ -6,6 +6,7 @@
 #define DAN_CAN_GW_NODE_INTERNAL_H
 
 #include "dan/can_gw/msgs_fast.h"
+#include "dan/can_gw/msgs_file.h"
 #include "dan/can_gw/node.h"
 
 /* Milliseconds between two microsecond times, saturated to 32 bits. */
@@ -181,6 +182,16 @@ int dan_gwn_h_esc_fast(void *user, uint32_t code, const uint8_t *req, size_t len
                        dan_writer_t *resp, const char **err, uint64_t now_us);
 int dan_gwn_h_beep(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                    const char **err, uint64_t now_us);
+int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t len,
+                        dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_write(void *user, uint32_t code, const uint8_t *req, size_t len,
+                         dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_commit(void *user, uint32_t code, const uint8_t *req, size_t len,
+                          dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_list(void *user, uint32_t code, const uint8_t *req, size_t len,
+                        dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_remove(void *user, uint32_t code, const uint8_t *req, size_t len,
+                          dan_writer_t *resp, const char **err, uint64_t now_us);
 extern const dan_handler_t dan_gwn_handlers[];
 extern const size_t dan_gwn_nhandlers;
 extern const dan_envelope_t dan_gwn_seal;

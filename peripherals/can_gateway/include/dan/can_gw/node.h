@@ -56,6 +56,10 @@
  *     them, oldest first, up to DAN_GW_NODE_FILE_WAIT_US).
  *   - gw_node_raw.c: every received CAN frame, processed or not, goes
  *     through the raw filter into the raw receive ring; raw frames out.
+ *   - gw_node_dan_file.c: the DAN file messages: one upload at a time
+ *     into cfg.files (resumable, also from a partial the store kept through
+ *     a restart; retried writes write nothing; committed only with its
+ *     CRC-32), listing and removal.
  *   - gw_node_dan.c: the DAN handlers (decode, call the subsystem, encode)
  *     and the seal, as the type's envelope.
  */
@@ -173,6 +177,10 @@ typedef struct {
     uint32_t file_bytes;      /* file bytes served by them */
     uint32_t file_errors;     /* file.GetInfo / Read answered with an error */
     uint32_t file_dropped;    /* file requests not answered: no room for long */
+    uint32_t upload_bytes;    /* upload bytes written to the store */
+    uint32_t file_commits;    /* uploads committed */
+    uint32_t upload_errors;   /* store failures of uploads, lists, removals (IO_ERROR) */
+    uint32_t fw_begins;       /* BeginFirmwareUpdate answered OK */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -294,6 +302,16 @@ typedef struct {
 } dan_gw_node_call_t;
 #define DAN_GW_NODE_CALL_FREE 0xFFu
 
+/* The one upload into the file store (gw_node_dan_file.c). */
+typedef struct {
+    bool open;      /* an upload is held */
+    bool committed; /* closed by a commit: a retried FILE_COMMIT of crc is OK */
+    char name[DAN_GW_FILE_NAME_MAX + 1u];
+    uint32_t size; /* declared by FILE_OPEN */
+    uint32_t have; /* bytes held, contiguous from 0 */
+    uint32_t crc;  /* CRC-32 of them (zlib's, chained) */
+} dan_gw_node_upload_t;
+
 /* One tunnel port (gw_node_tunnel.c). */
 typedef struct {
     dan_gw_tun_open_t cfg; /* cfg.mode DAN_GW_TUN_CLOSED: unused */
@@ -342,6 +360,7 @@ typedef struct {
     dan_gw_node_call_t calls[DAN_GW_NODE_CALLS];
     dan_gw_node_file_req_t file_wait[DAN_GW_NODE_FILE_WAIT]; /* oldest first */
     uint8_t file_nwait;
+    dan_gw_node_upload_t upload;
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
