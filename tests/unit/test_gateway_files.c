@@ -145,8 +145,7 @@ static void test_gap_and_too_large(void **state)
     uint32_t have;
     (void)state;
     assert_int_equal(write_at(0, 10, &have), DAN_GW_FILE_NO_UPLOAD);
-    assert_int_equal(open_file("big.bin", RAM_FILE_CAP + 1u, false, &have),
-                     DAN_GW_FILE_TOO_LARGE);
+    assert_int_equal(open_file("big.bin", RAM_FILE_CAP + 1u, false, &have), DAN_GW_FILE_TOO_LARGE);
     assert_int_equal(open_file("fw.bin", 300, false, &have), DAN_GW_FILE_OK);
     assert_int_equal(write_at(0, 100, &have), DAN_GW_FILE_OK);
     assert_int_equal(write_at(101, 10, &have), DAN_GW_FILE_GAP);
@@ -291,8 +290,8 @@ static void test_no_store(void **state)
  * only lengths). */
 static void test_bad_names(void **state)
 {
-    static const char *const bad[] = {"../x", ".hidden", "a/b", "/abs", "a b", "x\\y", "..",
-                                      "nul\0x"};
+    static const char *const bad[] = {"../x", ".hidden", "a/b", "/abs",
+                                      "a b",  "x\\y",    "..",  "nul\0x"};
     uint8_t p[64];
     size_t i, n;
     (void)state;
