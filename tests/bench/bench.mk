@@ -6,6 +6,8 @@
 #   make bench BENCH_ARGS='--only esc,parser --seconds 10'
 #   make bench SOAK=600        the full ESC loop for 600 s: RSS and counters
 #   make soak [SOAK=300]       the same (default 300 s)
+#   make soak CHAOS=1 SOAK=600 the chaos soak (tests/bench/chaos.py): faults on a
+#                              seeded schedule, invariants checked; chaos.json
 #   make restarts [RESTARTS=100] [RESTART_BAUDS=115200,1000000]
 #                              the FC and the gateway each killed RESTARTS times
 #                              at random moments (tests/bench/restarts.py);
@@ -42,7 +44,13 @@ bench: bench-build
 	  $(if $(SOAK),--soak $(SOAK)) $(BENCH_ARGS)
 
 soak: bench-build
+ifeq ($(CHAOS),1)
+	@mkdir -p $(BENCH_DIR)
+	$(VENV)/bin/python tests/bench/chaos.py --build $(BUILD) --seconds $(or $(SOAK),300) \
+	  --out $(BENCH_DIR)/chaos.json
+else
 	$(VENV)/bin/python tests/bench/run_bench.py --build $(BUILD) --out $(BENCH_DIR) --soak $(or $(SOAK),300)
+endif
 
 restarts: bench-build
 	@mkdir -p $(BENCH_DIR)
