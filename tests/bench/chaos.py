@@ -34,7 +34,6 @@ import json
 import os
 import random
 import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -52,6 +51,7 @@ from restarts import (  # noqa: E402
     check_values,
 )
 from run_bench import PY, Stack, rss_kb, start_gwd  # noqa: E402
+
 from bus_util import control  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -188,7 +188,9 @@ class Chaos:
         time.sleep(self.rng.uniform(0, 0.5))
         self.gw_instance += 1
         g0 = time.monotonic()
-        self.gwd = start_gwd(self.st, self.build, self.tmp, self.gw_args(), f"gwd{self.gw_instance}")
+        self.gwd = start_gwd(
+            self.st, self.build, self.tmp, self.gw_args(), f"gwd{self.gw_instance}"
+        )
         values = self.runs[-1][2]
         seen = self.wait(lambda: self.log.first_at_all(values, g0), RECOVER_DEADLINE_S)
         if seen is None:
