@@ -14,6 +14,7 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 import json
 import queue
 import random
+import subprocess
 import sys
 import threading
 
@@ -21,7 +22,7 @@ import dronecan
 import pytest
 
 from bus_util import danprobe, ready
-from conftest import ROOT, closing_factory, wait_for
+from conftest import BIN, ROOT, closing_factory, wait_for
 from gw_rig import GW_NODE, Rig
 
 U = dronecan.uavcan
@@ -199,3 +200,27 @@ def test_updates_through_the_gateway(frig):
     done(r, two, SMALL_SIZE)
     done(r, three, SMALL_SIZE)
     wait_versions(r, {61: [2, 0], 62: [2, 0]}, "both updated")
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--file-dir", "/nonexistent/fw"], "--file-dir /nonexistent/fw: No such file"),
+        (["--file-dir", "{tmp}/plain"], "plain: not a directory"),
+        (["--file-dir", "{tmp}", "--file-max", "0"], "--file-max must be 1..2147483647"),
+        (["--file-dir", "{tmp}", "--file-max", "3000000000"], "--file-max must be 1..2147483647"),
+        (["--file-dir", "{tmp}", "--file-max", "4M"], "--file-max must be 1..2147483647"),
+        (["--file-max", "1000"], "--file-max needs --file-dir"),
+    ],
+)
+def test_bad_file_options_exit_2(args, message, tmp_path):
+    (tmp_path / "plain").write_bytes(b"x")
+    p = subprocess.run(
+        [BIN / "dan-gatewayd", "--uart", "/dev/null", "--can", f"slcan:{tmp_path}/x"]
+        + [a.format(tmp=tmp_path) for a in args],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        timeout=20,
+    )
+    assert p.returncode == 2
+    assert message in p.stderr.decode()
