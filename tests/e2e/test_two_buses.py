@@ -48,8 +48,10 @@ def test_one_bus_failing_leaves_the_other_unaffected(stack, procs):
         stdout=None,
     )
     wait_for(
-        lambda: len(bus_cmds(b, [11, 21, 31, 41])) > 0
-        and max(e["t"] for e in bus_cmds(b, [11, 21, 31, 41])) > restart_t,
+        lambda: (
+            len(bus_cmds(b, [11, 21, 31, 41])) > 0
+            and max(e["t"] for e in bus_cmds(b, [11, 21, 31, 41])) > restart_t
+        ),
         30,
         0.2,
         what="bus 1's ESCs commanded through the restarted gateway",

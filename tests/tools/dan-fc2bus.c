@@ -88,8 +88,8 @@ static void done(bus_t *b, int rc)
         }
         return;
     }
-    if (rc != DAN_OK || (b->state == ST_DISCOVER &&
-                         dan_master_peer(&b->m, DAN_TYPE_CAN_GW_FIRST) == NULL)) {
+    if (rc != DAN_OK ||
+        (b->state == ST_DISCOVER && dan_master_peer(&b->m, DAN_TYPE_CAN_GW_FIRST) == NULL)) {
         b->state = ST_DISCOVER; /* try again */
         return;
     }
@@ -176,7 +176,8 @@ int main(int argc, char **argv)
         const char *a = argv[i], *val = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--port") && val && nport < NBUS) {
             ports[nport++] = val;
-        } else if (!strcmp(a, "--baud") && val && tool_parse_ulong(val, 10, 9600, 2000000, &v) == 0) {
+        } else if (!strcmp(a, "--baud") && val &&
+                   tool_parse_ulong(val, 10, 9600, 2000000, &v) == 0) {
             g_baud = (uint32_t)v;
         } else if (!strcmp(a, "--seconds") && val &&
                    tool_parse_ulong(val, 10, 1, 3600, &seconds) == 0) {
