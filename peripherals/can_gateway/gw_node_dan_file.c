@@ -148,7 +148,8 @@ static void upload_commit(dan_gw_node_t *g, uint32_t crc, dan_gw_file_commit_t *
     int32_t rc;
     c->crc32 = u->open || u->committed ? u->crc : 0u;
     if (!u->open) {
-        c->result = (uint8_t)(u->committed && crc == u->crc ? DAN_GW_FILE_OK : DAN_GW_FILE_NO_UPLOAD);
+        c->result =
+            (uint8_t)(u->committed && crc == u->crc ? DAN_GW_FILE_OK : DAN_GW_FILE_NO_UPLOAD);
         return;
     }
     if (u->have != u->size) {
@@ -178,7 +179,8 @@ int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t le
     dan_gw_file_have_t h = {DAN_GW_FILE_NO_STORE, 0u};
     char name[DAN_GW_FILE_NAME_MAX + 1u];
     (void)code;
-    if (dan_gw_msg_file_open_decode(&o, req, len) != DAN_OK || !take_name(o.name, o.name_len, name)) {
+    if (dan_gw_msg_file_open_decode(&o, req, len) != DAN_OK ||
+        !take_name(o.name, o.name_len, name)) {
         *err = "bad FILE_OPEN or file name";
         return DAN_ERR_MALFORMED;
     }

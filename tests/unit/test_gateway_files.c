@@ -14,86 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "file_store_ram.h"
-#include "gw_rig.h"
-
-#define IMG_SIZE 1000u
-
-static ram_store_t S;
-static uint8_t img[IMG_SIZE];
-
-/* The gateway (re)started with the RAM store: S survives, RAM state not. */
-static void gateway_start(bool with_store)
-{
-    dan_gw_node_config_t gc = R->g.cfg;
-    gc.files = with_store ? &S.fs : NULL;
-    assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);
-    dan_gw_node_attach(&R->g, &R->p);
-}
-
-static int setup_files(void **state)
-{
-    size_t i;
-    setup(state);
-    ram_store_init(&S);
-    for (i = 0; i < IMG_SIZE; i++) {
-        img[i] = (uint8_t)(i * 7u + (i >> 8));
-    }
-    gateway_start(true);
-    return 0;
-}
-
-/* Completes the call in flight; the result byte, *value as
- * dan_gw_file_result() gives it. */
-static uint8_t done(uint32_t *value)
-{
-    uint8_t result = 0xEE;
-    uint32_t v;
-    assert_int_equal(finish(), DAN_OK);
-    assert_int_equal(dan_gw_file_result(&R->gw, &result, &v), DAN_OK);
-    if (value != NULL) {
-        *value = v;
-    }
-    return result;
-}
-
-static uint8_t open_file(const char *name, uint32_t size, bool restart, uint32_t *have)
-{
-    assert_int_equal(dan_gw_file_open(&R->gw, name, size, restart, R->bus.now), DAN_OK);
-    return done(have);
-}
-
-static uint8_t write_at(uint32_t off, size_t len, uint32_t *have)
-{
-    assert_int_equal(dan_gw_file_write(&R->gw, off, img + off, len, R->bus.now), DAN_OK);
-    return done(have);
-}
-
-static uint8_t commit(uint32_t crc, uint32_t *held)
-{
-    assert_int_equal(dan_gw_file_commit(&R->gw, crc, R->bus.now), DAN_OK);
-    return done(held);
-}
-
-/* Writes img[from, to) in chunks of up to 150 from where the gateway is. */
-static void upload_range(uint32_t from, uint32_t to)
-{
-    uint32_t have = from;
-    while (have < to) {
-        uint32_t n = to - have < DAN_GW_FILE_CHUNK_MAX ? to - have : DAN_GW_FILE_CHUNK_MAX;
-        assert_int_equal(write_at(have, n, &have), DAN_GW_FILE_OK);
-    }
-    assert_int_equal(have, to);
-}
-
-static void upload(const char *name, uint32_t size)
-{
-    uint32_t have = 99;
-    assert_int_equal(open_file(name, size, true, &have), DAN_GW_FILE_OK);
-    assert_int_equal(have, 0);
-    upload_range(0, size);
-    assert_int_equal(commit(dan_gw_crc32(0, img, size), NULL), DAN_GW_FILE_OK);
-}
+#include "file_rig.h"
 
 static void test_upload_commit(void **state)
 {
@@ -145,8 +66,7 @@ static void test_gap_and_too_large(void **state)
     uint32_t have;
     (void)state;
     assert_int_equal(write_at(0, 10, &have), DAN_GW_FILE_NO_UPLOAD);
-    assert_int_equal(open_file("big.bin", RAM_FILE_CAP + 1u, false, &have),
-                     DAN_GW_FILE_TOO_LARGE);
+    assert_int_equal(open_file("big.bin", RAM_FILE_CAP + 1u, false, &have), DAN_GW_FILE_TOO_LARGE);
     assert_int_equal(open_file("fw.bin", 300, false, &have), DAN_GW_FILE_OK);
     assert_int_equal(write_at(0, 100, &have), DAN_GW_FILE_OK);
     assert_int_equal(write_at(101, 10, &have), DAN_GW_FILE_GAP);
@@ -291,8 +211,8 @@ static void test_no_store(void **state)
  * only lengths). */
 static void test_bad_names(void **state)
 {
-    static const char *const bad[] = {"../x", ".hidden", "a/b", "/abs", "a b", "x\\y", "..",
-                                      "nul\0x"};
+    static const char *const bad[] = {"../x", ".hidden", "a/b", "/abs",
+                                      "a b",  "x\\y",    "..",  "nul\0x"};
     uint8_t p[64];
     size_t i, n;
     (void)state;
