@@ -84,4 +84,3 @@ void upload(const char *name, uint32_t size)
     upload_range(0, size);
     assert_int_equal(commit(dan_gw_crc32(0, img, size), NULL), DAN_GW_FILE_OK);
 }
-

@@ -215,8 +215,8 @@ static void test_fw_dsdl_vectors(void **state)
     while (vec_next(&v)) {
         char *f[3];
         uint8_t p[256], want[256], enc[256];
-        size_t len = vec_message(&v, f, p, sizeof p), wl = vec_hex(strchr(f[2], '=') + 1, want,
-                                                                     sizeof want);
+        size_t len = vec_message(&v, f, p, sizeof p),
+               wl = vec_hex(strchr(f[2], '=') + 1, want, sizeof want);
         unsigned long num = strtoul(strchr(f[1], '=') + 1, NULL, 10);
         if (!strcmp(f[0], "fw_begin_req")) {
             dan_dc_fw_begin_req_t q;
