@@ -181,6 +181,7 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_FILE_COMMITS] = g->stats.file_commits;
     v[DAN_GW_STAT_UPLOAD_ERRORS] = g->stats.upload_errors;
     v[DAN_GW_STAT_FW_BEGINS] = g->stats.fw_begins;
+    v[DAN_GW_STAT_FILE_DROPPED] = g->stats.file_dropped;
 }
 
 /* ---- our own DroneCAN presence ---- */
@@ -301,6 +302,7 @@ void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us)
     dan_gwn_table_poll(g, now_us);
     dan_gwn_tunnel_poll(g, now_us);
     dan_gwn_calls_poll(g, now_us);
+    dan_gwn_file_poll(g, now_us);
     dan_gwn_dna_poll(g);
     dan_dc_rx_cleanup(&g->rx, now_us);
 }
@@ -313,6 +315,7 @@ uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us)
     t = dan_gwn_table_next_us(g, t);
     t = dan_gwn_tunnel_next_us(g, now_us, t);
     t = dan_gwn_calls_next_us(g, t);
+    t = dan_gwn_file_next_us(g, now_us, t);
     if (g->dna.dirty) {
         t = now_us;
     }

@@ -138,6 +138,9 @@ uint64_t dan_gwn_calls_next_us(const dan_gw_node_t *g, uint64_t t);
 /* True for file.GetInfo and file.Read when a store is configured. */
 bool dan_gwn_file_service(const dan_gw_node_t *g, uint16_t dtid);
 void dan_gwn_on_file_request(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+/* Answers the requests that waited for room in the bulk queue. */
+void dan_gwn_file_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_file_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t);
 
 /* ---- DAN side (gw_node_dan*.c) ---- */
 /* A request reached us: the master is alive (NodeStatus health). */

@@ -767,6 +767,38 @@ int dan_fuzz_dna(const uint8_t *data, size_t len)
 
 /* ---- DroneCAN: reassembly and DSDL ------------------------------------ */
 
+/* The file services, requests and responses: what decodes comes back
+ * identical. */
+static void dsdl_file(uint16_t dtid, const uint8_t *p, size_t n, uint8_t *buf, size_t cap)
+{
+    static dan_dc_file_req_t qa, qb;
+    static dan_dc_file_read_rsp_t ra, rb;
+    dan_dc_file_getinfo_rsp_t ia, ib;
+    bool rd = dtid == DAN_DC_FILE_READ_ID;
+    int r;
+    if ((rd ? dan_dc_file_read_req_decode(&qa, p, n) : dan_dc_file_getinfo_req_decode(&qa, p, n)) ==
+        DAN_OK) {
+        r = rd ? dan_dc_file_read_req_encode(&qa, buf, cap)
+               : dan_dc_file_getinfo_req_encode(&qa, buf, cap);
+        FUZZ_CHECK(r >= 0);
+        FUZZ_CHECK((rd ? dan_dc_file_read_req_decode(&qb, buf, (size_t)r)
+                       : dan_dc_file_getinfo_req_decode(&qb, buf, (size_t)r)) == DAN_OK);
+        FUZZ_CHECK(qa.path_len <= DAN_DC_FILE_PATH_MAX && qa.path_len == qb.path_len &&
+                   qa.offset == qb.offset && !memcmp(qa.path, qb.path, qa.path_len));
+    }
+    if (rd && dan_dc_file_read_rsp_decode(&ra, p, n) == DAN_OK) {
+        r = dan_dc_file_read_rsp_encode(&ra, buf, cap);
+        FUZZ_CHECK(r >= 0 && dan_dc_file_read_rsp_decode(&rb, buf, (size_t)r) == DAN_OK);
+        FUZZ_CHECK(ra.error == rb.error && ra.data_len == rb.data_len &&
+                   !memcmp(ra.data, rb.data, ra.data_len));
+    }
+    if (!rd && dan_dc_file_getinfo_rsp_decode(&ia, p, n) == DAN_OK) {
+        r = dan_dc_file_getinfo_rsp_encode(&ia, buf, cap);
+        FUZZ_CHECK(r > 0 && dan_dc_file_getinfo_rsp_decode(&ib, buf, (size_t)r) == DAN_OK);
+        FUZZ_CHECK(!memcmp(&ia, &ib, sizeof ia));
+    }
+}
+
 /* Decodes payload as data type dtid; what decodes must re-encode, and the
  * exact-integer types must come back identical. */
 static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
@@ -885,6 +917,8 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
+    case DAN_DC_FILE_READ_ID:
+    case DAN_DC_FILE_GETINFO_ID: dsdl_file(dtid, p, n, buf, sizeof buf); break;
     default: {
         static dan_dc_tunnel_targetted_t tt;
         static dan_dc_tunnel_broadcast_t tb;
@@ -915,8 +949,8 @@ int dan_fuzz_dsdl(const uint8_t *data, size_t len)
                                      DAN_DC_BEEP_COMMAND_ID,
                                      DAN_DC_SAFETY_STATE_ID,
                                      DAN_DC_TEMPERATURE_ID,
-                                     0u,
-                                     0u,
+                                     DAN_DC_FILE_READ_ID,
+                                     DAN_DC_FILE_GETINFO_ID,
                                      0u};
     if (len < 1u) {
         return 0;

@@ -4,16 +4,24 @@
  * failure, GetInfo, two requests in flight, no store (not answered), the
  * reader's progress in its node table slot; and the node table asking
  * GetNodeInfo again after an update (mode SOFTWARE_UPDATE -> OPERATIONAL,
- * uptime down). The store here is a one-file fake in RAM. */
+ * uptime down). The reads run twice: on a one-file fake store in RAM (it
+ * counts its calls and can fail) and on the directory store of
+ * dan-gatewayd (file_dir.c) in a mkdtemp() directory, where a symlink out
+ * of it is refused. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "dan/codes.h"
+#include "file_dir.h"
 #include "gw_rig.h"
 
 #define IMG_SIZE 600u
@@ -49,6 +57,9 @@ static int32_t fake_read(void *ctx, const char *name, uint32_t off, uint8_t *buf
 static const dan_gw_file_store_t fake = {fake_size, fake_read, NULL, NULL, NULL,
                                          NULL,      NULL,      NULL, NULL, 4096u};
 
+static dan_file_dir_t store_dir;
+static char dir[64];
+
 static int setup_files(void **state)
 {
     size_t i;
@@ -60,6 +71,33 @@ static int setup_files(void **state)
     broken = false;
     R->g.cfg.files = &fake;
     return r;
+}
+
+/* The same image as DIR/fw.bin, served by the directory store. */
+static int setup_dir(void **state)
+{
+    char path[128], err[DAN_FILE_DIR_ERR_MAX];
+    FILE *f;
+    int r = setup_files(state);
+    snprintf(dir, sizeof dir, "/tmp/dan_file_server_XXXXXX");
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/fw.bin", dir);
+    f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(img, 1, IMG_SIZE, f), IMG_SIZE);
+    fclose(f);
+    assert_int_equal(dan_file_dir_open(&store_dir, dir, 4096u, err, sizeof err), 0);
+    R->g.cfg.files = &store_dir.store;
+    return r;
+}
+
+static int teardown_dir(void **state)
+{
+    char cmd[160];
+    dan_file_dir_close(&store_dir);
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+    return teardown(state);
 }
 
 static void send_read(uint8_t src, uint64_t offset, const char *path)
@@ -99,6 +137,8 @@ static dan_gw_node_slot_t *slot(uint8_t id)
     }
     return NULL;
 }
+
+static void get_info(const char *path, dan_dc_file_getinfo_rsp_t *r);
 
 static void node_status(uint8_t src, uint32_t uptime, uint8_t mode)
 {
@@ -170,13 +210,49 @@ static void test_read_errors(void **state)
         assert_int_equal(r.data_len, 0);
     }
     assert_int_equal(calls, 0); /* never handed to the store */
+    assert_int_equal(R->g.stats.file_errors, 1u + sizeof bad / sizeof bad[0]);
+    assert_int_equal(R->g.stats.file_reads, 0);
+}
+
+static void test_store_failure(void **state)
+{
+    static dan_dc_file_read_rsp_t r;
+    (void)state;
     broken = true;
     read_at(0, "fw.bin", &r);
     assert_int_equal(r.error, DAN_DC_FILE_IO_ERROR);
-    assert_int_equal(R->g.stats.file_errors, 2u + sizeof bad / sizeof bad[0]);
-    assert_int_equal(R->g.stats.file_reads, 0);
+    assert_int_equal(r.data_len, 0);
+    assert_int_equal(R->g.stats.file_errors, 1);
     /* the reader is not in the node table: nothing noted, nothing broken */
     assert_null(slot(LISTEN_NODE));
+}
+
+/* DIR/evil -> a file outside DIR: never followed (not found), and a
+ * FIFO of a valid name is no file either. */
+static void test_dir_symlink_out(void **state)
+{
+    static dan_dc_file_read_rsp_t r;
+    dan_dc_file_getinfo_rsp_t i;
+    char path[128];
+    (void)state;
+    snprintf(path, sizeof path, "%s/evil", dir);
+    assert_int_equal(symlink("/etc/hostname", path), 0);
+    snprintf(path, sizeof path, "%s/link.bin", dir);
+    assert_int_equal(symlink("fw.bin", path), 0); /* even inside DIR */
+    read_at(0, "evil", &r);
+    assert_int_equal(r.error, DAN_DC_FILE_NOT_FOUND);
+    assert_int_equal(r.data_len, 0);
+    read_at(0, "/link.bin", &r);
+    assert_int_equal(r.error, DAN_DC_FILE_NOT_FOUND);
+    get_info("evil", &i);
+    assert_int_equal(i.error, DAN_DC_FILE_NOT_FOUND);
+    snprintf(path, sizeof path, "%s/pipe", dir);
+    assert_int_equal(mkfifo(path, 0600), 0);
+    read_at(0, "pipe", &r); /* opened without blocking, refused */
+    assert_int_equal(r.error, DAN_DC_FILE_NOT_FOUND);
+    read_at(0, "fw.bin", &r);
+    assert_int_equal(r.error, 0);
+    assert_memory_equal(r.data, img, 256);
 }
 
 /* NUL inside a path's bytes: a different name, refused. */
@@ -217,7 +293,7 @@ static void get_info(const char *path, dan_dc_file_getinfo_rsp_t *r)
     assert_int_equal(dan_dc_file_getinfo_rsp_decode(r, c->payload, c->len), DAN_OK);
 }
 
-static void test_getinfo(void **state)
+static void test_getinfo_dir(void **state)
 {
     dan_dc_file_getinfo_rsp_t r;
     (void)state;
@@ -231,40 +307,66 @@ static void test_getinfo(void **state)
     assert_int_equal(r.entry_type, 0);
     get_info("../fw.bin", &r);
     assert_int_equal(r.error, DAN_DC_FILE_INVALID_VALUE);
+}
+
+static void test_getinfo(void **state)
+{
+    dan_dc_file_getinfo_rsp_t r;
+    test_getinfo_dir(state);
     broken = true;
     get_info("fw.bin", &r);
     assert_int_equal(r.error, DAN_DC_FILE_IO_ERROR);
 }
 
-/* Two reads in flight before the bus drains: each answered with its own
- * transfer ID and data; three 38-frame answers fill the bulk queue, the
- * fourth is dropped whole (the reader asks again). */
+/* Reads in flight before the bus drains: each answered with its own
+ * transfer ID and data, in order. Three 38-frame answers fill the bulk
+ * queue; the next ones wait for room (nothing dropped) and go out as it
+ * drains; a request that waited too long is dropped (its reader has
+ * asked again by then), as is one beyond the wait list. */
 static void test_reads_in_flight(void **state)
 {
     static dan_dc_file_read_rsp_t r;
     size_t from = R->ncap;
-    uint8_t tid0;
+    uint8_t tid0 = 0;
     cap_t *c;
     int i;
     (void)state;
-    send_read(LISTEN_NODE, 0, "fw.bin");
-    send_read(LISTEN_NODE, 256, "fw.bin");
-    drain();
-    c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
-    tid0 = c->tid;
-    assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
-    assert_memory_equal(r.data, img, 256);
-    c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
-    assert_int_equal(c->tid, (tid0 + 1u) & 31u);
-    assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
-    assert_memory_equal(r.data, img + 256, 256);
-    for (i = 0; i < 4; i++) {
-        send_read((uint8_t)(50 + i), 0, "fw.bin");
+    advance(10000); /* our own timers in the future */
+    from = R->ncap;
+    for (i = 0; i < 5; i++) {
+        send_read(LISTEN_NODE, (uint64_t)(i % 2) * 256u, "fw.bin"); /* 256 bytes each */
     }
-    assert_int_equal(R->g.stats.can_tx_dropped, 38);
-    assert_int_equal(R->g.stats.file_reads, 6);
+    assert_int_equal(R->g.file_nwait, 2);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
+    assert_true(dan_gw_node_next_us(&R->g, R->bus.now) > R->bus.now); /* no room yet */
+    drain();
+    assert_int_equal(dan_gw_node_next_us(&R->g, R->bus.now), R->bus.now); /* room now */
+    advance(1000);
+    assert_int_equal(R->g.file_nwait, 0);
+    for (i = 0; i < 5; i++) {
+        c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
+        assert_non_null(c);
+        if (i == 0) {
+            tid0 = c->tid;
+        }
+        assert_int_equal(c->tid, (tid0 + (unsigned)i) & 31u);
+        assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
+        assert_int_equal(r.data_len, 256);
+        assert_memory_equal(r.data, img + (i % 2) * 256, 256);
+    }
+    assert_int_equal(R->g.stats.file_reads, 5);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
+    /* 3 answered, 8 wait, 1 dropped; then the 8 go stale */
+    for (i = 0; i < 12; i++) {
+        send_read((uint8_t)(60 + i), 0, "fw.bin");
+    }
+    assert_int_equal(R->g.file_nwait, DAN_GW_NODE_FILE_WAIT);
+    assert_int_equal(R->g.stats.file_dropped, 1);
+    dan_gw_node_poll(&R->g, R->bus.now + DAN_GW_NODE_FILE_WAIT_US + 1u);
+    assert_int_equal(R->g.file_nwait, 0);
+    assert_int_equal(R->g.stats.file_dropped, 1u + DAN_GW_NODE_FILE_WAIT);
+    assert_int_equal(R->g.stats.file_reads, 8);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
 }
 
 static void test_no_store(void **state)
@@ -351,6 +453,12 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_read_chunks, setup_files, teardown),
         cmocka_unit_test_setup_teardown(test_read_errors, setup_files, teardown),
+        cmocka_unit_test_setup_teardown(test_store_failure, setup_files, teardown),
+        cmocka_unit_test_setup_teardown(test_read_chunks, setup_dir, teardown_dir),
+        cmocka_unit_test_setup_teardown(test_read_errors, setup_dir, teardown_dir),
+        cmocka_unit_test_setup_teardown(test_getinfo_dir, setup_dir, teardown_dir),
+        cmocka_unit_test_setup_teardown(test_reads_in_flight, setup_dir, teardown_dir),
+        cmocka_unit_test_setup_teardown(test_dir_symlink_out, setup_dir, teardown_dir),
         cmocka_unit_test_setup_teardown(test_read_nul_path, setup_files, teardown),
         cmocka_unit_test_setup_teardown(test_getinfo, setup_files, teardown),
         cmocka_unit_test_setup_teardown(test_reads_in_flight, setup_files, teardown),

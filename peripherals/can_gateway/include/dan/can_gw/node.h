@@ -51,7 +51,9 @@
  *     channel_id).
  *   - gw_node_file.c: the file server (uavcan.protocol.file.GetInfo and
  *     Read from cfg.files; no store: the requests are not answered); notes
- *     each reader's progress in its node table slot (fw).
+ *     each reader's progress in its node table slot (fw). A request whose
+ *     answer does not fit the bulk queue waits (DAN_GW_NODE_FILE_WAIT of
+ *     them, oldest first, up to DAN_GW_NODE_FILE_WAIT_US).
  *   - gw_node_raw.c: every received CAN frame, processed or not, goes
  *     through the raw filter into the raw receive ring; raw frames out.
  *   - gw_node_dan_file.c: the DAN file messages: one upload at a time
@@ -92,6 +94,7 @@ extern "C" {
 #define DAN_GW_NODE_FLAP_US         10000000u /* uptime going down 3 times in this: duplicate */
 #define DAN_GW_NODE_FLAP_COUNT      3u
 #define DAN_GW_NODE_FOREIGN_US      60000000u /* HEALTH shows another allocator this long */
+#define DAN_GW_NODE_FILE_WAIT_US    1000000u  /* a file request waits this long for room */
 
 #define DAN_GW_NODE_DEFAULT_ID            10u
 #define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT   500u  /* ms */
@@ -178,6 +181,7 @@ typedef struct {
     uint32_t file_commits;    /* uploads committed */
     uint32_t upload_errors;   /* store failures of uploads, lists, removals (IO_ERROR) */
     uint32_t fw_begins;       /* BeginFirmwareUpdate answered OK */
+    uint32_t file_dropped;    /* file requests not answered: no room for long */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -241,6 +245,15 @@ typedef struct {
     uint32_t file_size;    /* of the file it read (0 none) */
     uint64_t last_read_us; /* 0: never */
 } dan_gw_node_fw_t;
+
+/* A file request waiting for room in the bulk queue (gw_node_file.c). */
+typedef struct {
+    uint64_t offset; /* Read */
+    uint64_t at_us;  /* received */
+    uint16_t dtid;   /* DAN_DC_FILE_READ_ID or DAN_DC_FILE_GETINFO_ID */
+    uint8_t src, tid, prio;
+    char name[DAN_GW_FILE_NAME_MAX + 1u]; /* "": not a valid path */
+} dan_gw_node_file_req_t;
 
 /* One node of the table (gw_node_table.c). */
 typedef struct {
@@ -348,6 +361,8 @@ typedef struct {
     dan_gw_node_dna_t dna;
     dan_gw_node_call_t calls[DAN_GW_NODE_CALLS];
     dan_gw_node_upload_t upload;
+    dan_gw_node_file_req_t file_wait[DAN_GW_NODE_FILE_WAIT]; /* oldest first */
+    uint8_t file_nwait;
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
