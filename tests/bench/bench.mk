@@ -6,6 +6,12 @@
 #   make bench BENCH_ARGS='--only esc,parser --seconds 10'
 #   make bench SOAK=600        the full ESC loop for 600 s: RSS and counters
 #   make soak [SOAK=300]       the same (default 300 s)
+#   make soak CHAOS=1 SOAK=600 the chaos soak (tests/bench/chaos.py): faults on a
+#                              seeded schedule, invariants checked; chaos.json
+#   make restarts [RESTARTS=100] [RESTART_BAUDS=115200,1000000]
+#                              the FC and the gateway each killed RESTARTS times
+#                              at random moments (tests/bench/restarts.py);
+#                              build/bench/restarts.json
 
 BENCH_DIR   := $(BUILD)/bench
 BENCH_CFLAGS = $(WARN) -O2 -g $(INCLUDES) -D_GNU_SOURCE
@@ -13,7 +19,9 @@ BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway $(BENCH_DIR)
 SOAK        ?=
 BENCH_ARGS  ?=
 
-.PHONY: bench soak bench-build
+.PHONY: bench soak restarts bench-build
+RESTARTS      ?= 100
+RESTART_BAUDS ?= 115200,1000000
 
 $(BENCH_DIR)/bench_%: tests/bench/bench_%.c $(ALL_LIBS)
 	@mkdir -p $(@D)
@@ -36,4 +44,15 @@ bench: bench-build
 	  $(if $(SOAK),--soak $(SOAK)) $(BENCH_ARGS)
 
 soak: bench-build
+ifeq ($(CHAOS),1)
+	@mkdir -p $(BENCH_DIR)
+	$(VENV)/bin/python tests/bench/chaos.py --build $(BUILD) --seconds $(or $(SOAK),300) \
+	  --out $(BENCH_DIR)/chaos.json
+else
 	$(VENV)/bin/python tests/bench/run_bench.py --build $(BUILD) --out $(BENCH_DIR) --soak $(or $(SOAK),300)
+endif
+
+restarts: bench-build
+	@mkdir -p $(BENCH_DIR)
+	$(VENV)/bin/python tests/bench/restarts.py --build $(BUILD) --count $(RESTARTS) \
+	  --bauds $(RESTART_BAUDS) --out $(BENCH_DIR)/restarts.json

@@ -37,6 +37,7 @@
 #include "dna_file.h"
 #include "file_dir.h"
 #include "node_uid.h"
+#include "sd_notify.h"
 
 #define REOPEN_US           1000000u /* a lost CAN adapter is tried again once a second */
 #define REOPEN_HANDSHAKE_MS 100u     /* a reopen's SLCAN handshake: DAN waits at most this */
@@ -144,6 +145,7 @@ typedef struct {
     uint32_t fast[DAN_NFAST_BAUDS]; /* the fast bauds CONFIGURE may ask for */
     size_t nfast;
     uint32_t dna_stores_logged, dna_errors_logged;
+    dan_sd_t sd;          /* systemd notifications and watchdog (Type=notify) */
     const char *file_dir; /* --file-dir, or NULL: no file store */
     dan_file_dir_t files;
 } gwd_t;
@@ -583,6 +585,9 @@ static uint64_t poll_deadline_us(gwd_t *d, uint64_t now)
     if (d->stats_file && d->stats_due_us < next) {
         next = d->stats_due_us;
     }
+    if (dan_sd_next_us(&d->sd) < next) {
+        next = dan_sd_next_us(&d->sd);
+    }
     if (d->can_up && dan_canif_rx_pending(&d->can)) {
         return now;
     }
@@ -685,6 +690,9 @@ static void housekeeping(gwd_t *d, uint64_t now)
         write_stats(d);
         d->stats_due_us = now + STATS_PERIOD_US;
     }
+    /* Pinged from the loop: a hung loop stops the pings, and systemd
+     * restarts the daemon (which starts DISARMED, safety on). */
+    dan_sd_poll(&d->sd, now);
 }
 
 /* A reply due within ANSWER_SPIN_US (its turnaround: 2 characters, 10 us
@@ -784,12 +792,19 @@ int main(int argc, char **argv)
     if (open_devices(d, &o) != 0 || start_engines(d, &o, &nc) != 0) {
         return 2;
     }
+    if (dan_sd_open(&d->sd, dan_posix_now_us()) != 0) {
+        logmsg(LOG_WARNING, "NOTIFY_SOCKET unusable (%s): no systemd notifications",
+               strerror(errno));
+    }
+    (void)dan_sd_send(&d->sd, "READY=1");
     run(d);
+    (void)dan_sd_send(&d->sd, "STOPPING=1");
     shutdown_failsafe(d);
     if (d->stats_file) {
         write_stats(d);
     }
     logmsg(LOG_INFO, "stopped (failsafe sent)");
+    dan_sd_close(&d->sd);
     dan_canif_close(&d->can);
     dan_posix_close(&d->uart);
     if (d->file_dir != NULL) {

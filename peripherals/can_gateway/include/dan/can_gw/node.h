@@ -177,11 +177,11 @@ typedef struct {
     uint32_t file_reads;      /* file.Read requests answered with data or the end */
     uint32_t file_bytes;      /* file bytes served by them */
     uint32_t file_errors;     /* file.GetInfo / Read answered with an error */
+    uint32_t file_dropped;    /* file requests not answered: no room for long */
     uint32_t upload_bytes;    /* upload bytes written to the store */
     uint32_t file_commits;    /* uploads committed */
     uint32_t upload_errors;   /* store failures of uploads, lists, removals (IO_ERROR) */
     uint32_t fw_begins;       /* BeginFirmwareUpdate answered OK */
-    uint32_t file_dropped;    /* file requests not answered: no room for long */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -360,9 +360,9 @@ typedef struct {
     dan_gw_node_raw_t raw;
     dan_gw_node_dna_t dna;
     dan_gw_node_call_t calls[DAN_GW_NODE_CALLS];
-    dan_gw_node_upload_t upload;
     dan_gw_node_file_req_t file_wait[DAN_GW_NODE_FILE_WAIT]; /* oldest first */
     uint8_t file_nwait;
+    dan_gw_node_upload_t upload;
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
