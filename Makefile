@@ -207,7 +207,12 @@ $(BUILD)/obj/fcsim/%.o: %.c
 $(BUILD)/obj/tests/tools/dan-fcsim.o: tests/tools/dan-fcsim.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_POSIX) $(FCSIM_DEFS) -c $< -o $@
-$(BUILD)/bin/dan-fcsim: $(BUILD)/obj/tests/tools/dan-fcsim.o $(FCSIM_GW_OBJ) \
+# its step files (tests/tools/fcsim/), with the same dan_gw_t layout
+FCSIM_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tests/tools/fcsim/*.c))
+$(BUILD)/obj/tests/tools/fcsim/%.o: tests/tools/fcsim/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_POSIX) $(FCSIM_DEFS) -Itests/tools -c $< -o $@
+$(BUILD)/bin/dan-fcsim: $(BUILD)/obj/tests/tools/dan-fcsim.o $(FCSIM_OBJ) $(FCSIM_GW_OBJ) \
                         $(filter-out $(LIBGW),$(ALL_LIBS))
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)

@@ -12,6 +12,7 @@
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/node.h"
 #include "can_backend.h"
+#include "file_store_ram.h"
 #include "targets.h"
 
 #define FUZZ_CHECK(cond) \
@@ -243,6 +244,7 @@ static void drain_can(dan_gw_node_t *g)
 }
 
 static dan_gw_node_t fz_node; /* large: static storage */
+static ram_store_t fz_store;  /* the file store of gw_handlers' gateway */
 static dan_periph_t fz_periph;
 static fuzz_sink_t fz_sink;
 static dan_port_t fz_port;
@@ -329,17 +331,36 @@ static void fz_can_frame(const uint8_t *data, size_t len, size_t *i, dan_can_fra
     memcpy(f->data, b + 6, 8);
 }
 
+/* The one upload is what the store holds: the same name, have bytes
+ * (never over the size) and their CRC-32. */
+static void check_upload(const dan_gw_node_upload_t *u, const ram_store_t *s)
+{
+    if (!u->open) {
+        return;
+    }
+    FUZZ_CHECK(u->have <= u->size && u->size <= s->fs.max_size);
+    FUZZ_CHECK(dan_gw_file_name_ok(u->name, strlen(u->name)));
+    FUZZ_CHECK(s->partial.used && strcmp(s->partial.name, u->name) == 0);
+    FUZZ_CHECK(s->partial.len == u->have);
+    FUZZ_CHECK(dan_gw_crc32(0, s->partial.data, u->have) == u->crc);
+}
+
 /* A script of operations, each starting with an op byte:
  *   op % 4 == 0, 1: a DAN request, code fz_code(op) (both blocks), then a
  *                   length byte (% 161) and that many payload bytes; op 1
  *                   sealed, op 0 as is
  *   op % 4 == 2:    a CAN frame: u32 id LE, flags, dlc, 8 data bytes
- *   op % 4 == 3:    time passes: (op >> 2) * 25 ms (timers fire) */
+ *   op % 4 == 3:    time passes: (op >> 2) * 25 ms (timers fire)
+ * The gateway has a RAM file store (tests/unit/file_store_ram.c). */
 int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
 {
     uint64_t now = 1000000u;
     size_t i = 0;
-    fz_gateway_start(NULL, now);
+    dan_gw_node_config_t cfg;
+    ram_store_init(&fz_store);
+    dan_gw_node_config_default(&cfg);
+    cfg.files = &fz_store.fs;
+    fz_gateway_start(&cfg, now);
     while (i < len) {
         uint8_t op = data[i++];
         switch (op % 4u) {
@@ -366,6 +387,7 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
         FUZZ_CHECK(dan_gw_node_next_us(&fz_node, now) > 0u);
         drain_can(&fz_node);
         check_replies(&fz_sink);
+        check_upload(&fz_node.upload, &fz_store);
     }
     now += 1000000u;
     dan_periph_poll(&fz_periph, now);
@@ -1120,6 +1142,25 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
             for (i = 0; i < h.count && dan_gw_dna_next(&r, &e) == DAN_OK; i++) {
             }
         }
+        break;
+    }
+    case DAN_GW_CODE_FILE_LIST: {
+        dan_gw_file_list_hdr_t h;
+        dan_gw_file_entry_t e;
+        if (dan_gw_file_list_begin(&gw, &r, &h) == DAN_OK) {
+            for (i = 0; i < h.count && dan_gw_file_list_next(&r, &e) == DAN_OK; i++) {
+                FUZZ_CHECK(e.name_len >= 1u && strlen(e.name) <= e.name_len);
+            }
+        }
+        break;
+    }
+    case DAN_GW_CODE_FILE_OPEN:
+    case DAN_GW_CODE_FILE_WRITE:
+    case DAN_GW_CODE_FILE_COMMIT:
+    case DAN_GW_CODE_FILE_REMOVE: {
+        uint8_t res;
+        uint32_t v;
+        (void)dan_gw_file_result(&gw, &res, &v);
         break;
     }
     default: break;

@@ -200,7 +200,8 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(UPLOAD_BYTES, upload_bytes)       /* upload bytes written to the store */           \
     X(FILE_COMMITS, file_commits)       /* uploads committed */                           \
     X(UPLOAD_ERRORS, upload_errors)     /* store failures of the DAN file messages */     \
-    X(FW_BEGINS, fw_begins)             /* BeginFirmwareUpdate answered OK */
+    X(FW_BEGINS, fw_begins)             /* BeginFirmwareUpdate answered OK */             \
+    X(FILE_DROPPED, file_dropped)       /* file requests not answered: no room for long */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
 enum { DAN_GW_STATS(DAN_GW_STAT_ENUM_) DAN_GW_STAT_COUNT };
