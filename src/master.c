@@ -55,11 +55,11 @@ int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_co
     }
     m->rng = (m->cfg.seed != 0u) ? m->cfg.seed : 1u;
     for (i = 0; i < ntypes; i++) {
-        m->types[i] = types[i];
         m->peers[i].first_code = types[i];
     }
     m->ntypes = ntypes;
     dan_link_init(&m->link, port, baud, on_frame, m, now_us);
+    m->resp = m->link.tx;
     m->link.gap_us = m->cfg.gap_us;
     /* The echo comes back the way replies do: allow it the same latency. */
     m->link.echo_timeout_us = m->cfg.resp_latency_us;
@@ -85,6 +85,20 @@ const dan_peer_t *dan_master_peer(const dan_master_t *m, uint32_t first_code)
         }
     }
     return NULL;
+}
+
+void dan_master_set_identities(dan_master_t *m, dan_identity_t *ids, size_t n)
+{
+    m->ids = ids;
+    m->nids = (ids != NULL) ? n : 0u;
+    m->id_decode = dan_identity_decode; /* referenced here only: linked when called */
+}
+
+const dan_identity_t *dan_master_identity(const dan_master_t *m, uint32_t first_code)
+{
+    const dan_peer_t *p = dan_master_peer(m, first_code);
+    size_t i = (p != NULL) ? (size_t)(p - m->peers) : m->nids;
+    return (i < m->nids) ? &m->ids[i] : NULL;
 }
 
 bool dan_mst_port_supports(const dan_master_t *m, uint32_t baud)
@@ -192,6 +206,9 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
             txn_attempt_failed(m, DAN_ERR_MALFORMED, now_us);
             return;
         }
+        /* Into the TX buffer (see dan_master_t.resp): the request is done.
+         * tx_len stays (the end of our frame on the wire); the bytes no
+         * longer match it, so no later frame passes for its late echo. */
         memcpy(m->resp, f->payload, f->len);
         m->resp_len = f->len;
         m->resp_code = f->code;

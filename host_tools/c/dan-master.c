@@ -58,6 +58,7 @@ static void usage(FILE *f)
 
 typedef struct {
     dan_master_t m;
+    dan_identity_t ids[DAN_MASTER_MAX_TYPES]; /* discovery reports them here */
     dan_posix_port_t port;
     bool json;
     uint64_t timeout_us;
@@ -121,7 +122,7 @@ static void print_peers(ctx_t *c, int r, double ms)
             if (!p->present) {
                 continue;
             }
-            dan_peer_json(obj, sizeof obj, p, DAN_PEER_JSON_FULL);
+            dan_peer_json(obj, sizeof obj, p, &c->ids[i], DAN_PEER_JSON_FULL);
             printf("%s%s", first ? "" : ",", obj);
             first = false;
         }
@@ -133,10 +134,11 @@ static void print_peers(ctx_t *c, int r, double ms)
            "model", "hw", "sw", "mask");
     for (i = 0; i < c->m.ntypes; i++) {
         const dan_peer_t *p = &c->m.peers[i];
+        const dan_identity_t *id = &c->ids[i];
         if (p->present) {
             printf("%-8s 0x%02X   %-8u %-16s %-16s %-8s %-10s 0x%04X\n", type_name(p->first_code),
-                   p->first_code, p->baud, p->identity.manufacturer, p->identity.model,
-                   p->identity.hw_version, p->identity.sw_version, p->identity.baud_mask);
+                   p->first_code, p->baud, id->manufacturer, id->model, id->hw_version,
+                   id->sw_version, id->baud_mask);
         }
     }
 }
@@ -352,6 +354,7 @@ static int start(ctx_t *c, const opts_t *o, const uint32_t *types, size_t ntypes
     c->timeout_us = (uint64_t)o->timeout_ms * 1000u;
     dan_master_init(&c->m, dan_posix_port(&c->port), &cfg, types, ntypes, o->baud,
                     dan_posix_now_us());
+    dan_master_set_identities(&c->m, c->ids, DAN_MASTER_MAX_TYPES);
     return 0;
 }
 

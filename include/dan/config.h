@@ -97,10 +97,11 @@
 /* ==== CAN gateway type, FC side: the client (dan/can_gw/client.h) ==== */
 
 /* Telemetry slots the client keeps (ESC indexes 0..DAN_GW_MAX_ESC-1;
- * records of higher indexes are counted in telem_ignored). RAM: 40 bytes
- * each in dan_gw_t. */
+ * records of higher indexes are counted in telem_ignored). 4: a quad;
+ * raise it for more motors. RAM: 48 bytes each in dan_gw_t (Cortex-M4;
+ * `make size` states it). */
 #ifndef DAN_GW_MAX_ESC
-#define DAN_GW_MAX_ESC 8u
+#define DAN_GW_MAX_ESC 4u
 #endif
 /* Tunnel ports the client tracks (port numbers 0..DAN_GW_TUNNELS-1). RAM:
  * 24 bytes each in dan_gw_t. */

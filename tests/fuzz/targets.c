@@ -1005,6 +1005,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     len -= 2;
     n = len > DAN_MAX_PAYLOAD ? DAN_MAX_PAYLOAD : len;
     memset(&fz_master, 0, sizeof fz_master);
+    fz_master.resp = fz_master.link.tx; /* as dan_master_init() sets it */
     fz_master.result = DAN_OK;
     fz_master.resp_code = code;
     memcpy(fz_master.resp, data, n);
@@ -1012,7 +1013,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     if ((seed & 0x80u) != 0u) {
         /* sealed as the gateway would, so the decoders behind the seal are
          * reached; otherwise as is (the seal check) */
-        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, sizeof fz_master.resp);
+        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, DAN_MAX_PAYLOAD);
         if (sl > 0) {
             fz_master.resp_len = (size_t)sl;
         }

@@ -143,6 +143,7 @@ int setup(void **state)
     R->np = sim_add_periph(&R->bus, &R->p, 115200, true);
     assert_int_equal(dan_master_init(&R->m, &R->nm->port, &mc, types, 1, 115200, R->bus.now),
                      DAN_OK);
+    dan_master_set_identities(&R->m, &R->id, 1);
     dan_gw_node_config_default(&gc);
     gc.unique_id[0] = 0xAB;
     assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);

@@ -22,6 +22,7 @@ typedef struct {
 typedef struct {
     simbus_t bus;
     dan_master_t m;
+    dan_identity_t id; /* the gateway's, reported by discovery */
     dan_periph_t p;
     sim_node_t *nm, *np;
     dan_gw_t gw;

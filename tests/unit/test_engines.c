@@ -35,6 +35,7 @@ static const uint32_t probe_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FI
 typedef struct {
     simbus_t bus;
     dan_master_t m;
+    dan_identity_t ids[4]; /* one per probe type */
     dan_periph_t dev1, dev2;
     sim_node_t *nm, *n1, *n2;
 } rig_t;
@@ -60,6 +61,7 @@ static void rig_setup(bool echo)
     rig.n2 = sim_add_periph(&rig.bus, &rig.dev2, 9600, echo);
     assert_int_equal(
         dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    dan_master_set_identities(&rig.m, rig.ids, 4);
     assert_int_equal(
         dan_periph_init(&rig.dev1, &rig.n1->port, types_dev1, 2, NULL, 9600, rig.bus.now), DAN_OK);
     assert_int_equal(
@@ -105,9 +107,9 @@ static void test_discovery_identities(void **state)
     assert_non_null(b);
     assert_non_null(g);
     assert_null(dan_master_peer(&rig.m, DAN_TYPE_VTX_FIRST)); /* nobody is a VTX */
-    assert_string_equal(a->identity.model, "test A");
-    assert_string_equal(b->identity.sw_version, "2.0.0");
-    assert_string_equal(g->identity.manufacturer, "ACME");
+    assert_string_equal(dan_master_identity(&rig.m, DAN_TYPE_TEST_A_FIRST)->model, "test A");
+    assert_string_equal(dan_master_identity(&rig.m, DAN_TYPE_TEST_B_FIRST)->sw_version, "2.0.0");
+    assert_string_equal(dan_master_identity(&rig.m, DAN_TYPE_CAN_GW_FIRST)->manufacturer, "ACME");
     assert_int_equal(a->baud, 9600);
     assert_int_equal(rig.m.link.stats.collisions, 0);
     /* the absent VTX type was probed at every discovery baud */
@@ -235,6 +237,7 @@ static void test_master_restart_recovery(void **state)
     rig.nm->baud = 9600;
     assert_int_equal(
         dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    dan_master_set_identities(&rig.m, rig.ids, 4);
     assert_int_equal(discover(), DAN_OK);
     g = dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST);
     assert_non_null(g);
