@@ -38,6 +38,14 @@
 #define DAN_MAX_STRING 32u
 #endif
 
+/* The crc8 (every received byte) by a 256-byte table (1: about 6 x86
+ * instructions a byte, the parser's 17 instr/B in `make bench`) or a
+ * 16-byte nibble table (0: ~240 bytes less flash, about 10 instructions a
+ * byte more). `make size` reports both. */
+#ifndef DAN_CRC8_TABLE
+#define DAN_CRC8_TABLE 1
+#endif
+
 /* ==== bus engines: timing defaults (docs/PROTOCOL.md section 6) ====
  * Each is only a default: the engines' config structs change them at run
  * time. No RAM cost. */

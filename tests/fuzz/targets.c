@@ -1019,12 +1019,11 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
         }
     }
     dan_gw_init(&gw, &fz_master);
-    gw.code = code;
     gw.port = (uint8_t)(seed % DAN_GW_TUNNELS);
     gw.tun[gw.port].wr_offset = (uint32_t)(seed >> 1) * 0x01010101u;
     gw.tun[gw.port].rd_offset = (uint32_t)(seed >> 2) * 0x00FF00FFu;
     gw.can_rx_next = (uint32_t)seed << 24;
-    (void)dan_gw_complete(&gw, 0);
+    (void)dan_gw_complete_as(&gw, code, 0);
     FUZZ_CHECK(gw.code == 0u);
     FUZZ_CHECK(gw.result == DAN_OK || gw.result < 0);
     switch (code) {
