@@ -347,8 +347,8 @@ int dan_master_poll(dan_master_t *m, uint64_t now_us)
             m->txn_phase = PH_IDLE;
             if (m->op == DAN_MASTER_OP_TXN) {
                 dan_mst_op_finish(m, m->txn_result);
-            } else {
-                dan_mst_seq_txn_done(m, now_us);
+            } else if (dan_mst_seq_txn_done(m, now_us)) {
+                dan_mst_seq_next(m, now_us);
             }
         }
     } else {

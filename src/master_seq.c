@@ -380,7 +380,7 @@ static bool probe_accept(dan_master_t *m, dan_peer_t *p)
     return true;
 }
 
-void dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
+bool dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
 {
     dan_peer_t *p = (m->idx < m->ntypes) ? &m->peers[m->idx] : NULL;
     switch (m->step) {
@@ -398,14 +398,12 @@ void dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
     case DAN_ST_REC_VERIFY:
         rec_txn_done(m, p, now_us);
         if (m->step == DAN_ST_REC_BACK) {
-            return; /* its CONFIGURE is under way */
+            return false; /* its CONFIGURE is under way */
         }
         break;
     default: dan_mst_fast_txn_done(m, now_us); break;
     }
-    if (m->op != DAN_MASTER_OP_NONE) { /* not finished by the step */
-        dan_mst_seq_next(m, now_us);
-    }
+    return m->op != DAN_MASTER_OP_NONE; /* not finished by the step */
 }
 
 int dan_master_discover(dan_master_t *m, uint64_t now_us)

@@ -106,7 +106,7 @@
 
 /* Telemetry slots the client keeps (ESC indexes 0..DAN_GW_MAX_ESC-1;
  * records of higher indexes are counted in telem_ignored). 4: a quad;
- * raise it for more motors. RAM: 48 bytes each in dan_gw_t (Cortex-M4;
+ * raise it for more motors. RAM: 44 bytes each in dan_gw_t (Cortex-M4;
  * `make size` states it). */
 #ifndef DAN_GW_MAX_ESC
 #define DAN_GW_MAX_ESC 4u

@@ -73,7 +73,8 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
     for (i = 0; i < n; i++) {
         dan_gw_msg_can_frame_put(&w, &frames[i]);
     }
-    rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_SEND, dan_gwc_done_can_send, buf, dan_writer_finish(&w), sizeof buf, now_us);
+    rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_SEND, dan_gwc_done_can_send, buf, dan_writer_finish(&w),
+                       sizeof buf, now_us);
     if (rc == DAN_OK) {
         /* a new number per call, not per attempt: the master's retries repeat it */
         gw->can_seq = s.seq;
