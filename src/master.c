@@ -183,9 +183,30 @@ static void txn_attempt_failed(dan_master_t *m, int why, uint64_t now_us)
     m->txn_phase = PH_LBT;
 }
 
+/* Ends the transaction with f as its response, kept in the TX buffer (see
+ * dan_master_t.resp): the request is done. tx_len stays (the end of our
+ * frame on the wire); the bytes no longer match it, so no later frame
+ * passes for its late echo. */
+static void keep_response(dan_master_t *m, const dan_frame_t *f, int result)
+{
+    memcpy(m->resp, f->payload, f->len);
+    m->resp_len = f->len;
+    m->resp_code = f->code;
+    txn_finish(m, result);
+}
+
+int dan_master_remote_error(const dan_master_t *m, dan_error_msg_t *e)
+{
+    if (m->resp_code != DAN_CODE_ERROR) { /* set only by an error frame for our request */
+        return DAN_ERR_NOTFOUND;
+    }
+    return dan_error_decode(e, m->resp, m->resp_len);
+}
+
 static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
 {
     dan_master_t *m = (dan_master_t *)owner;
+    uint32_t code;
     /* A reply may arrive in the same read as the last echo byte (or, with a
      * direction pin, before a poll has noticed the end of our frame). */
     bool sent =
@@ -206,21 +227,13 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
             txn_attempt_failed(m, DAN_ERR_MALFORMED, now_us);
             return;
         }
-        /* Into the TX buffer (see dan_master_t.resp): the request is done.
-         * tx_len stays (the end of our frame on the wire); the bytes no
-         * longer match it, so no later frame passes for its late echo. */
-        memcpy(m->resp, f->payload, f->len);
-        m->resp_len = f->len;
-        m->resp_code = f->code;
-        txn_finish(m, DAN_OK);
+        keep_response(m, f, DAN_OK);
         return;
     }
-    if (f->code == DAN_CODE_ERROR &&
-        dan_error_decode(&m->remote_error, f->payload, f->len) == DAN_OK &&
-        m->remote_error.code == m->req_code) {
+    if (f->code == DAN_CODE_ERROR && dan_error_code(f->payload, f->len, &code) == DAN_OK &&
+        code == m->req_code) {
         m->stats.remote_errors++;
-        m->resp_code = f->code;
-        txn_finish(m, DAN_ERR_REMOTE); /* understood and refused: no retry */
+        keep_response(m, f, DAN_ERR_REMOTE); /* understood and refused: no retry */
         return;
     }
     m->stats.stray++;

@@ -149,6 +149,18 @@ int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *o
     return dan_writer_finish(&w);
 }
 
+int dan_error_code(const uint8_t *p, size_t len, uint32_t *code)
+{
+    dan_reader_t r;
+    const uint8_t *s;
+    size_t n;
+    dan_reader_init(&r, p, len);
+    *code = dan_get_uvarint(&r);
+    (void)dan_get_uvarint(&r);      /* error */
+    dan_get_array_view(&r, &s, &n); /* text, as dan_get_string() reads it */
+    return dan_reader_finish(&r);
+}
+
 int dan_error_decode(dan_error_msg_t *e, const uint8_t *p, size_t len)
 {
     dan_reader_t r;

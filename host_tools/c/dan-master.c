@@ -161,11 +161,13 @@ static int parse_hex(const char *s, uint8_t *out, size_t cap, size_t *len)
 static void print_txn(ctx_t *c, const char *step, uint32_t code, int r, double ms)
 {
     size_t i;
+    dan_error_msg_t e;
+    if (r != DAN_ERR_REMOTE || dan_master_remote_error(&c->m, &e) != DAN_OK) {
+        e.text[0] = '\0';
+    }
     if (c->json) {
         printf("{\"step\":\"%s\",\"code\":%u,\"result\":%d,\"error\":", step, code, r);
-        tool_json_str(stdout, r == DAN_OK           ? ""
-                              : r == DAN_ERR_REMOTE ? c->m.remote_error.text
-                                                    : dan_strerror(r));
+        tool_json_str(stdout, r == DAN_OK ? "" : r == DAN_ERR_REMOTE ? e.text : dan_strerror(r));
         printf(",\"ms\":%.2f,\"payload\":\"", ms);
         for (i = 0; r == DAN_OK && i < c->m.resp_len; i++) {
             printf("%02x", c->m.resp[i]);
@@ -180,7 +182,7 @@ static void print_txn(ctx_t *c, const char *step, uint32_t code, int r, double m
         }
         printf("\n");
     } else if (r == DAN_ERR_REMOTE) {
-        printf("%s 0x%02X: error frame: %s\n", step, code, c->m.remote_error.text);
+        printf("%s 0x%02X: error frame: %s\n", step, code, e.text);
     } else {
         printf("%s 0x%02X: %s\n", step, code, dan_strerror(r));
     }

@@ -129,11 +129,11 @@ typedef struct {
      * its reply is in, and the next request is encoded only when the next
      * transaction starts). resp == link.tx (set by dan_master_init; do not
      * copy a dan_master_t); valid after a transaction completes, until the
-     * next call that starts one. */
+     * next call that starts one. After DAN_ERR_REMOTE it is the error
+     * frame's payload (resp_code DAN_CODE_ERROR): dan_master_remote_error(). */
     uint32_t resp_code;
     uint8_t *resp;
     size_t resp_len;
-    dan_error_msg_t remote_error; /* when the result is DAN_ERR_REMOTE */
 
     /* the current operation */
     dan_master_op_t op;
@@ -217,6 +217,11 @@ void dan_master_set_identities(dan_master_t *m, dan_identity_t *ids, size_t n);
 /* The identity reported for a present peer of a type (by its first code),
  * or NULL (not present, or not kept). */
 const dan_identity_t *dan_master_identity(const dan_master_t *m, uint32_t first_code);
+
+/* The error frame that refused the last transaction (its result was
+ * DAN_ERR_REMOTE), decoded into e: DAN_OK, or DAN_ERR_NOTFOUND if there is
+ * none (valid until the next transaction starts, as m->resp). */
+int dan_master_remote_error(const dan_master_t *m, dan_error_msg_t *e);
 
 /* Installs a reply check (NULL: none). */
 void dan_master_set_reply_check(dan_master_t *m, dan_reply_check_fn fn, void *user);

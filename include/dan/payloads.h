@@ -95,6 +95,9 @@ typedef struct {
 
 int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *out, size_t cap);
 int dan_error_decode(dan_error_msg_t *e, const uint8_t *p, size_t len);
+/* Only the request code of an error payload: DAN_OK for exactly the
+ * payloads dan_error_decode() accepts (no text buffer). */
+int dan_error_code(const uint8_t *p, size_t len, uint32_t *code);
 
 #ifdef __cplusplus
 }

@@ -127,9 +127,10 @@ static void sleep_us(uint64_t us)
 
 static int fail(const char *step, int rc)
 {
+    dan_error_msg_t e;
     printf("{\"step\": \"%s\", \"ok\": false, \"error\": \"%s\"", step, dan_strerror(rc));
-    if (rc == DAN_ERR_REMOTE) {
-        printf(", \"remote\": \"%s\"", g_m.remote_error.text);
+    if (rc == DAN_ERR_REMOTE && dan_master_remote_error(&g_m, &e) == DAN_OK) {
+        printf(", \"remote\": \"%s\"", e.text);
     }
     printf("}\n");
     fflush(stdout);

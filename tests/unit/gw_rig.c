@@ -75,6 +75,13 @@ int finish(void)
     return dan_gw_complete(&R->gw, R->bus.now);
 }
 
+uint32_t remote_code(void)
+{
+    dan_error_msg_t e;
+    assert_int_equal(dan_master_remote_error(&R->m, &e), DAN_OK);
+    return e.code;
+}
+
 /* The payload of the master's request in flight (it waits encoded in
  * link.tx), to send it again as a retry would. */
 size_t last_req(uint8_t *out)

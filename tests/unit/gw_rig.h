@@ -45,6 +45,9 @@ void drain(void);
 int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 /* Completes the client's transaction in flight. */
 int finish(void);
+/* The request code of the error frame that refused the last transaction
+ * (fails the test if there is none). */
+uint32_t remote_code(void);
 /* The payload of the master's request in flight, to send it again. */
 size_t last_req(uint8_t *out);
 /* The gateway handles the request in flight but its response is lost: the

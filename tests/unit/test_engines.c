@@ -192,6 +192,7 @@ static void test_turnaround_gap(void **state)
 static void test_unknown_malformed_silent(void **state)
 {
     uint32_t unknown0;
+    dan_error_msg_t e;
     (void)state;
     rig_setup(true);
     assert_int_equal(discover(), DAN_OK);
@@ -199,12 +200,14 @@ static void test_unknown_malformed_silent(void **state)
     assert_int_equal(request(0x64, NULL, 0), DAN_ERR_TIMEOUT); /* in A's block, not served */
     assert_int_equal(rig.dev1.stats.unknown - unknown0, 3);    /* every attempt ignored */
     assert_int_equal(request(0x62, NULL, 0), DAN_ERR_REMOTE);
-    assert_int_equal(rig.m.remote_error.code, 0x62);
-    assert_string_equal(rig.m.remote_error.text, "empty payload");
+    assert_int_equal(dan_master_remote_error(&rig.m, &e), DAN_OK);
+    assert_int_equal(e.code, 0x62);
+    assert_string_equal(e.text, "empty payload");
     assert_int_equal(rig.dev1.stats.errors_sent, 1);
     /* a malformed CONFIGURE is an error frame too */
     assert_int_equal(request(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_A_FIRST), NULL, 0), DAN_ERR_REMOTE);
-    assert_string_equal(rig.m.remote_error.text, "malformed CONFIGURE payload");
+    assert_int_equal(dan_master_remote_error(&rig.m, &e), DAN_OK);
+    assert_string_equal(e.text, "malformed CONFIGURE payload");
     /* a CONFIGURE for a baud not in the mask is ACK-FAIL, and nothing moves */
     {
         uint8_t p[8];

@@ -705,7 +705,7 @@ static void test_malformed(void **state)
     errs = R->p.stats.errors_sent;
     assert_int_equal(request_sealed(DAN_GW_CODE_ESC_CMD, bad_esc, 3), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(R->m.remote_error.code, DAN_GW_CODE_ESC_CMD);
+    assert_int_equal(remote_code(), DAN_GW_CODE_ESC_CMD);
     assert_int_equal(request_sealed(DAN_GW_CODE_ESC_CMD, NULL, 0), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     assert_int_equal(request_sealed(DAN_GW_CODE_CONFIG, bad_cfg, 2), DAN_OK);
