@@ -33,9 +33,13 @@ $(BENCH_DIR)/bench_gateway: tests/bench/bench_gateway.c tests/bench/bench_escs.c
 	@mkdir -p $(@D)
 	$(CC) $(BENCH_CFLAGS) -o $@ $^ $(LDLIBS)
 
-$(BENCH_DIR)/bench_esc_sim: tests/bench/bench_esc_sim.c tests/bench/bench_escs.c tests/unit/simbus.c $(ALL_LIBS)
+# It drives up to 8 ESCs: built with DAN_GW_MAX_ESC=8 (the library's
+# default is 4) together with its own copy of the client, since dan_gw_t's
+# layout depends on it.
+$(BENCH_DIR)/bench_esc_sim: tests/bench/bench_esc_sim.c tests/bench/bench_escs.c tests/unit/simbus.c \
+                            $(GW_CLIENT_SRC) $(filter-out $(LIBGW),$(ALL_LIBS))
 	@mkdir -p $(@D)
-	$(CC) $(BENCH_CFLAGS) -Itests/unit -o $@ $^ $(LDLIBS)
+	$(CC) $(BENCH_CFLAGS) -DDAN_GW_MAX_ESC=8u -Itests/unit -o $@ $^ $(LDLIBS)
 
 bench-build: deps all $(BENCH_BINS)
 

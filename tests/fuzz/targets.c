@@ -1061,6 +1061,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     len -= 2;
     n = len > DAN_MAX_PAYLOAD ? DAN_MAX_PAYLOAD : len;
     memset(&fz_master, 0, sizeof fz_master);
+    fz_master.resp = fz_master.link.tx; /* as dan_master_init() sets it */
     fz_master.result = DAN_OK;
     fz_master.resp_code = code;
     memcpy(fz_master.resp, data, n);
@@ -1068,18 +1069,17 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     if ((seed & 0x80u) != 0u) {
         /* sealed as the gateway would, so the decoders behind the seal are
          * reached; otherwise as is (the seal check) */
-        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, sizeof fz_master.resp);
+        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, DAN_MAX_PAYLOAD);
         if (sl > 0) {
             fz_master.resp_len = (size_t)sl;
         }
     }
     dan_gw_init(&gw, &fz_master);
-    gw.code = code;
     gw.port = (uint8_t)(seed % DAN_GW_TUNNELS);
     gw.tun[gw.port].wr_offset = (uint32_t)(seed >> 1) * 0x01010101u;
     gw.tun[gw.port].rd_offset = (uint32_t)(seed >> 2) * 0x00FF00FFu;
     gw.can_rx_next = (uint32_t)seed << 24;
-    (void)dan_gw_complete(&gw, 0);
+    (void)dan_gw_complete_as(&gw, code, 0);
     FUZZ_CHECK(gw.code == 0u);
     FUZZ_CHECK(gw.result == DAN_OK || gw.result < 0);
     switch (code) {

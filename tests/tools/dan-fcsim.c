@@ -93,6 +93,7 @@ static const char HELP[] =
 
 static dan_posix_port_t g_port;
 dan_master_t g_m;
+static dan_identity_t g_id; /* the gateway's, reported by discovery */
 dan_gw_t g_gw;
 
 /* Pumps the port until the operation in flight completes; returns its result. */
@@ -133,9 +134,10 @@ void fcsim_sleep_us(uint64_t us)
 
 int fcsim_fail(const char *step, int rc)
 {
+    dan_error_msg_t e;
     printf("{\"step\": \"%s\", \"ok\": false, \"error\": \"%s\"", step, dan_strerror(rc));
-    if (rc == DAN_ERR_REMOTE) {
-        printf(", \"remote\": \"%s\"", g_m.remote_error.text);
+    if (rc == DAN_ERR_REMOTE && dan_master_remote_error(&g_m, &e) == DAN_OK) {
+        printf(", \"remote\": \"%s\"", e.text);
     }
     printf("}\n");
     fflush(stdout);
@@ -420,7 +422,7 @@ static int step_discover(const char *name, const char *step, char *args)
     }
     printf("{\"step\": \"discover\", \"ok\": true, \"baud\": %u, \"manufacturer\": \"%s\", "
            "\"model\": \"%s\", \"baud_mask\": %u}\n",
-           p->baud, p->identity.manufacturer, p->identity.model, p->identity.baud_mask);
+           p->baud, g_id.manufacturer, g_id.model, g_id.baud_mask);
     return 0;
 }
 
@@ -1175,6 +1177,7 @@ int main(int argc, char **argv)
         tool_error("master init failed");
         return 2;
     }
+    dan_master_set_identities(&g_m, &g_id, 1);
     dan_gw_init(&g_gw, &g_m);
     for (; i < argc && rc != 2; i++) {
         int r = do_step(argv[i]);

@@ -84,6 +84,7 @@ typedef struct {
     uint16_t voltage_f16;     /* V */
     uint16_t current_f16;     /* A */
     uint16_t temperature_f16; /* K */
+    uint16_t motor_angle;     /* StatusExtended's; here, it fills the padding */
     int32_t rpm;              /* int18 */
     uint32_t error_count;
     /* StatusExtended */
@@ -91,7 +92,6 @@ typedef struct {
     uint8_t input_pct;
     uint8_t output_pct;
     int16_t motor_temp_c;
-    uint16_t motor_angle;
     uint32_t status_flags; /* uint19 */
     /* device.Temperature sent by the same node (e.g. its MCU) */
     uint32_t dev_age_ms;
