@@ -94,8 +94,12 @@ def wait_until(fn, deadline, log):
 
 def start_fcsim(st, build, tmp, baud, values, name, recover=False):
     vals = ",".join(map(str, values))
-    steps = ["discover", f"configure:{baud}", "arm", f"esc:{vals}@600000@0"]
+    # 100 Hz: the Python ESCs behind the hub keep up (back to back at 1M
+    # they fall seconds behind, and their log is the evidence)
+    steps = ["discover", f"configure:{baud}", "arm", f"esc:{vals}@600000@100"]
     opts = ["--recover", "3"] if recover else []
+    if baud > 115200:  # discovery scans the fast bauds only when the port may use them
+        opts += ["--max-baud", str(baud)]
     return st.start(
         [build / "bin" / "dan-fcsim", "--port", tmp / "dan0", *opts, *steps],
         name,
