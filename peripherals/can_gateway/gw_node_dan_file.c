@@ -93,6 +93,7 @@ static void upload_open(dan_gw_node_t *g, const dan_gw_file_open_t *o, const cha
         rc = e < 0 ? e : rc;
     } else if (rc > 0) {
         rc = fs->up_open(fs->ctx, name, false); /* longer than this upload: not its partial */
+        rc = rc > 0 ? DAN_GW_FS_EIO : rc;       /* not emptied: a broken store */
     }
     if (rc < 0) {
         memset(u, 0, sizeof *u);

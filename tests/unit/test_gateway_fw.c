@@ -204,6 +204,39 @@ static void test_fw_begin_timeout(void **state)
     assert_int_equal(fw_begin(4, "fw.bin"), DAN_GW_CALL_TIMEOUT);
 }
 
+/* The file server's answer to NODE's last read since *from. */
+static int16_t read_error(size_t *from, size_t *len)
+{
+    static dan_dc_file_read_rsp_t r;
+    cap_t *c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, from);
+    assert_non_null(c);
+    assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
+    *len = r.data_len;
+    return r.error;
+}
+
+/* An upload whose CRC does not check is never served: NOT_FOUND to a
+ * node, and FW_BEGIN refuses it; committed, it is. */
+static void test_crc_refused_not_served(void **state)
+{
+    uint32_t crc = dan_gw_crc32(0, img, IMG_SIZE);
+    size_t from = R->ncap, len;
+    (void)state;
+    node_status_from(NODE, 10, DAN_DC_HEALTH_OK, DAN_DC_MODE_OPERATIONAL);
+    assert_int_equal(open_file("fw.bin", IMG_SIZE, false, NULL), DAN_GW_FILE_OK);
+    upload_range(0, IMG_SIZE);
+    assert_int_equal(commit(crc ^ 0x80u, NULL), DAN_GW_FILE_CRC);
+    node_reads(0, "fw.bin");
+    assert_int_equal(read_error(&from, &len), DAN_DC_FILE_NOT_FOUND);
+    assert_int_equal(len, 0);
+    assert_int_equal(dan_gw_fw_begin(&R->gw, 9, NODE, "fw.bin", R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_ERR_REMOTE);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_OK);
+    node_reads(0, "fw.bin");
+    assert_int_equal(read_error(&from, &len), DAN_DC_FILE_OK);
+    assert_int_equal(len, 256);
+}
+
 /* The DSDL codec against pydronecan's bytes (tests/vectors/dronecan_fw.txt):
  * decoded to the fields, encoded back byte for byte. */
 static void test_fw_dsdl_vectors(void **state)
@@ -248,6 +281,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_fw_begin_refused, setup_files, teardown),
         cmocka_unit_test_setup_teardown(test_fw_begin_not_a_file, setup_files, teardown),
         cmocka_unit_test_setup_teardown(test_fw_begin_timeout, setup_files, teardown),
+        cmocka_unit_test_setup_teardown(test_crc_refused_not_served, setup_files, teardown),
         cmocka_unit_test(test_fw_dsdl_vectors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -237,6 +237,8 @@ int dan_gw_file_open(dan_gw_t *gw, const char *name, uint32_t size, bool restart
 int dan_gw_file_write(dan_gw_t *gw, uint32_t offset, const uint8_t *data, size_t len,
                       uint64_t now_us);
 int dan_gw_file_commit(dan_gw_t *gw, uint32_t crc32, uint64_t now_us);
+/* A removal retried by the master answers NOT_FOUND: OK and NOT_FOUND both
+ * mean the file is gone. */
 int dan_gw_file_remove(dan_gw_t *gw, const char *name, uint64_t now_us);
 /* After FILE_OPEN, FILE_WRITE, FILE_COMMIT or FILE_REMOVE completed: the
  * result byte (DAN_GW_FILE_*) and value: have (OPEN, WRITE), the gateway's
