@@ -346,19 +346,27 @@ def report(
 GATEWAY_TYPE = registry.lookup("can-gw")
 
 
-def add_gateway_options(p: argparse.ArgumentParser, *, long_running: bool = False):
+def add_gateway_options(
+    p: argparse.ArgumentParser,
+    *,
+    long_running: bool = False,
+    timeout_default: float = 30.0,
+    timeout_help: Optional[str] = None,
+):
     """The options of every gateway command: the common and bus options
     (--types defaults to can-gw alone), --bus-baud and --configure."""
     add_common_options(
         p,
         baud_help="the baud the bus is at, if known: the gateway is tried there first "
         "(one IDENTIFY), then by discovery from 9600 (default: discovery)",
-        timeout_help=(
+        timeout_default=timeout_default,
+        timeout_help=timeout_help
+        or (
             "give up finding the gateway after S seconds; then fail once it has "
             "not answered for S seconds (default 30)"
-        )
-        if long_running
-        else "give up after S seconds (default 30)",
+            if long_running
+            else "give up after S seconds (default 30)"
+        ),
     )
     add_master_options(p, types_default=GATEWAY_TYPE.name)
     g = p.add_argument_group("gateway options")
