@@ -381,6 +381,18 @@ def add_gateway_options(
     )
 
 
+def gateway_actions(p: argparse.ArgumentParser, command: str, helps: dict, description: str):
+    """The actions of a gateway command (`param list|get|...`): a subparser
+    per key of helps (dest COMMAND_command), each with the gateway options;
+    yields (action, its "COMMAND ACTION options" group)."""
+    sub = p.add_subparsers(dest=f"{command}_command", metavar="|".join(helps))
+    sub.required = True
+    for name, text in helps.items():
+        s = sub.add_parser(name, help=text, description=description)
+        add_gateway_options(s)
+        yield name, s.add_argument_group(f"{command} {name} options")
+
+
 def find_gateway(ctx: Context, m: Master):
     """The gateway's Peer: IDENTIFY at --baud if given, else (or if it did
     not answer there) discovery; then --configure. The bus is left at the

@@ -9,8 +9,8 @@ from danprobe import gateway_file as F
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
-    add_gateway_options,
     format_table,
+    gateway_actions,
     gateway_operation,
     gateway_report,
     stop_signals,
@@ -57,17 +57,12 @@ def add_name_option(g):
 
 
 def add_arguments(p):
-    sub = p.add_subparsers(dest="files_command", metavar="list|put|rm")
-    sub.required = True
     helps = {
         "list": "the committed files and their sizes",
         "put": "upload a file (resumes an interrupted upload of it)",
         "rm": "remove a file",
     }
-    for name, text in helps.items():
-        s = sub.add_parser(name, help=text, description=DESCRIPTION)
-        add_gateway_options(s)
-        g = s.add_argument_group(f"files {name} options")
+    for name, g in gateway_actions(p, "files", helps, DESCRIPTION):
         if name == "put":
             g.add_argument("file", metavar="FILE", help="the file to upload")
             add_name_option(g)
