@@ -35,28 +35,34 @@
 #include "dan/posix.h"
 #include "dan_tool.h"
 
-#define PROG             "dan-vbus"
-#define EP_MIN           2
-#define EP_MAX           16
-#define TXQ_CAP          4096u /* bytes an endpoint may have queued for the wire */
-#define TXQ_LOW          512u  /* room needed before reading from a writer again */
-#define OUT_CAP          4096u /* per-receiver write batch */
-#define BURST_CAP        4096u /* longest burst written as one capture line */
-#define MAX_CLIENTS      8
-#define CLIENT_LINE      256u
-#define INIT_BAUD        9600u
-#define MIN_BAUD         50u
-#define DEFAULT_SEED     1u
-#define TOLERANCE_PCT    3u
-#define BITS_PER_CHAR    10 /* 8N1: start bit, 8 data bits, stop bit */
-#define NS_PER_S         1000000000LL
+#define PROG              "dan-vbus"
+#define EP_MIN            2
+#define EP_MAX            16
+#define TXQ_CAP           4096u /* bytes an endpoint may have queued for the wire */
+#define TXQ_LOW           512u  /* room needed before reading from a writer again */
+#define OUT_CAP           4096u /* per-receiver write batch */
+#define BURST_CAP         4096u /* longest burst written as one capture line */
+#define MAX_CLIENTS       8
+#define CLIENT_LINE       256u
+#define INIT_BAUD         9600u
+#define MIN_BAUD          50u
+#define DEFAULT_SEED      1u
+#define TOLERANCE_PCT     3u
+#define BITS_PER_CHAR     10 /* 8N1: start bit, 8 data bits, stop bit */
+#define NS_PER_S          1000000000LL
 /* An arbitrary odd constant (drand48's multiplier): the garbage stream
  * starts apart from the noise stream for the same --seed. */
-#define GARBAGE_SEED_XOR 0x5DEECE66DULL
+#define GARBAGE_SEED_XOR  0x5DEECE66DULL
+/* Another arbitrary constant: the --latency jitter stream. */
+#define LATENCY_SEED_XOR  0x9E3779B97F4A7C15ULL
+/* --latency: the default chunk is a full-speed FTDI packet's payload (64
+ * bytes minus 2 modem-status bytes), handed over without waiting. */
+#define LAT_CHUNK_DEFAULT 62u
+#define LAT_PERIOD_MAX_MS 1000.0
 /* --link PREFIX: room for the endpoint index and NUL ... */
-#define LINK_INDEX_ROOM  4
+#define LINK_INDEX_ROOM   4
 /* ... and, with the temporary link's ".vbusPID" suffix, below PATH_MAX. */
-#define LINK_SUFFIX_ROOM 32
+#define LINK_SUFFIX_ROOM  32
 
 typedef int64_t ns_t;
 
@@ -154,7 +160,21 @@ struct ep {
     uint8_t out[OUT_CAP];
     size_t outlen;
     uint32_t rxbaud; /* cached per delivery round, 0 = unknown */
+    ns_t flush_at;   /* --latency: when the held bytes are handed over; 0 = none held */
     struct burst cap;
+};
+
+/* --latency: a USB-serial adapter between the wire and one endpoint. The
+ * adapter holds received bytes and hands them to the host in bursts: on the
+ * first tick of a period-long clock (its latency timer; a random phase per
+ * endpoint) after the first byte it holds, plus 0..jitter of host
+ * scheduling, or as soon as it holds chunk bytes (a full USB packet). The
+ * echo of the endpoint's own bytes comes back the same way, as on a real
+ * adapter. Only delivery to the endpoint is modelled; its writes reach the
+ * wire at once. */
+struct latency {
+    ns_t period, jitter, phase; /* period 0: no adapter, bytes at once */
+    size_t chunk;
 };
 
 struct client {
@@ -167,7 +187,10 @@ struct vbus {
     int n;
     struct ep *ep[EP_MAX];
     double ber;
-    struct rng noise, garbage;
+    struct rng noise, garbage, jitter;
+    struct latency lat[EP_MAX];
+    const char *lat_arg[EP_MAX]; /* --latency options, applied once -n is known */
+    int nlat_arg;
     FILE *capture;
     const char *capture_path;
     const char *control_path;
@@ -381,6 +404,23 @@ static void deliver_byte(struct vbus *vb, int src, const struct wbyte *w)
     burst_add(vb, src, w, wire, flips > 0);
 }
 
+/* Hands what endpoint r holds to its pty: at once without --latency,
+ * else when its adapter's latency timer fires or a packet is full. */
+static void out_release(struct vbus *vb, int r, ns_t now)
+{
+    struct ep *e = vb->ep[r];
+    const struct latency *l = &vb->lat[r];
+    if (!l->period || e->outlen >= l->chunk || (e->flush_at && now >= e->flush_at)) {
+        out_flush(vb, r);
+        e->flush_at = 0;
+    } else if (e->outlen && !e->flush_at) {
+        ns_t since = now - vb->t0 - l->phase;
+        ns_t tick = vb->t0 + l->phase + (since < 0 ? 0 : (since / l->period + 1) * l->period);
+        ns_t extra = l->jitter ? (ns_t)(rng_unit(&vb->jitter) * (double)l->jitter) : 0;
+        e->flush_at = tick + extra;
+    }
+}
+
 /* Delivers every character whose time on the wire has ended, in order. */
 static void deliver_due(struct vbus *vb, ns_t now)
 {
@@ -412,9 +452,9 @@ static void deliver_due(struct vbus *vb, ns_t now)
         deliver_byte(vb, best, &w);
         any = 1;
     }
-    if (any) {
-        for (int r = 0; r < vb->n; r++) {
-            out_flush(vb, r);
+    for (int r = 0; r < vb->n; r++) {
+        if (any || vb->ep[r]->flush_at) {
+            out_release(vb, r, now);
         }
     }
     /* A burst ends once its source has been silent for 1.5 characters. */
@@ -437,6 +477,9 @@ static ns_t next_deadline(struct vbus *vb)
             d = q_at(e, 0)->end;
         } else if (e->cap.open) {
             d = e->cap.last_end + gap_limit(e->cap.baud) + 1;
+        }
+        if (e->flush_at && (d < 0 || e->flush_at < d)) {
+            d = e->flush_at;
         }
         if (d >= 0 && (t < 0 || d < t)) {
             t = d;
@@ -491,9 +534,10 @@ static void stats_json(struct vbus *vb, char *out, size_t cap)
     for (int i = 0; i < vb->n; i++) {
         struct ep *e = vb->ep[i];
         APPEND("%s{\"index\":%d,\"path\":\"%s\",\"baud\":%" PRIu32 ",\"bytes_in\":%" PRIu64
-               ",\"bytes_out\":%" PRIu64 ",\"dropped\":%" PRIu64 "}",
-               i ? "," : "", i, e->path, pty_baud(e->mfd, 0), e->bytes_in, e->bytes_out,
-               e->dropped);
+               ",\"bytes_out\":%" PRIu64 ",\"dropped\":%" PRIu64
+               ",\"latency_ms\":%.6g,\"jitter_ms\":%.6g}",
+               i ? "," : "", i, e->path, pty_baud(e->mfd, 0), e->bytes_in, e->bytes_out, e->dropped,
+               (double)vb->lat[i].period / 1e6, (double)vb->lat[i].jitter / 1e6);
     }
     APPEND("],\"collisions\":%" PRIu64 ",\"collided_bytes\":%" PRIu64 ",\"noise_flips\":%" PRIu64
            ",\"noise_bytes\":%" PRIu64 ",\"mismatched_bytes\":%" PRIu64 ",\"dropped\":%" PRIu64
@@ -515,6 +559,81 @@ static int parse_ber(const char *s, double *out)
         return -1;
     }
     *out = v;
+    return 0;
+}
+
+/* One millisecond figure of --latency: 0..LAT_PERIOD_MAX_MS. */
+static int parse_ms(const char *s, const char *end, ns_t *out)
+{
+    char num[32], *stop;
+    size_t len = (size_t)(end - s);
+    if (!len || len >= sizeof num) {
+        return -1;
+    }
+    memcpy(num, s, len);
+    num[len] = '\0';
+    errno = 0;
+    double v = strtod(num, &stop);
+    if (errno || *stop || !isfinite(v) || v < 0.0 || v > LAT_PERIOD_MAX_MS) {
+        return -1;
+    }
+    *out = (ns_t)(v * 1e6);
+    return 0;
+}
+
+/* "EP:PERIOD_MS[:JITTER_MS[:CHUNK]]" (EP an index or "all") into vb->lat;
+ * 0, or -1 with nothing changed. The phase of the latency clock is drawn
+ * from the jitter stream, so it is reproducible with --seed. */
+static int parse_latency(struct vbus *vb, int nep, const char *arg)
+{
+    struct latency l = {0, 0, 0, LAT_CHUNK_DEFAULT};
+    const char *f[4] = {arg, NULL, NULL, NULL};
+    int nf = 1, lo, hi;
+    unsigned long v;
+    for (const char *p = arg; *p; p++) {
+        if (*p == ':') {
+            if (nf == 4) {
+                return -1;
+            }
+            f[nf++] = p + 1;
+        }
+    }
+    if (nf < 2) {
+        return -1;
+    }
+    const char *end1 = f[1] - 1;
+    if (end1 - f[0] == 3 && !strncmp(f[0], "all", 3)) {
+        lo = 0;
+        hi = nep - 1;
+    } else {
+        char idx[8];
+        size_t len = (size_t)(end1 - f[0]);
+        if (!len || len >= sizeof idx) {
+            return -1;
+        }
+        memcpy(idx, f[0], len);
+        idx[len] = '\0';
+        if (tool_parse_ulong(idx, 10, 0, (unsigned long)nep - 1, &v) != 0) {
+            return -1;
+        }
+        lo = hi = (int)v;
+    }
+    if (parse_ms(f[1], nf > 2 ? f[2] - 1 : f[1] + strlen(f[1]), &l.period) < 0) {
+        return -1;
+    }
+    if (nf > 2 && parse_ms(f[2], nf > 3 ? f[3] - 1 : f[2] + strlen(f[2]), &l.jitter) < 0) {
+        return -1;
+    }
+    if (nf > 3) {
+        if (tool_parse_ulong(f[3], 10, 1, OUT_CAP, &v) != 0) {
+            return -1;
+        }
+        l.chunk = (size_t)v;
+    }
+    for (int i = lo; i <= hi; i++) {
+        vb->lat[i] = l;
+        vb->lat[i].phase = (ns_t)(rng_unit(&vb->jitter) * (double)l.period);
+    }
     return 0;
 }
 
@@ -544,13 +663,24 @@ static void client_command(struct vbus *vb, struct client *c, char *line)
         } else {
             client_send(vb, c, "error: ber needs a number from 0 to 1\n");
         }
+    } else if (!strncmp(line, "latency", 7) && (line[7] == ' ' || line[7] == '\t')) {
+        const char *arg = line + 8;
+        while (*arg == ' ' || *arg == '\t') {
+            arg++;
+        }
+        if (parse_latency(vb, vb->n, arg) == 0) {
+            vlog(vb, "latency set: %s", arg);
+            client_send(vb, c, "ok\n");
+        } else {
+            client_send(vb, c, "error: latency needs EP:PERIOD_MS[:JITTER_MS[:CHUNK]]\n");
+        }
     } else if (!strcmp(line, "quit")) {
         client_send(vb, c, "ok\n");
         vb->quit = 1;
     } else if (!*line) {
-        client_send(vb, c, "error: empty command (try: stats, ber <x>, quit)\n");
+        client_send(vb, c, "error: empty command (try: stats, ber <x>, latency <spec>, quit)\n");
     } else {
-        client_send(vb, c, "error: unknown command (try: stats, ber <x>, quit)\n");
+        client_send(vb, c, "error: unknown command (try: stats, ber <x>, latency <spec>, quit)\n");
     }
 }
 
@@ -815,6 +945,14 @@ static void usage(FILE *f)
             "      --seed S        seed for noise and garbage, 0 to 2^64-1 (default %u)\n"
             "      --capture FILE  write one line per burst on the wire to FILE\n"
             "      --control PATH  accept commands on a Unix stream socket at PATH\n"
+            "      --latency EP:PERIOD_MS[:JITTER_MS[:CHUNK]]\n"
+            "                      put a USB-serial adapter model in front of endpoint EP\n"
+            "                      (an index or 'all'; repeatable): bytes for it are held\n"
+            "                      and handed over in bursts, on the next tick of a\n"
+            "                      PERIOD_MS clock (its latency timer) plus a random\n"
+            "                      0..JITTER_MS, or at once when CHUNK bytes are held\n"
+            "                      (default %u, an FTDI packet); its echo too.\n"
+            "                      E.g. 0:16 is an FTDI chip at its default latency timer\n"
             "  -v, --verbose       debug messages on stderr\n"
             "  -h, --help          show this help and exit\n"
             "\n"
@@ -841,11 +979,14 @@ static void usage(FILE *f)
             "\n"
             "Control socket (--control), one command per line, one line answered:\n"
             "  stats     JSON object: \"endpoints\": [{index, path, baud, bytes_in (bytes\n"
-            "            the endpoint wrote), bytes_out (bytes delivered to it), dropped}],\n"
+            "            the endpoint wrote), bytes_out (bytes delivered to it), dropped,\n"
+            "            latency_ms, jitter_ms}],\n"
             "            collisions (collision events), collided_bytes, noise_flips (bits),\n"
             "            noise_bytes, mismatched_bytes (bytes garbled at a receiver by\n"
             "            baud mismatch), dropped, wire_bytes, ber\n"
             "  ber <x>   set the bit error rate; answers ok\n"
+            "  latency <EP:PERIOD_MS[:JITTER_MS[:CHUNK]]>  as --latency (0 period: off);\n"
+            "            answers ok\n"
             "  quit      answers ok and exits like SIGTERM\n"
             "Errors are answered with a line starting with 'error:'.\n"
             "\n"
@@ -858,7 +999,7 @@ static void usage(FILE *f)
             "  program-a --port /tmp/dan0 &     # e.g. a flight controller simulation\n"
             "  program-b --port /tmp/dan1       # e.g. a peripheral; each also hears itself\n"
             "  kill %%1\n",
-            DEFAULT_SEED, BURST_CAP);
+            DEFAULT_SEED, LAT_CHUNK_DEFAULT, BURST_CAP);
 }
 
 static void bad_arg(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
@@ -918,6 +1059,7 @@ static void parse_options(int argc, char **argv, struct vbus *vb, const char **l
         {"seed", required_argument, NULL, 's'},
         {"capture", required_argument, NULL, 'c'},
         {"control", required_argument, NULL, 'C'},
+        {"latency", required_argument, NULL, 'L'},
         {"verbose", no_argument, NULL, 'v'},
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
@@ -943,6 +1085,12 @@ static void parse_options(int argc, char **argv, struct vbus *vb, const char **l
         case 's': *seed = parse_seed(optarg); break;
         case 'c': vb->capture_path = path_arg(c, optarg); break;
         case 'C': vb->control_path = path_arg(c, optarg); break;
+        case 'L':
+            if (vb->nlat_arg == EP_MAX) {
+                bad_arg("at most %d --latency options", EP_MAX);
+            }
+            vb->lat_arg[vb->nlat_arg++] = optarg;
+            break;
         case 'v': vb->verbose = 1; break;
         case 'h': usage(stdout); exit(0);
         case ':': bad_arg("option '%s' needs a value", argv[optind - 1]);
@@ -1170,6 +1318,14 @@ int main(int argc, char **argv)
     parse_options(argc, argv, vb, &link_prefix, &seed);
     vb->noise.s = seed;
     vb->garbage.s = seed ^ GARBAGE_SEED_XOR;
+    vb->jitter.s = seed ^ LATENCY_SEED_XOR;
+    for (int i = 0; i < vb->nlat_arg; i++) {
+        if (parse_latency(vb, vb->n, vb->lat_arg[i]) < 0) {
+            bad_arg("--latency must be EP:PERIOD_MS[:JITTER_MS[:CHUNK]] with EP 0 to %d or 'all', "
+                    "times 0 to %g ms and CHUNK 1 to %u, not '%s'",
+                    vb->n - 1, LAT_PERIOD_MAX_MS, OUT_CAP, vb->lat_arg[i]);
+        }
+    }
     setup_signals(&orig);
     if (setup(vb, link_prefix) == 0) {
         vb->t0 = now_ns();

@@ -39,6 +39,16 @@ class SerialPort:
             raise PortError(_reason(path, e)) from None
         self.ser.reset_input_buffer()
         self._empty_reads = 0
+        # ASYNC_LOW_LATENCY, as libdan's POSIX port asks for: the serial
+        # driver hands bytes over at once, and ftdi_sio drops its latency
+        # timer from 16 ms to 1 ms (docs/VBUS.md "Adapter latency"). A pty
+        # or a driver without it refuses; that costs only speed.
+        self.low_latency = False
+        try:
+            self.ser.set_low_latency_mode(True)
+            self.low_latency = True
+        except (AttributeError, OSError, ValueError, serial.SerialException):
+            pass
 
     @property
     def baud(self) -> int:

@@ -149,7 +149,7 @@ def step(lines, name):
     return [line for line in lines if line.get("step") == name]
 
 
-def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
+def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=(), vbus_args=()):
     """vbus (2 endpoints) + hub (1 + n_esc + extra_can ports) + esc_sim + dan-gatewayd."""
     vbus = stack.start(
         [
@@ -162,6 +162,7 @@ def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
             tmp / "bus.cap",
             "--control",
             tmp / "vbus.ctl",
+            *vbus_args,
         ],
         "dan-vbus",
     )
@@ -219,10 +220,10 @@ def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=()):
 # ---- rows --------------------------------------------------------------------
 
 
-def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4):
+def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4, vbus_args=()):
     """The ESC loop through dan-gatewayd on dan-vbus with n_esc esc_sim ESCs:
     ESC_CMD, or with fast_every=N the compact ESC_FAST with ESC_FAST_T every
-    N-th; the bus configured to baud."""
+    N-th; the bus configured to baud; vbus_args e.g. an adapter model."""
     opts = ["--fast", "--telem-every", str(fast_every)] if fast_every else []
     codes = (0x59, 0x5A) if fast_every else (0x42,)
     values = ",".join(str(100 * k) for k in range(n_esc))
@@ -231,7 +232,7 @@ def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4):
         tmp = Path(tmp)
         st = Stack(tmp)
         try:
-            gw_rig(st, build, tmp, n_esc=n_esc)
+            gw_rig(st, build, tmp, n_esc=n_esc, vbus_args=vbus_args)
             rc, out = fcsim(
                 st,
                 build,
@@ -291,6 +292,26 @@ def bench_esc_fast_vbus(build, seconds):
             for n, baud, every in VBUS_FAST
         ]
     }
+
+
+# dan-vbus --latency models of the FC's USB-serial adapter (docs/VBUS.md):
+# (name, --latency of endpoint 0, baud, a telemetry record every N-th)
+ADAPTERS = [
+    ("FTDI, latency timer 16 ms (default)", "0:16:1", 115200, 4),
+    ("FTDI, latency timer 16 ms (default)", "0:16:1", 1000000, 1),
+    ("FTDI, latency timer 4 ms", "0:4:1", 115200, 4),
+    ("FTDI, latency timer 1 ms (low_latency)", "0:1:0.5", 115200, 4),
+    ("FTDI, latency timer 1 ms (low_latency)", "0:1:0.5", 1000000, 1),
+]
+
+
+def bench_adapters(build, seconds):
+    rows = []
+    for name, lat, baud, every in ADAPTERS:
+        r = bench_esc(build, seconds, fast_every=every, baud=baud, vbus_args=("--latency", lat))
+        r["adapter"], r["latency"] = name, lat
+        rows.append(r)
+    return {"rows": rows}
 
 
 def bench_esc_sim(build):
@@ -764,6 +785,15 @@ def table(r):
                 f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
             )
         )
+    for e in (r.get("adapters") or {}).get("rows", []):
+        rows.append(
+            (
+                f"adapter {e['adapter']}, ESC_FAST 4 ESC {e['baud']} T 1/{e['telem_every']}",
+                f"{e['rate']:.1f}/s, {e['telem_hz_per_esc']:.1f} Hz/ESC",
+                f"no adapter: wire {e['bound']:.0f}/s; +gaps {e['bound_gaps']:.0f}/s",
+                f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
+            )
+        )
     if r.get("esc_sim"):
         rows += esc_sim_rows(r["esc_sim"])
     w = r.get("raw_can")
@@ -893,7 +923,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
     ap.add_argument(
         "--only",
-        help="comma-separated rows (esc,esc_fast,esc_sim,raw_can,discovery,parser,gateway,latency,params)",
+        help="comma-separated rows (esc,esc_fast,adapters,esc_sim,raw_can,discovery,parser,gateway,latency,params)",
     )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
@@ -926,6 +956,7 @@ def main():
         todo = [
             ("esc", lambda: bench_esc(build, a.seconds)),
             ("esc_fast", lambda: bench_esc_fast_vbus(build, min(a.seconds, 3.0))),
+            ("adapters", lambda: bench_adapters(build, min(a.seconds, 3.0))),
             ("esc_sim", lambda: bench_esc_sim(build)),
             ("raw_can", lambda: bench_raw(build, a.seconds)),
             ("discovery", lambda: bench_discovery(build)),

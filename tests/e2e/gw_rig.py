@@ -210,7 +210,7 @@ class Stack(Rig):
     esc_sim with `escs` ESCs (node ids 20..). Rig's node(k, ...) (a
     pydronecan node on tmp/can<k>), spin() and close() serve here too."""
 
-    def __init__(self, procs, tmp, escs=4, ncan=8):
+    def __init__(self, procs, tmp, escs=4, ncan=8, vbus_extra=()):
         for b in ("dan-vbus", "dan-gatewayd", "dan-cantool"):
             if not (BIN / b).exists():
                 pytest.fail(f"{b} not built: run make test (it builds everything)")
@@ -222,7 +222,7 @@ class Stack(Rig):
         self.hub_log = tmp / "hub.log"
         self.start_wires(
             ncan,
-            vbus_extra=("--capture", tmp / "bus.cap"),
+            vbus_extra=("--capture", tmp / "bus.cap", *vbus_extra),
             hub_extra=("--log", self.hub_log, "--control", self.ctl),
         )
         self.gwd = procs.start(

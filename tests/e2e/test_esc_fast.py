@@ -50,22 +50,28 @@ def gateway_cmds(s, values, least):
     return wait_for(per_esc, 60, 0.2, what=f"{least} commands {values} at every ESC")
 
 
-@pytest.mark.parametrize("baud", [115200, 1000000])
-def test_fcsim_fast_exact_values_and_telemetry_of_every_esc(stack, baud):
-    s = stack()
-    s.wait_gateway_sees(4)
-    assert (BIN / "dan-fcsim").exists()
+def fcsim_fast_run(s, baud, ms):
+    """dan-fcsim: discover, configure to baud, ESC_FAST with 11,-22,8191,-8192
+    for ms (a record every 4th exchange), stats; (output lines, the esc step)."""
     rc, out = s.fcsim(
         "--fast",
         "--telem-every",
         "4",
         "discover",
         f"configure:{baud}",
-        "esc:11,-22,8191,-8192@3000@0",
+        f"esc:11,-22,8191,-8192@{ms}@0",
         "stats",
     )
     assert rc == 0, out
-    run = next(line for line in out if line["step"] == "esc")
+    return out, next(line for line in out if line["step"] == "esc")
+
+
+@pytest.mark.parametrize("baud", [115200, 1000000])
+def test_fcsim_fast_exact_values_and_telemetry_of_every_esc(stack, baud):
+    s = stack()
+    s.wait_gateway_sees(4)
+    assert (BIN / "dan-fcsim").exists()
+    out, run = fcsim_fast_run(s, baud, 3000)
     assert run["fast"] and run["telem_every"] == 4 and run["errors"] == 0
     assert run["baud"] == baud
     print(f"\nESC_FAST at {run['baud']} on dan-vbus: {run['rate']:.0f} exchanges/s")
