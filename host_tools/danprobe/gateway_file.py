@@ -138,13 +138,18 @@ class FileOpen:
         return bool(self.flags & OPEN_RESTART)
 
     def encode(self) -> bytes:
+        if self.flags & ~OPEN_RESTART:
+            raise ValueError(f"FILE_OPEN: flags 0x{self.flags:02x}, only bit0 (restart)")
         w = Writer().array(file_name(self.name)).u32(_u32(self.size, "size"))
         return w.u8(self.flags).bytes()
 
     @classmethod
     def decode(cls, payload) -> "FileOpen":
         r = Reader(payload)
-        return cls(get_name(r), r.u32("size"), r.u8("flags"))
+        o = cls(get_name(r), r.u32("size"), r.u8("flags"))
+        if o.flags & ~OPEN_RESTART:
+            raise PayloadError(f"FILE_OPEN: flags 0x{o.flags:02x}, only bit0 (restart) is defined")
+        return o
 
     def as_dict(self) -> dict:
         return {"name": _text(self.name), "size": self.size, "restart": self.restart}

@@ -118,6 +118,13 @@ STAT_NAMES = (
     "call_timeouts",
     "servo_cmds",
     "servo_dropped",
+    "file_reads",
+    "file_bytes",
+    "file_errors",
+    "upload_bytes",
+    "file_commits",
+    "upload_errors",
+    "fw_begins",
 )
 
 # node table info_state

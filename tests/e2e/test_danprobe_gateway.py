@@ -360,7 +360,8 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 29)["counter_28"] == 0  # later versions append counters
+    assert G.stats_dict([0] * 36)["counter_35"] == 0  # later versions append counters
+    assert G.stats_dict(list(range(35)))["fw_begins"] == 34
     assert G.stats_dict(list(range(26)))["call_timeouts"] == 25
     assert G.stats_dict(list(range(28)))["servo_dropped"] == 27
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
