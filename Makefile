@@ -44,7 +44,8 @@ PORT_SRC := $(wildcard src/port/*.c)
 # Peripheral types: one folder each under peripherals/, public headers in
 # its include/ (dan/<type>/...). The CAN gateway type:
 GW_DIR        := peripherals/can_gateway
-GW_CLIENT_SRC := $(wildcard $(GW_DIR)/gw_msgs*.c $(GW_DIR)/gw_client*.c) $(GW_DIR)/f16.c $(GW_DIR)/gw_esc_map.c
+GW_CLIENT_SRC := $(wildcard $(GW_DIR)/gw_msgs*.c $(GW_DIR)/gw_client*.c) $(GW_DIR)/f16.c $(GW_DIR)/gw_esc_map.c \
+                 $(GW_DIR)/gw_file_name.c
 GW_NODE_SRC   := $(wildcard $(GW_DIR)/gw_node*.c $(GW_DIR)/dsdl*.c) $(GW_DIR)/dronecan.c
 GW_LINUX_SRC  := $(filter-out $(GW_DIR)/linux/dan-gatewayd.c,$(wildcard $(GW_DIR)/linux/*.c))
 GWD_MAIN      := $(GW_DIR)/linux/dan-gatewayd.c

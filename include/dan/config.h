@@ -157,6 +157,13 @@
 #ifndef DAN_GW_NODE_CALLS
 #define DAN_GW_NODE_CALLS 8u
 #endif
+/* File requests (file.Read, GetInfo) waiting for room in the bulk CAN
+ * queue: a Read's answer is 38 frames, so the queue holds three, and
+ * ArduPilot's CAN bootloader keeps four reads in flight per node. RAM:
+ * ~56 bytes each. 1..64. */
+#ifndef DAN_GW_NODE_FILE_WAIT
+#define DAN_GW_NODE_FILE_WAIT 8u
+#endif
 
 /* DroneCAN reception (dan/can_gw/dronecan.h): concurrent multi-frame RX
  * sessions, one per (data type, transfer type, source node); a slot stays
@@ -203,6 +210,9 @@
 #endif
 #if DAN_GW_NODE_CALLS < 1u || DAN_GW_NODE_CALLS > 64u
 #error "DAN_GW_NODE_CALLS must be within 1..64"
+#endif
+#if DAN_GW_NODE_FILE_WAIT < 1u || DAN_GW_NODE_FILE_WAIT > 64u
+#error "DAN_GW_NODE_FILE_WAIT must be within 1..64"
 #endif
 #if DAN_DC_RX_SESSIONS < 1u || DAN_DC_RX_SESSIONS > 255u
 #error "DAN_DC_RX_SESSIONS must be within 1..255"

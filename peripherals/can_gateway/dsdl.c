@@ -2,6 +2,7 @@
 #include <string.h>
 
 #include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/dsdl_file.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
 
@@ -206,6 +207,8 @@ bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id, uint64_
         case DAN_DC_PARAM_GETSET_ID: sig = DAN_DC_PARAM_GETSET_SIGNATURE; break;
         case DAN_DC_PARAM_OPCODE_ID: sig = DAN_DC_PARAM_OPCODE_SIGNATURE; break;
         case DAN_DC_RESTART_ID: sig = DAN_DC_RESTART_SIGNATURE; break;
+        case DAN_DC_FILE_GETINFO_ID: sig = DAN_DC_FILE_GETINFO_SIGNATURE; break;
+        case DAN_DC_FILE_READ_ID: sig = DAN_DC_FILE_READ_SIGNATURE; break;
         default: return false;
         }
     } else {

@@ -337,6 +337,13 @@ int dan_gw_msg_node_info_encode(const dan_gw_node_info_t *i, uint8_t *out, size_
         dan_put_raw(&w, i->unique_id, sizeof i->unique_id);
         dan_put_string(&w, i->name);
     }
+    if (i->follow) {
+        dan_put_u8(&w, i->status);
+        dan_put_u8(&w, i->file_flags);
+        dan_put_uvarint(&w, i->bytes_read);
+        dan_put_uvarint(&w, i->file_size);
+        dan_put_u32(&w, i->since_read_ms);
+    }
     return dan_writer_finish(&w);
 }
 
@@ -356,6 +363,14 @@ int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t 
         i->hw_minor = dan_get_u8(&r);
         dan_get_raw(&r, i->unique_id, sizeof i->unique_id);
         (void)dan_get_string(&r, i->name, sizeof i->name);
+    }
+    i->follow = dan_reader_finish(&r) == DAN_OK && dan_reader_remaining(&r) > 0u;
+    if (i->follow) {
+        i->status = dan_get_u8(&r);
+        i->file_flags = dan_get_u8(&r);
+        i->bytes_read = dan_get_uvarint(&r);
+        i->file_size = dan_get_uvarint(&r);
+        i->since_read_ms = dan_get_u32(&r);
     }
     return dan_reader_finish(&r);
 }

@@ -80,11 +80,12 @@ int dan_gw_msg_value_get(dan_reader_t *r, dan_gw_value_t *v, bool numeric)
 
 static bool call_ok(const dan_gw_call_t *c)
 {
-    bool named = c->op == DAN_GW_CALL_PARAM_GET_NAME || c->op == DAN_GW_CALL_PARAM_SET;
+    bool named = c->op == DAN_GW_CALL_PARAM_GET_NAME || c->op == DAN_GW_CALL_PARAM_SET ||
+                 c->op == DAN_GW_CALL_FW_BEGIN;
+    size_t max = c->op == DAN_GW_CALL_FW_BEGIN ? DAN_GW_FILE_NAME_MAX : DAN_GW_PARAM_NAME_MAX;
     return c->node_id >= 1u && c->node_id <= DAN_DC_NODE_ID_MAX && c->op <= DAN_GW_CALL_OP_MAX &&
            c->index <= DAN_GW_PARAM_INDEX_MAX && c->magic <= 0xFFFFFFFFFFull && c->force <= 1u &&
-           (!named ||
-            (c->name_len >= 1u && c->name_len <= DAN_GW_PARAM_NAME_MAX && c->name != NULL));
+           (!named || (c->name_len >= 1u && c->name_len <= max && c->name != NULL));
 }
 
 static void call_put(dan_writer_t *w, const dan_gw_call_t *c)
@@ -94,7 +95,8 @@ static void call_put(dan_writer_t *w, const dan_gw_call_t *c)
     dan_put_u8(w, c->op);
     switch (c->op) {
     case DAN_GW_CALL_PARAM_GET_INDEX: dan_put_uvarint(w, c->index); break;
-    case DAN_GW_CALL_PARAM_GET_NAME: dan_put_array(w, c->name, c->name_len); break;
+    case DAN_GW_CALL_PARAM_GET_NAME:
+    case DAN_GW_CALL_FW_BEGIN: dan_put_array(w, c->name, c->name_len); break;
     case DAN_GW_CALL_PARAM_SET:
         dan_put_array(w, c->name, c->name_len);
         dan_gw_msg_value_put(w, &c->value);
@@ -132,7 +134,8 @@ int dan_gw_msg_call_decode(dan_gw_call_t *c, const uint8_t *p, size_t len)
     c->op = dan_get_u8(&r);
     switch (c->op) {
     case DAN_GW_CALL_PARAM_GET_INDEX: index = dan_get_uvarint(&r); break;
-    case DAN_GW_CALL_PARAM_GET_NAME: dan_get_array_view(&r, &name, &name_len); break;
+    case DAN_GW_CALL_PARAM_GET_NAME:
+    case DAN_GW_CALL_FW_BEGIN: dan_get_array_view(&r, &name, &name_len); break;
     case DAN_GW_CALL_PARAM_SET:
         dan_get_array_view(&r, &name, &name_len);
         if (dan_gw_msg_value_get(&r, &c->value, false) != DAN_OK) {

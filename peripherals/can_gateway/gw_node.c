@@ -27,7 +27,7 @@ void dan_gw_node_config_default(dan_gw_node_config_t *c)
 /* The transfers we receive: everything else is left to the raw ring. */
 static bool accept_cb(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uint64_t *sig)
 {
-    (void)user;
+    const dan_gw_node_t *g = (const dan_gw_node_t *)user;
     (void)src;
     if (ttype == DAN_DC_TRANSFER_BROADCAST) {
         switch (dtid) {
@@ -41,7 +41,7 @@ static bool accept_cb(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uin
         default: return false;
         }
     } else if (ttype == DAN_DC_TRANSFER_REQUEST) {
-        if (dtid != DAN_DC_GET_NODE_INFO_ID) {
+        if (dtid != DAN_DC_GET_NODE_INFO_ID && !dan_gwn_file_service(g, dtid)) {
             return false; /* the services we answer */
         }
     } else if (dtid != DAN_DC_GET_NODE_INFO_ID && dtid != DAN_DC_PARAM_GETSET_ID &&
@@ -173,6 +173,13 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_CALL_TIMEOUTS] = g->stats.call_timeouts;
     v[DAN_GW_STAT_SERVO_CMDS] = g->stats.servo_cmds;
     v[DAN_GW_STAT_SERVO_DROPPED] = g->stats.servo_dropped;
+    v[DAN_GW_STAT_FILE_READS] = g->stats.file_reads;
+    v[DAN_GW_STAT_FILE_BYTES] = g->stats.file_bytes;
+    v[DAN_GW_STAT_FILE_ERRORS] = g->stats.file_errors;
+    v[DAN_GW_STAT_UPLOAD_BYTES] = g->stats.upload_bytes;
+    v[DAN_GW_STAT_FILE_COMMITS] = g->stats.file_commits;
+    v[DAN_GW_STAT_UPLOAD_ERRORS] = g->stats.upload_errors;
+    v[DAN_GW_STAT_FW_BEGINS] = g->stats.fw_begins;
 }
 
 /* ---- our own DroneCAN presence ---- */
@@ -202,7 +209,6 @@ static void send_node_status(dan_gw_node_t *g, uint64_t now_us)
 static void answer_node_info(dan_gw_node_t *g, const dan_dc_transfer_t *req, uint64_t now_us)
 {
     dan_dc_get_node_info_rsp_t *rp = &g->scratch.info;
-    dan_dc_transfer_t t;
     size_t nl = strlen(g->cfg.name);
     int len;
     memset(rp, 0, sizeof *rp);
@@ -222,15 +228,7 @@ static void answer_node_info(dan_gw_node_t *g, const dan_dc_transfer_t *req, uin
     rp->name_len = (uint8_t)nl;
     memcpy(rp->name, g->cfg.name, nl);
     len = dan_dc_get_node_info_rsp_encode(rp, g->scratch_buf, sizeof g->scratch_buf);
-    if (len < 0) {
-        return;
-    }
-    dan_dc_transfer_init(&t, DAN_DC_GET_NODE_INFO_ID, DAN_DC_GET_NODE_INFO_SIGNATURE,
-                         DAN_DC_TRANSFER_RESPONSE, g->scratch_buf, (size_t)len);
-    t.priority = req->priority;
-    t.destination_node = req->source_node;
-    t.transfer_id = req->transfer_id;
-    (void)dan_gwn_send_transfer(g, &g->q_bulk, &t);
+    (void)dan_gwn_respond(g, req, DAN_DC_GET_NODE_INFO_SIGNATURE, g->scratch_buf, len);
 }
 
 /* ---- CAN input ---- */
@@ -274,6 +272,9 @@ void dan_gwn_hear(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us)
     }
     if (t.transfer_type == DAN_DC_TRANSFER_BROADCAST) {
         on_broadcast(g, &t, now_us);
+    } else if (t.transfer_type == DAN_DC_TRANSFER_REQUEST &&
+               t.data_type_id != DAN_DC_GET_NODE_INFO_ID) {
+        dan_gwn_on_file_request(g, &t, now_us);
     } else if (t.data_type_id == DAN_DC_GET_NODE_INFO_ID) {
         if (t.transfer_type == DAN_DC_TRANSFER_REQUEST) {
             answer_node_info(g, &t, now_us);
@@ -299,6 +300,7 @@ void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us)
     dan_gwn_table_poll(g, now_us);
     dan_gwn_tunnel_poll(g, now_us);
     dan_gwn_calls_poll(g, now_us);
+    dan_gwn_file_poll(g, now_us);
     dan_gwn_dna_poll(g);
     dan_dc_rx_cleanup(&g->rx, now_us);
 }
@@ -311,6 +313,7 @@ uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us)
     t = dan_gwn_table_next_us(g, t);
     t = dan_gwn_tunnel_next_us(g, now_us, t);
     t = dan_gwn_calls_next_us(g, t);
+    t = dan_gwn_file_next_us(g, now_us, t);
     if (g->dna.dirty) {
         t = now_us;
     }

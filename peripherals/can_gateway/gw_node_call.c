@@ -143,6 +143,9 @@ int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest
 {
     dan_gw_node_call_t *k = dan_gwn_call_find(g, c->call_id);
     int rc;
+    if (c->op == DAN_GW_CALL_FW_BEGIN) {
+        return DAN_ERR_NOTFOUND; /* no committed files yet */
+    }
     if (c->op == DAN_GW_CALL_RESTART && c->magic != DAN_DC_RESTART_MAGIC && !c->force) {
         return DAN_ERR_UNSUPPORTED; /* a bootloader's magic is sent only when forced */
     }

@@ -342,6 +342,11 @@ const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_BEEP, dan_gwn_h_beep},
     {DAN_GW_CODE_ESC_FAST, dan_gwn_h_esc_fast},
     {DAN_GW_CODE_ESC_FAST_T, dan_gwn_h_esc_fast},
+    {DAN_GW_CODE_FILE_OPEN, dan_gwn_h_file_open},
+    {DAN_GW_CODE_FILE_WRITE, dan_gwn_h_file_write},
+    {DAN_GW_CODE_FILE_COMMIT, dan_gwn_h_file_commit},
+    {DAN_GW_CODE_FILE_LIST, dan_gwn_h_file_list},
+    {DAN_GW_CODE_FILE_REMOVE, dan_gwn_h_file_remove},
 };
 const size_t dan_gwn_nhandlers = sizeof dan_gwn_handlers / sizeof dan_gwn_handlers[0];
 

@@ -6,6 +6,7 @@
 #define DAN_CAN_GW_NODE_INTERNAL_H
 
 #include "dan/can_gw/msgs_fast.h"
+#include "dan/can_gw/msgs_file.h"
 #include "dan/can_gw/node.h"
 
 /* Milliseconds between two microsecond times, saturated to 32 bits. */
@@ -17,6 +18,11 @@ void dan_gwn_txq_push(dan_gw_node_txq_t *q, const dan_can_frame_t *f);
 /* Queues one transfer whole (source node = ours), or drops it whole
  * (counted in can_tx_dropped): DAN_ERR_OVERFLOW. */
 int dan_gwn_send_transfer(dan_gw_node_t *g, dan_gw_node_txq_t *q, dan_dc_transfer_t *t);
+/* The response to a service request req: same data type, priority and
+ * transfer ID, to its source (len < 0: the encoder's error, passed
+ * through). Queued on the bulk queue. */
+int dan_gwn_respond(dan_gw_node_t *g, const dan_dc_transfer_t *req, uint64_t sig,
+                    const uint8_t *payload, int len);
 /* A broadcast of an encoded payload (len < 0: the encoder's error, passed
  * through). */
 int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uint64_t sig,
@@ -128,6 +134,14 @@ void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint
 void dan_gwn_calls_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_calls_next_us(const dan_gw_node_t *g, uint64_t t);
 
+/* ---- file server (gw_node_file.c) ---- */
+/* True for file.GetInfo and file.Read when a store is configured. */
+bool dan_gwn_file_service(const dan_gw_node_t *g, uint16_t dtid);
+void dan_gwn_on_file_request(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+/* Answers the requests that waited for room in the bulk queue. */
+void dan_gwn_file_poll(dan_gw_node_t *g, uint64_t now_us);
+uint64_t dan_gwn_file_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t);
+
 /* ---- DAN side (gw_node_dan*.c) ---- */
 /* A request reached us: the master is alive (NodeStatus health). */
 static inline dan_gw_node_t *dan_gwn_touch(void *user, uint64_t now_us)
@@ -168,6 +182,16 @@ int dan_gwn_h_esc_fast(void *user, uint32_t code, const uint8_t *req, size_t len
                        dan_writer_t *resp, const char **err, uint64_t now_us);
 int dan_gwn_h_beep(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
                    const char **err, uint64_t now_us);
+int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t len,
+                        dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_write(void *user, uint32_t code, const uint8_t *req, size_t len,
+                         dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_commit(void *user, uint32_t code, const uint8_t *req, size_t len,
+                          dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_list(void *user, uint32_t code, const uint8_t *req, size_t len,
+                        dan_writer_t *resp, const char **err, uint64_t now_us);
+int dan_gwn_h_file_remove(void *user, uint32_t code, const uint8_t *req, size_t len,
+                          dan_writer_t *resp, const char **err, uint64_t now_us);
 extern const dan_handler_t dan_gwn_handlers[];
 extern const size_t dan_gwn_nhandlers;
 extern const dan_envelope_t dan_gwn_seal;

@@ -105,6 +105,13 @@ static void check_uid(dan_gw_node_t *g, dan_gw_node_slot_t *n, const uint8_t *ui
     }
 }
 
+static void ask_info_again(dan_gw_node_slot_t *n, uint64_t now_us)
+{
+    n->e.info_state = DAN_GW_INFO_NONE;
+    n->info_tries = 0;
+    n->info_due_us = now_us;
+}
+
 void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
 {
     dan_dc_node_status_t s;
@@ -125,10 +132,12 @@ void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64
         n->info_due_us = now_us;
     } else if (s.uptime_sec < n->e.uptime_sec) {
         /* restarted: its software may have changed */
-        n->e.info_state = DAN_GW_INFO_NONE;
-        n->info_tries = 0;
-        n->info_due_us = now_us;
+        ask_info_again(n, now_us);
         uptime_went_down(g, n, now_us);
+    } else if (n->e.mode == DAN_DC_MODE_SOFTWARE_UPDATE && s.mode == DAN_DC_MODE_OPERATIONAL) {
+        /* an update done without a restart we saw (its uptime kept
+         * counting, or a NodeStatus lost): the version may be new */
+        ask_info_again(n, now_us);
     }
     n->e.health = s.health;
     n->e.mode = s.mode;

@@ -104,6 +104,21 @@ int dan_gwn_send_transfer(dan_gw_node_t *g, dan_gw_node_txq_t *q, dan_dc_transfe
     return DAN_OK;
 }
 
+int dan_gwn_respond(dan_gw_node_t *g, const dan_dc_transfer_t *req, uint64_t sig,
+                    const uint8_t *payload, int len)
+{
+    dan_dc_transfer_t t;
+    if (len < 0) {
+        return len;
+    }
+    dan_dc_transfer_init(&t, req->data_type_id, sig, DAN_DC_TRANSFER_RESPONSE, payload,
+                         (size_t)len);
+    t.priority = req->priority;
+    t.destination_node = req->source_node;
+    t.transfer_id = req->transfer_id;
+    return dan_gwn_send_transfer(g, &g->q_bulk, &t);
+}
+
 int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uint64_t sig,
                       uint8_t prio, const uint8_t *payload, int len)
 {

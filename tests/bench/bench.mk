@@ -6,6 +6,10 @@
 #   make bench BENCH_ARGS='--only esc,parser --seconds 10'
 #   make bench SOAK=600        the full ESC loop for 600 s: RSS and counters
 #   make soak [SOAK=300]       the same (default 300 s)
+#   make restarts [RESTARTS=100] [RESTART_BAUDS=115200,1000000]
+#                              the FC and the gateway each killed RESTARTS times
+#                              at random moments (tests/bench/restarts.py);
+#                              build/bench/restarts.json
 
 BENCH_DIR   := $(BUILD)/bench
 BENCH_CFLAGS = $(WARN) -O2 -g $(INCLUDES) -D_GNU_SOURCE
@@ -13,7 +17,9 @@ BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway $(BENCH_DIR)
 SOAK        ?=
 BENCH_ARGS  ?=
 
-.PHONY: bench soak bench-build
+.PHONY: bench soak restarts bench-build
+RESTARTS      ?= 100
+RESTART_BAUDS ?= 115200,1000000
 
 $(BENCH_DIR)/bench_%: tests/bench/bench_%.c $(ALL_LIBS)
 	@mkdir -p $(@D)
@@ -37,3 +43,8 @@ bench: bench-build
 
 soak: bench-build
 	$(VENV)/bin/python tests/bench/run_bench.py --build $(BUILD) --out $(BENCH_DIR) --soak $(or $(SOAK),300)
+
+restarts: bench-build
+	@mkdir -p $(BENCH_DIR)
+	$(VENV)/bin/python tests/bench/restarts.py --build $(BUILD) --count $(RESTARTS) \
+	  --bauds $(RESTART_BAUDS) --out $(BENCH_DIR)/restarts.json

@@ -197,6 +197,11 @@ def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=(), vbus_args=()):
             "esc_sim",
         )
         stack.ready(esc)
+    return vbus, hub, esc, start_gwd(stack, build, tmp, gw_args)
+
+
+def start_gwd(stack, build, tmp, gw_args=(), name="dan-gatewayd"):
+    """dan-gatewayd on the rig's endpoint 1 and hub port 0 (again after a kill)."""
     gwd = stack.start(
         [
             build / "bin" / "dan-gatewayd",
@@ -208,13 +213,13 @@ def gw_rig(stack, build, tmp, n_esc=4, extra_can=1, gw_args=(), vbus_args=()):
             tmp / "gw.stats",
             *gw_args,
         ],
-        "dan-gatewayd",
+        name,
         stdout=subprocess.DEVNULL,
     )
     time.sleep(0.5)
     if gwd.poll() is not None:
-        raise RuntimeError("dan-gatewayd exited: " + (tmp / "dan-gatewayd.log").read_text()[-500:])
-    return vbus, hub, esc, gwd
+        raise RuntimeError(f"{name} exited: " + (tmp / f"{name}.log").read_text()[-500:])
+    return gwd
 
 
 # ---- rows --------------------------------------------------------------------

@@ -10,6 +10,7 @@ asserts a speed.
 import json
 import os
 import random
+import subprocess
 import sys
 import threading
 import time
@@ -513,3 +514,35 @@ def test_no_leak_asan_gateway(rig):
     print(f"\nASan dan-gatewayd: exit {code}, leak/error report: {'yes' if leaks else 'none'}")
     assert code == 0, err[-3000:]
     assert not leaks, err[-3000:]
+
+
+def test_restart_runner_recovers_and_checks_values(tmp_path):
+    """`make restarts` (tests/bench/restarts.py) in small: the FC and the
+    gateway killed twice each at 115200; every restart recovered, no wrong
+    command at the ESCs. The hundred-restart runs are in `make restarts`."""
+    out = tmp_path / "restarts.json"
+    r = subprocess.run(
+        [
+            sys.executable,
+            ROOT / "tests" / "bench" / "restarts.py",
+            "--count",
+            "2",
+            "--bauds",
+            "115200",
+            "--seed",
+            "3",
+            "--build",
+            BIN.parent,
+            "--out",
+            out,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout + r.stderr
+    res = {x["scenario"]: x for x in json.loads(out.read_text())}
+    assert res["gateway"]["recovered"] == 2 and res["gateway"]["wrong_commands"] == 0
+    assert res["fc"]["not_recovered"] == 0 and res["fc"]["wrong_commands"] == 0
+    assert res["fc"]["commands"] > 0 and res["gateway"]["commands"] > 0
+    assert res["fc"]["failsafe_late"] == 0

@@ -190,3 +190,15 @@ void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm
     inject(src, DAN_DC_ESC_STATUS_ID, DAN_DC_ESC_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
            buf, dan_dc_esc_status_encode(&s, buf, sizeof buf));
 }
+
+void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode)
+{
+    dan_dc_node_status_t s;
+    uint8_t buf[DAN_DC_NODE_STATUS_MAX_SIZE];
+    memset(&s, 0, sizeof s);
+    s.uptime_sec = uptime;
+    s.health = health;
+    s.mode = mode;
+    inject(src, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
+           buf, dan_dc_node_status_encode(&s, buf, sizeof buf));
+}

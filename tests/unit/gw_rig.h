@@ -55,6 +55,8 @@ cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from);
 /* A transfer from fake node src into the gateway. */
 void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
             const uint8_t *payload, int len);
+/* A NodeStatus from fake node src. */
+void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode);
 /* CONFIG esc_timeout_ms through the client, completed. */
 void config_timeout(uint32_t ms);
 /* An esc.Status from fake node src. */

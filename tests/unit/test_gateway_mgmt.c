@@ -80,13 +80,7 @@ static uint8_t allocate(const uint8_t *uid, uint8_t preferred)
 
 static void node_status(uint8_t src, uint32_t uptime, uint8_t health)
 {
-    dan_dc_node_status_t s;
-    uint8_t buf[DAN_DC_NODE_STATUS_MAX_SIZE];
-    memset(&s, 0, sizeof s);
-    s.uptime_sec = uptime;
-    s.health = health;
-    inject(src, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
-           buf, dan_dc_node_status_encode(&s, buf, sizeof buf));
+    node_status_from(src, uptime, health, DAN_DC_MODE_OPERATIONAL);
 }
 
 static void test_dna_ids(void **state)

@@ -19,49 +19,29 @@
 
 /* ---- codec vectors ---- */
 
-static void cat(char *out, size_t cap, const char *fmt, ...)
-{
-    size_t n = strlen(out);
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(out + n, cap - n, fmt, ap);
-    va_end(ap);
-}
-
-static void cat_hex(char *out, size_t cap, const uint8_t *p, size_t n)
-{
-    size_t i;
-    if (n == 0u) {
-        cat(out, cap, "-");
-    }
-    for (i = 0; i < n; i++) {
-        cat(out, cap, "%02x", p[i]);
-    }
-}
-
 static void cat_frame(char *out, size_t cap, const dan_can_frame_t *f)
 {
     uint32_t id = f->id | ((f->flags & DAN_CAN_EXT) ? DAN_GW_CAN_ID_EXT : 0u) |
                   ((f->flags & DAN_CAN_RTR) ? DAN_GW_CAN_ID_RTR : 0u) |
                   ((f->flags & DAN_CAN_OWN) ? DAN_GW_CAN_ID_OWN : 0u);
-    cat(out, cap, " frame=%08X/%u/", (unsigned)id, f->dlc);
-    cat_hex(out, cap, f->data, (f->flags & DAN_CAN_RTR) ? 0u : f->dlc);
+    vec_cat(out, cap, " frame=%08X/%u/", (unsigned)id, f->dlc);
+    vec_cat_hex(out, cap, f->data, (f->flags & DAN_CAN_RTR) ? 0u : f->dlc);
 }
 
 static void cat_value(char *out, size_t cap, const char *key, const dan_gw_value_t *v)
 {
     uint32_t bits;
-    cat(out, cap, " %s=%u", key, v->tag);
+    vec_cat(out, cap, " %s=%u", key, v->tag);
     switch (v->tag) {
-    case DAN_GW_VALUE_INTEGER: cat(out, cap, "/%lld", (long long)v->integer); break;
+    case DAN_GW_VALUE_INTEGER: vec_cat(out, cap, "/%lld", (long long)v->integer); break;
     case DAN_GW_VALUE_REAL:
         memcpy(&bits, &v->real, sizeof bits);
-        cat(out, cap, "/%08lx", (unsigned long)bits);
+        vec_cat(out, cap, "/%08lx", (unsigned long)bits);
         break;
-    case DAN_GW_VALUE_BOOLEAN: cat(out, cap, "/%u", v->boolean); break;
+    case DAN_GW_VALUE_BOOLEAN: vec_cat(out, cap, "/%u", v->boolean); break;
     case DAN_GW_VALUE_STRING:
-        cat(out, cap, "/");
-        cat_hex(out, cap, v->string, v->string_len);
+        vec_cat(out, cap, "/");
+        vec_cat_hex(out, cap, v->string, v->string_len);
         break;
     default: break;
     }
@@ -74,23 +54,24 @@ static int vec_call(const char *dir, const uint8_t *p, size_t len, char *txt, si
     if (!strcmp(dir, "req")) {
         dan_gw_call_t c;
         assert_int_equal(dan_gw_msg_call_decode(&c, p, len), DAN_OK);
-        cat(txt, cap, "id=%u node=%u op=%u", c.call_id, c.node_id, c.op);
+        vec_cat(txt, cap, "id=%u node=%u op=%u", c.call_id, c.node_id, c.op);
         if (c.op == DAN_GW_CALL_PARAM_GET_INDEX) {
-            cat(txt, cap, " index=%u", c.index);
+            vec_cat(txt, cap, " index=%u", c.index);
         } else if (c.op == DAN_GW_CALL_PARAM_GET_NAME || c.op == DAN_GW_CALL_PARAM_SET) {
-            cat(txt, cap, " name=");
-            cat_hex(txt, cap, (const uint8_t *)c.name, c.name_len);
+            vec_cat(txt, cap, " name=");
+            vec_cat_hex(txt, cap, (const uint8_t *)c.name, c.name_len);
             if (c.op == DAN_GW_CALL_PARAM_SET) {
                 cat_value(txt, cap, "value", &c.value);
             }
         } else if (c.op == DAN_GW_CALL_RESTART) {
-            cat(txt, cap, " magic=%llu force=%u", (unsigned long long)c.magic, c.force);
+            vec_cat(txt, cap, " magic=%llu force=%u", (unsigned long long)c.magic, c.force);
         }
         return dan_gw_msg_call_encode(&c, enc, ecap);
     } else {
         dan_gw_call_state_t st;
         assert_int_equal(dan_gw_msg_call_state_decode(&st, p, len), DAN_OK);
-        cat(txt, cap, "id=%u state=%u len=%lu", st.call_id, st.state, (unsigned long)st.result_len);
+        vec_cat(txt, cap, "id=%u state=%u len=%lu", st.call_id, st.state,
+                (unsigned long)st.result_len);
         return dan_gw_msg_call_state_encode(&st, enc, ecap);
     }
 }
@@ -102,19 +83,19 @@ static int vec_result(const char *msg, const char *dir, const uint8_t *p, size_t
         dan_gw_result_t q;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_result_req_decode(&q, p, len), DAN_OK);
-            cat(txt, cap, "id=%u offset=%lu max=%u", q.call_id, (unsigned long)q.offset, q.max);
+            vec_cat(txt, cap, "id=%u offset=%lu max=%u", q.call_id, (unsigned long)q.offset, q.max);
             return dan_gw_msg_result_req_encode(&q, enc, ecap);
         }
         assert_int_equal(dan_gw_msg_result_rsp_decode(&q, p, len), DAN_OK);
-        cat(txt, cap, "id=%u state=%u len=%lu offset=%lu data=", q.call_id, q.state,
-            (unsigned long)q.result_len, (unsigned long)q.offset);
-        cat_hex(txt, cap, q.data, q.len);
+        vec_cat(txt, cap, "id=%u state=%u len=%lu offset=%lu data=", q.call_id, q.state,
+                (unsigned long)q.result_len, (unsigned long)q.offset);
+        vec_cat_hex(txt, cap, q.data, q.len);
         return dan_gw_msg_result_rsp_encode(&q, enc, ecap);
     }
     if (!strcmp(msg, "param")) {
         dan_gw_param_t pr;
         assert_int_equal(dan_gw_msg_param_decode(&pr, p, len), DAN_OK);
-        cat(txt, cap, "present=%u", pr.present);
+        vec_cat(txt, cap, "present=%u", pr.present);
         cat_value(txt, cap, "value", &pr.value);
         if (pr.present & DAN_GW_PARAM_HAS_DEFAULT) {
             cat_value(txt, cap, "default", &pr.default_value);
@@ -125,13 +106,13 @@ static int vec_result(const char *msg, const char *dir, const uint8_t *p, size_t
         if (pr.present & DAN_GW_PARAM_HAS_MIN) {
             cat_value(txt, cap, "min", &pr.min_value);
         }
-        cat(txt, cap, " name=");
-        cat_hex(txt, cap, (const uint8_t *)pr.name, pr.name_len);
+        vec_cat(txt, cap, " name=");
+        vec_cat_hex(txt, cap, (const uint8_t *)pr.name, pr.name_len);
         return dan_gw_msg_param_encode(&pr, enc, ecap);
     } else {
         dan_gw_opcode_result_t o;
         assert_int_equal(dan_gw_msg_opcode_result_decode(&o, p, len), DAN_OK);
-        cat(txt, cap, "ok=%u arg=%lld", o.ok, (long long)o.argument);
+        vec_cat(txt, cap, "ok=%u arg=%lld", o.ok, (long long)o.argument);
         return dan_gw_msg_opcode_result_encode(&o, enc, ecap);
     }
 }
@@ -158,17 +139,17 @@ static int vec_fast(const char *msg, const char *dir, const uint8_t *p, size_t l
     }
     if (!strcmp(dir, "req")) {
         assert_int_equal(dan_gw_msg_esc_fast_decode(p, len, v, &n), DAN_OK);
-        cat(txt, cap, "values=");
+        vec_cat(txt, cap, "values=");
         for (i = 0; i < n; i++) {
-            cat(txt, cap, i ? ",%d" : "%d", v[i]);
+            vec_cat(txt, cap, i ? ",%d" : "%d", v[i]);
         }
         return dan_gw_msg_esc_fast_encode(v, n, enc, ecap);
     }
     assert_int_equal(dan_gw_msg_esc_fast_rsp_decode(&flags, &rec, &has, p, len), DAN_OK);
-    cat(txt, cap, "flags=%u", flags);
+    vec_cat(txt, cap, "flags=%u", flags);
     if (has) {
-        cat(txt, cap, " rec=%u/%u/%u/%04x/%04x/%04x/%ld", rec.esc_index, rec.fresh, rec.age_4ms,
-            rec.voltage_f16, rec.current_f16, rec.temperature_f16, (long)rec.rpm);
+        vec_cat(txt, cap, " rec=%u/%u/%u/%04x/%04x/%04x/%ld", rec.esc_index, rec.fresh, rec.age_4ms,
+                rec.voltage_f16, rec.current_f16, rec.temperature_f16, (long)rec.rpm);
     }
     return dan_gw_msg_esc_fast_rsp_encode(flags, has ? &rec : NULL, enc, ecap);
 }
@@ -184,7 +165,7 @@ static int vec_out(const char *msg, const char *dir, const uint8_t *p, size_t le
     if (!strcmp(dir, "rsp") || !strcmp(msg, "safety")) {
         const char *key = !strcmp(msg, "servo_fs") ? "kept" : "flags";
         assert_int_equal(len, 1);
-        cat(txt, cap, "%s=%u", !strcmp(dir, "req") ? "status" : key, p[0]);
+        vec_cat(txt, cap, "%s=%u", !strcmp(dir, "req") ? "status" : key, p[0]);
         enc[0] = p[0];
         return 1;
     }
@@ -192,8 +173,8 @@ static int vec_out(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_servo_t s[DAN_GW_SERVO_MAX];
         assert_int_equal(dan_gw_msg_servo_decode(s, &n, p, len), DAN_OK);
         for (i = 0; i < n; i++) {
-            cat(txt, cap, "%scmd=%u/%u/%04x", i ? " " : "", s[i].actuator_id, s[i].command_type,
-                s[i].value_f16);
+            vec_cat(txt, cap, "%scmd=%u/%u/%04x", i ? " " : "", s[i].actuator_id, s[i].command_type,
+                    s[i].value_f16);
         }
         return dan_gw_msg_servo_encode(s, n, enc, ecap);
     }
@@ -201,8 +182,8 @@ static int vec_out(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_servo_fs_t f[DAN_GW_SERVO_MAX];
         assert_int_equal(dan_gw_msg_servo_fs_decode(f, &n, p, len), DAN_OK);
         for (i = 0; i < n; i++) {
-            cat(txt, cap, "%sfs=%u/%u/%u/%04x", i ? " " : "", f[i].value.actuator_id, f[i].mode,
-                f[i].value.command_type, f[i].value.value_f16);
+            vec_cat(txt, cap, "%sfs=%u/%u/%u/%04x", i ? " " : "", f[i].value.actuator_id, f[i].mode,
+                    f[i].value.command_type, f[i].value.value_f16);
         }
         return dan_gw_msg_servo_fs_encode(f, n, enc, ecap);
     }
@@ -210,14 +191,15 @@ static int vec_out(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_light_t l[DAN_GW_LIGHTS_MAX];
         assert_int_equal(dan_gw_msg_lights_decode(l, &n, p, len), DAN_OK);
         for (i = 0; i < n; i++) {
-            cat(txt, cap, "%slight=%u/%04x", i ? " " : "", l[i].light_id, l[i].rgb565);
+            vec_cat(txt, cap, "%slight=%u/%04x", i ? " " : "", l[i].light_id, l[i].rgb565);
         }
         return dan_gw_msg_lights_encode(l, n, enc, ecap);
     }
     if (!strcmp(msg, "beep")) {
         dan_gw_beep_t b;
         assert_int_equal(dan_gw_msg_beep_decode(&b, p, len), DAN_OK);
-        cat(txt, cap, "hz=%lu ms=%lu", (unsigned long)b.frequency_hz, (unsigned long)b.duration_ms);
+        vec_cat(txt, cap, "hz=%lu ms=%lu", (unsigned long)b.frequency_hz,
+                (unsigned long)b.duration_ms);
         return dan_gw_msg_beep_encode(&b, enc, ecap);
     }
     fail_msg("unknown message %s", msg);
@@ -245,27 +227,27 @@ static int vec_mgmt(const char *msg, const char *dir, const uint8_t *p, size_t l
             return 0;
         }
         assert_int_equal(dan_gw_msg_health_decode(&h, p, len), DAN_OK);
-        cat(txt, cap, "verdict=%u reason=%u subject=%u detail=%u problems=%u", h.verdict, h.reason,
-            h.subject, h.detail, h.problems);
+        vec_cat(txt, cap, "verdict=%u reason=%u subject=%u detail=%u problems=%u", h.verdict,
+                h.reason, h.subject, h.detail, h.problems);
         return dan_gw_msg_health_encode(&h, enc, ecap);
     }
     if (!strcmp(msg, "dna")) {
         dan_gw_dna_hdr_t h;
         dan_gw_dna_entry_t e;
         if (!strcmp(dir, "req")) {
-            cat(txt, cap, "first=%u", p[0]);
+            vec_cat(txt, cap, "first=%u", p[0]);
             dan_put_u8(&w, p[0]);
             return dan_writer_finish(&w);
         }
         assert_int_equal(dan_gw_msg_dna_hdr_get(&r, &h), DAN_OK);
         dan_gw_msg_dna_hdr_put(&w, &h);
-        cat(txt, cap, "flags=%u entries=%u capacity=%u next=%u", h.flags, h.entries, h.capacity,
-            h.next);
+        vec_cat(txt, cap, "flags=%u entries=%u capacity=%u next=%u", h.flags, h.entries, h.capacity,
+                h.next);
         for (i = 0; i < h.count; i++) {
             assert_int_equal(dan_gw_msg_dna_entry_get(&r, &e), DAN_OK);
             dan_gw_msg_dna_entry_put(&w, &e);
-            cat(txt, cap, " entry=%u/", e.node_id);
-            cat_hex(txt, cap, e.unique_id, sizeof e.unique_id);
+            vec_cat(txt, cap, " entry=%u/", e.node_id);
+            vec_cat_hex(txt, cap, e.unique_id, sizeof e.unique_id);
         }
         return dan_writer_finish(&w);
     }
@@ -291,9 +273,9 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         int16_t v[DAN_GW_ESC_MAX];
         size_t n;
         assert_int_equal(dan_gw_msg_esc_cmd_decode(p, len, v, &n), DAN_OK);
-        cat(txt, cap, "values=");
+        vec_cat(txt, cap, "values=");
         for (i = 0; i < n; i++) {
-            cat(txt, cap, i ? ",%d" : "%d", v[i]);
+            vec_cat(txt, cap, i ? ",%d" : "%d", v[i]);
         }
         return dan_gw_msg_esc_cmd_encode(v, n, enc, ecap);
     }
@@ -302,28 +284,28 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_telem_t t;
         assert_int_equal(dan_gw_msg_telem_hdr_get(&r, &h), DAN_OK);
         dan_gw_msg_telem_hdr_put(&w, &h);
-        cat(txt, cap, "flags=%u aux=%u", h.gw_flags, h.aux);
+        vec_cat(txt, cap, "flags=%u aux=%u", h.gw_flags, h.aux);
         for (i = 0; i < h.count; i++) {
             assert_int_equal(dan_gw_msg_telem_get(&r, &t), DAN_OK);
             dan_gw_msg_telem_put(&w, &t);
-            cat(txt, cap, " rec=%u/%u/%u/%lu/%u/%u/%u/%ld/%u/%lu/%lu/%u/%u/%d/%u/%lu/%lu/%u/%u",
-                t.esc_index, t.node_id, t.flags, (unsigned long)t.age_ms, t.voltage_f16,
-                t.current_f16, t.temperature_f16, (long)t.rpm, t.power_pct,
-                (unsigned long)t.error_count, (unsigned long)t.ext_age_ms, t.input_pct,
-                t.output_pct, t.motor_temp_c, t.motor_angle, (unsigned long)t.status_flags,
-                (unsigned long)t.dev_age_ms, t.dev_temp_f16, t.dev_flags);
+            vec_cat(txt, cap, " rec=%u/%u/%u/%lu/%u/%u/%u/%ld/%u/%lu/%lu/%u/%u/%d/%u/%lu/%lu/%u/%u",
+                    t.esc_index, t.node_id, t.flags, (unsigned long)t.age_ms, t.voltage_f16,
+                    t.current_f16, t.temperature_f16, (long)t.rpm, t.power_pct,
+                    (unsigned long)t.error_count, (unsigned long)t.ext_age_ms, t.input_pct,
+                    t.output_pct, t.motor_temp_c, t.motor_angle, (unsigned long)t.status_flags,
+                    (unsigned long)t.dev_age_ms, t.dev_temp_f16, t.dev_flags);
         }
         return dan_writer_finish(&w);
     }
     if (!strcmp(msg, "esc_telem") || (!strcmp(msg, "nodes") && !strcmp(dir, "req"))) {
         assert_true(len >= 1u);
-        cat(txt, cap, "first=%u", p[0]);
+        vec_cat(txt, cap, "first=%u", p[0]);
         dan_put_u8(&w, p[0]);
         return dan_writer_finish(&w);
     }
     if (!strcmp(msg, "arm")) {
         assert_true(len >= 1u);
-        cat(txt, cap, !strcmp(dir, "req") ? "status=%u" : "flags=%u", p[0]);
+        vec_cat(txt, cap, !strcmp(dir, "req") ? "status=%u" : "flags=%u", p[0]);
         dan_put_u8(&w, p[0]);
         return dan_writer_finish(&w);
     }
@@ -331,24 +313,24 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_config_t c;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_config_req_decode(&c, p, len), DAN_OK);
-            cat(txt, cap, "mask=%u timeout=%lu rate=%lu telem=%lu dna=%u", c.set_mask,
-                (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz,
-                (unsigned long)c.telem_timeout_ms, c.dna);
+            vec_cat(txt, cap, "mask=%u timeout=%lu rate=%lu telem=%lu dna=%u", c.set_mask,
+                    (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz,
+                    (unsigned long)c.telem_timeout_ms, c.dna);
             return dan_gw_msg_config_req_encode(&c, enc, ecap);
         }
         assert_int_equal(dan_gw_msg_config_rsp_decode(&c, p, len), DAN_OK);
-        cat(txt, cap, "node=%u timeout=%lu rate=%lu flags=%u telem=%lu dna=%u", c.node_id,
-            (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz, c.gw_flags,
-            (unsigned long)c.telem_timeout_ms, c.dna);
+        vec_cat(txt, cap, "node=%u timeout=%lu rate=%lu flags=%u telem=%lu dna=%u", c.node_id,
+                (unsigned long)c.esc_timeout_ms, (unsigned long)c.arming_rate_hz, c.gw_flags,
+                (unsigned long)c.telem_timeout_ms, c.dna);
         return dan_gw_msg_config_rsp_encode(&c, enc, ecap);
     }
     if (!strcmp(msg, "stats")) {
         uint32_t v[64];
         size_t n;
         assert_int_equal(dan_gw_msg_stats_decode(v, 64, &n, p, len), DAN_OK);
-        cat(txt, cap, "values=");
+        vec_cat(txt, cap, "values=");
         for (i = 0; i < n; i++) {
-            cat(txt, cap, i ? ",%lu" : "%lu", (unsigned long)v[i]);
+            vec_cat(txt, cap, i ? ",%lu" : "%lu", (unsigned long)v[i]);
         }
         return dan_gw_msg_stats_encode(v, n, enc, ecap);
     }
@@ -357,58 +339,60 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_node_entry_t e;
         assert_int_equal(dan_gw_msg_nodes_hdr_get(&r, &h), DAN_OK);
         dan_gw_msg_nodes_hdr_put(&w, &h);
-        cat(txt, cap, "next=%u", h.next);
+        vec_cat(txt, cap, "next=%u", h.next);
         for (i = 0; i < h.count; i++) {
             assert_int_equal(dan_gw_msg_node_get(&r, &e), DAN_OK);
             dan_gw_msg_node_put(&w, &e);
-            cat(txt, cap, " node=%u/%u/%u/%u/%lu/%u/%lu/%u", e.node_id, e.health, e.mode,
-                e.sub_mode, (unsigned long)e.uptime_sec, e.vendor_status, (unsigned long)e.age_ms,
-                e.info_state);
+            vec_cat(txt, cap, " node=%u/%u/%u/%u/%lu/%u/%lu/%u", e.node_id, e.health, e.mode,
+                    e.sub_mode, (unsigned long)e.uptime_sec, e.vendor_status,
+                    (unsigned long)e.age_ms, e.info_state);
         }
         return dan_writer_finish(&w);
     }
     if (!strcmp(msg, "node_info")) {
         dan_gw_node_info_t ni;
         if (!strcmp(dir, "req")) {
-            cat(txt, cap, "node=%u", p[0]);
+            vec_cat(txt, cap, "node=%u", p[0]);
             dan_put_u8(&w, p[0]);
             return dan_writer_finish(&w);
         }
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
-        cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
-            ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
-            ni.hw_major, ni.hw_minor);
-        cat_hex(txt, cap, ni.unique_id, 16);
-        cat(txt, cap, " name=");
-        cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
+        vec_cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
+                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
+                ni.hw_major, ni.hw_minor);
+        vec_cat_hex(txt, cap, ni.unique_id, 16);
+        vec_cat(txt, cap, " name=");
+        vec_cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
         return dan_gw_msg_node_info_encode(&ni, enc, ecap);
     }
     if (!strcmp(msg, "tun_open")) {
         dan_gw_tun_open_t o;
         if (!strcmp(dir, "rsp")) {
-            cat(txt, cap, "port=%u result=%u", p[0], p[1]);
+            vec_cat(txt, cap, "port=%u result=%u", p[0], p[1]);
             dan_put_raw(&w, p, 2);
             return dan_writer_finish(&w);
         }
         assert_int_equal(dan_gw_msg_tun_open_decode(&o, p, len), DAN_OK);
-        cat(txt, cap, "port=%u mode=%u protocol=%u target=%u serial=%d options=%u baud=%lu", o.port,
-            o.mode, o.protocol, o.target, o.serial_id, o.options, (unsigned long)o.baud);
+        vec_cat(txt, cap, "port=%u mode=%u protocol=%u target=%u serial=%d options=%u baud=%lu",
+                o.port, o.mode, o.protocol, o.target, o.serial_id, o.options,
+                (unsigned long)o.baud);
         return dan_gw_msg_tun_open_encode(&o, enc, ecap);
     }
     if (!strcmp(msg, "tun_xfer")) {
         dan_gw_tun_xfer_t x;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_tun_xfer_req_decode(&x, p, len), DAN_OK);
-            cat(txt, cap, "port=%u wr=%lu rd=%lu max=%lu data=", x.port, (unsigned long)x.wr_offset,
-                (unsigned long)x.rd_offset, (unsigned long)x.rd_max);
-            cat_hex(txt, cap, x.data, x.len);
+            vec_cat(txt, cap, "port=%u wr=%lu rd=%lu max=%lu data=", x.port,
+                    (unsigned long)x.wr_offset, (unsigned long)x.rd_offset,
+                    (unsigned long)x.rd_max);
+            vec_cat_hex(txt, cap, x.data, x.len);
             return dan_gw_msg_tun_xfer_req_encode(&x, enc, ecap);
         }
         assert_int_equal(dan_gw_msg_tun_xfer_rsp_decode(&x, p, len), DAN_OK);
-        cat(txt, cap, "port=%u wr=%lu space=%lu rd=%lu dropped=%lu data=", x.port,
-            (unsigned long)x.wr_offset, (unsigned long)x.wr_space, (unsigned long)x.rd_offset,
-            (unsigned long)x.rd_dropped);
-        cat_hex(txt, cap, x.data, x.len);
+        vec_cat(txt, cap, "port=%u wr=%lu space=%lu rd=%lu dropped=%lu data=", x.port,
+                (unsigned long)x.wr_offset, (unsigned long)x.wr_space, (unsigned long)x.rd_offset,
+                (unsigned long)x.rd_dropped);
+        vec_cat_hex(txt, cap, x.data, x.len);
         return dan_gw_msg_tun_xfer_rsp_encode(&x, enc, ecap);
     }
     if (!strcmp(msg, "can_send")) {
@@ -416,13 +400,13 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_can_frame_t f;
         if (!strcmp(dir, "rsp")) {
             assert_int_equal(dan_gw_msg_can_send_rsp_decode(&s, p, len), DAN_OK);
-            cat(txt, cap, "seq=%u accepted=%u free=%lu", s.seq, s.count,
-                (unsigned long)s.queue_free);
+            vec_cat(txt, cap, "seq=%u accepted=%u free=%lu", s.seq, s.count,
+                    (unsigned long)s.queue_free);
             return dan_gw_msg_can_send_rsp_encode(&s, enc, ecap);
         }
         assert_int_equal(dan_gw_msg_can_send_req_get(&r, &s), DAN_OK);
         dan_gw_msg_can_send_req_put(&w, &s);
-        cat(txt, cap, "seq=%u", s.seq);
+        vec_cat(txt, cap, "seq=%u", s.seq);
         for (i = 0; i < s.count; i++) {
             assert_int_equal(dan_gw_msg_can_frame_get(&r, &f), DAN_OK);
             dan_gw_msg_can_frame_put(&w, &f);
@@ -435,15 +419,15 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_can_frame_t f;
         if (!strcmp(dir, "req")) {
             assert_int_equal(dan_gw_msg_can_recv_req_decode(&q, p, len), DAN_OK);
-            cat(txt, cap, "seq=%lu max=%u opts=%u", (unsigned long)q.seq, q.count, q.opts);
+            vec_cat(txt, cap, "seq=%lu max=%u opts=%u", (unsigned long)q.seq, q.count, q.opts);
             return dan_gw_msg_can_recv_req_encode(&q, enc, ecap);
         }
         /* the response's layout follows the request's opts: the text has them */
         q.opts = (uint8_t)(strstr(fields_hint, "opts=1") != NULL ? DAN_GW_RECV_TIMES : 0u);
         assert_int_equal(dan_gw_msg_can_recv_rsp_get(&r, &q), DAN_OK);
         dan_gw_msg_can_recv_rsp_put(&w, &q);
-        cat(txt, cap, "seq=%lu dropped=%lu opts=%u t0=%lu", (unsigned long)q.seq,
-            (unsigned long)q.dropped, q.opts, (unsigned long)q.t0_us);
+        vec_cat(txt, cap, "seq=%lu dropped=%lu opts=%u t0=%lu", (unsigned long)q.seq,
+                (unsigned long)q.dropped, q.opts, (unsigned long)q.t0_us);
         for (i = 0; i < q.count; i++) {
             assert_int_equal(dan_gw_msg_can_frame_get(&r, &f), DAN_OK);
             dan_gw_msg_can_frame_put(&w, &f);
@@ -451,7 +435,7 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
             if (q.opts & DAN_GW_RECV_TIMES) {
                 uint32_t dt = dan_get_uvarint(&r);
                 dan_put_uvarint(&w, dt);
-                cat(txt, cap, " dt=%lu", (unsigned long)dt);
+                vec_cat(txt, cap, " dt=%lu", (unsigned long)dt);
             }
         }
         return dan_writer_finish(&w);
@@ -461,11 +445,11 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         dan_gw_filter_t f;
         assert_int_equal(dan_gw_msg_filter_hdr_get(&r, &op, &n), DAN_OK);
         dan_gw_msg_filter_hdr_put(&w, op, n);
-        cat(txt, cap, !strcmp(dir, "req") ? "op=%u" : "result=%u", op);
+        vec_cat(txt, cap, !strcmp(dir, "req") ? "op=%u" : "result=%u", op);
         for (i = 0; i < n; i++) {
             assert_int_equal(dan_gw_msg_filter_get(&r, &f), DAN_OK);
             dan_gw_msg_filter_put(&w, &f);
-            cat(txt, cap, " filter=%08X/%08X", (unsigned)f.id, (unsigned)f.mask);
+            vec_cat(txt, cap, " filter=%08X/%08X", (unsigned)f.id, (unsigned)f.mask);
         }
         return dan_writer_finish(&w);
     }
@@ -479,25 +463,11 @@ static void test_vectors(void **state)
     (void)state;
     vec_open(&v, "gateway.txt");
     while (vec_next(&v)) {
-        char *colon = strstr(v.line, " : ");
         char *fields[3];
         char txt[2048];
         uint8_t p[DAN_MAX_PAYLOAD], enc[DAN_MAX_PAYLOAD];
-        size_t len;
+        size_t len = vec_message(&v, fields, p, sizeof p);
         int n;
-        assert_non_null(colon);
-        *colon = '\0';
-        len = vec_hex(colon + 3, p, sizeof p);
-        fields[0] = v.line;
-        fields[1] = strchr(v.line, ' ');
-        assert_non_null(fields[1]);
-        *fields[1]++ = '\0';
-        fields[2] = strchr(fields[1], ' ');
-        if (fields[2] != NULL) {
-            *fields[2]++ = '\0';
-        } else {
-            fields[2] = fields[1] + strlen(fields[1]);
-        }
         fields_hint = fields[2];
         n = vec_one(fields[0], fields[1], p, len, txt, sizeof txt, enc, sizeof enc);
         if (strcmp(txt, fields[2]) != 0) {

@@ -88,3 +88,43 @@ size_t vec_hex(const char *hex, uint8_t *out, size_t cap)
     }
     return n;
 }
+
+void vec_cat(char *out, size_t cap, const char *fmt, ...)
+{
+    size_t n = strlen(out);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(out + n, cap - n, fmt, ap);
+    va_end(ap);
+}
+
+void vec_cat_hex(char *out, size_t cap, const uint8_t *p, size_t n)
+{
+    size_t i;
+    if (n == 0u) {
+        vec_cat(out, cap, "-");
+    }
+    for (i = 0; i < n; i++) {
+        vec_cat(out, cap, "%02x", p[i]);
+    }
+}
+
+size_t vec_message(vec_file_t *v, char *f[3], uint8_t *p, size_t cap)
+{
+    char *colon = strstr(v->line, " : ");
+    size_t len;
+    assert_non_null(colon);
+    *colon = '\0';
+    len = vec_hex(colon + 3, p, cap);
+    f[0] = v->line;
+    f[1] = strchr(v->line, ' ');
+    assert_non_null(f[1]);
+    *f[1]++ = '\0';
+    f[2] = strchr(f[1], ' ');
+    if (f[2] != NULL) {
+        *f[2]++ = '\0';
+    } else {
+        f[2] = f[1] + strlen(f[1]);
+    }
+    return len;
+}

@@ -22,6 +22,14 @@ bool vec_next(vec_file_t *v);
 void vec_close(vec_file_t *v);
 /* Splits s in place at sep; returns the number of fields (at most max). */
 int vec_split(char *s, char sep, char **fields, int max);
+/* Splits a message vector line "<msg> <dir> <fields...> : <payload hex>"
+ * in place: f[0] msg, f[1] dir, f[2] the field text ("" if none); the
+ * payload goes into p (cap bytes). Returns its length. */
+size_t vec_message(vec_file_t *v, char *f[3], uint8_t *p, size_t cap);
+/* Appends printf-style text to out (cap bytes in all). */
+void vec_cat(char *out, size_t cap, const char *fmt, ...);
+/* Appends n bytes as hex ("-" when none). */
+void vec_cat_hex(char *out, size_t cap, const uint8_t *p, size_t n);
 /* Hex to bytes ("-" is empty); fails the current test on bad hex. */
 size_t vec_hex(const char *hex, uint8_t *out, size_t cap);
 

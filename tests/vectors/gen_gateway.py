@@ -11,6 +11,7 @@ import os
 from _wire import array, frame, u8, u16, u24, u32, uvarint
 from gen_gateway_fast import __doc__ as FAST_DOC
 from gen_gateway_fast import fast_vectors
+from gen_gateway_file import write_file_vectors
 from gen_gateway_mgmt import __doc__ as MGMT_DOC
 from gen_gateway_mgmt import mgmt_vectors
 from gen_gateway_out import __doc__ as OUT_DOC
@@ -385,6 +386,16 @@ def sealed_vectors():
         (0x5A, req, bytes.fromhex("000019800cb004")),  # ESC_FAST_T, same values
         (0x59, rsp, u8(5)),  # flags only: a 7-byte frame
         (0x5A, rsp, bytes.fromhex("05334c0043d85c8a138803")),  # + the record: 17 bytes
+        (0x5B, req, array(b"fw.bin") + u32(123456) + u8(0)),  # FILE_OPEN
+        (0x5B, rsp, u8(0) + uvarint(300)),
+        (0x5C, req, uvarint(0) + array(bytes(range(150)))),  # FILE_WRITE, a full chunk
+        (0x5C, rsp, u8(0) + uvarint(150)),
+        (0x5D, req, u32(0xCBF43926)),  # FILE_COMMIT
+        (0x5D, rsp, u8(0) + u32(0xCBF43926)),
+        (0x5E, req, u8(0)),  # FILE_LIST
+        (0x5E, rsp, u8(0xFF) + u8(1) + array(b"fw.bin") + uvarint(123456)),
+        (0x5F, req, array(b"fw.bin")),  # FILE_REMOVE
+        (0x5F, rsp, u8(6)),
     ]
     lines = [
         "# Sealed gateway messages (docs/PROTOCOL.md section 7, the seal).",
@@ -410,3 +421,4 @@ def sealed_vectors():
 if __name__ == "__main__":
     main()
     sealed_vectors()
+    write_file_vectors()

@@ -14,7 +14,9 @@
  * keeps its table in a file (dna_file.h: written to PATH.tmp, synced,
  * renamed; a file that does not check is renamed to PATH.bad and the
  * table starts empty). The GetNodeInfo unique ID is --uid or derived from
- * /etc/machine-id (node_uid.h).
+ * /etc/machine-id (node_uid.h). --file-dir makes the gateway the bus's
+ * file server and the FC's upload target (file_dir.h: DIR/name, partial
+ * uploads DIR/~name, no symlink followed).
  */
 #include <errno.h>
 #include <getopt.h>
@@ -33,7 +35,9 @@
 #include "can_backend.h"
 #include "dan_tool.h"
 #include "dna_file.h"
+#include "file_dir.h"
 #include "node_uid.h"
+#include "sd_notify.h"
 
 #define REOPEN_US           1000000u /* a lost CAN adapter is tried again once a second */
 #define REOPEN_HANDSHAKE_MS 100u     /* a reopen's SLCAN handshake: DAN waits at most this */
@@ -107,6 +111,10 @@ static void usage(FILE *o)
                "                        not check is renamed to PATH.bad and the table starts\n"
                "                        empty; default: in memory only)\n"
                "  --no-dna              no allocation server (the bus has its own allocator)\n"
+               "  --file-dir DIR        serve firmware files from DIR (file.GetInfo/Read) and\n"
+               "                        take uploads there (FILE_OPEN..COMMIT); it must exist\n"
+               "                        and be writable\n"
+               "  --file-max BYTES      largest file uploaded, 1..2147483647 (default 4194304)\n"
                "  --uid HEX32           GetNodeInfo unique ID, 32 hex digits, not all zeros\n"
                "                        (default: derived from /etc/machine-id, FNV-1a of\n"
                "                        \"dan-gatewayd:K:\" + the ID for K=0..3; without one,\n"
@@ -137,6 +145,9 @@ typedef struct {
     uint32_t fast[DAN_NFAST_BAUDS]; /* the fast bauds CONFIGURE may ask for */
     size_t nfast;
     uint32_t dna_stores_logged, dna_errors_logged;
+    dan_sd_t sd;          /* systemd notifications and watchdog (Type=notify) */
+    const char *file_dir; /* --file-dir, or NULL: no file store */
+    dan_file_dir_t files;
 } gwd_t;
 
 /* The UART side of the command line, and what is checked after it. */
@@ -148,6 +159,7 @@ typedef struct {
     const char *can_bitrate; /* --can-bitrate, or NULL: 1 Mbit/s */
     uint32_t max_baud;       /* --max-baud, or 0: what the UART takes */
     bool no_fast;            /* --no-fast-bauds */
+    uint32_t file_max;       /* --file-max (0: not given) */
 } opts_t;
 
 static void can_down(gwd_t *d, const char *why, uint64_t now)
@@ -266,6 +278,7 @@ static int number_option(int c, const char *arg, opts_t *o, dan_gw_node_config_t
         {'G', "--gap-ms", 1, GAP_MS_MAX, &o->gap_ms, false},
         {'W', "--reply-window-ms", 1, WINDOW_MS_MAX, &o->window_ms, false},
         {'M', "--max-baud", UART_BAUD_MIN, UART_BAUD_MAX, &o->max_baud, true},
+        {'X', "--file-max", 1, DAN_FILE_DIR_MAX_MAX, &o->file_max, true},
     };
     size_t i;
     for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
@@ -283,6 +296,27 @@ static int number_option(int c, const char *arg, opts_t *o, dan_gw_node_config_t
         }
         return 2;
     }
+    return -1;
+}
+
+/* --file-dir opened (and --file-max checked against it): -1 to go on, else
+ * 2 after a message. */
+static int check_file_dir(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
+{
+    char err[DAN_FILE_DIR_ERR_MAX];
+    uint32_t max = o->file_max != 0u ? o->file_max : DAN_FILE_DIR_DEFAULT_MAX;
+    if (d->file_dir == NULL) {
+        if (o->file_max != 0u) {
+            tool_error("--file-max needs --file-dir");
+            return 2;
+        }
+        return -1;
+    }
+    if (dan_file_dir_open(&d->files, d->file_dir, max, err, sizeof err) != 0) {
+        tool_error("--file-dir %s", err);
+        return 2;
+    }
+    nc->files = &d->files.store;
     return -1;
 }
 
@@ -312,7 +346,7 @@ static int check_options(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
         tool_error("--dna-db %s", err);
         return 2;
     }
-    return -1;
+    return check_file_dir(d, o, nc);
 }
 
 /* Returns -1 to go on, else the exit code. */
@@ -335,6 +369,8 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
                                          {"can-bitrate", required_argument, NULL, 'B'},
                                          {"dna-db", required_argument, NULL, 'D'},
                                          {"no-dna", no_argument, NULL, 'N'},
+                                         {"file-dir", required_argument, NULL, 'f'},
+                                         {"file-max", required_argument, NULL, 'X'},
                                          {"uid", required_argument, NULL, 'U'},
                                          {"syslog", no_argument, NULL, 'S'},
                                          {"verbose", no_argument, NULL, 'v'},
@@ -359,6 +395,7 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
         case 's': d->stats_file = optarg; break;
         case 'D': d->dna_db = optarg; break;
         case 'N': nc->dna = false; break;
+        case 'f': d->file_dir = optarg; break;
         case 'U': o->uid = optarg; break;
         case 'B': o->can_bitrate = optarg; break;
         case 'S': g_syslog = 1; break;
@@ -524,6 +561,10 @@ static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     dan_gw_node_attach(&d->node, &d->periph);
     logmsg(LOG_INFO, "DAN on %s at %u baud, DroneCAN node %u on %s", d->uart_path, o->baud,
            nc->node_id, d->can_spec);
+    if (d->file_dir != NULL) {
+        logmsg(LOG_INFO, "file store %s (files up to %u bytes)", d->file_dir,
+               d->files.store.max_size);
+    }
     return 0;
 }
 
@@ -543,6 +584,9 @@ static uint64_t poll_deadline_us(gwd_t *d, uint64_t now)
     }
     if (d->stats_file && d->stats_due_us < next) {
         next = d->stats_due_us;
+    }
+    if (dan_sd_next_us(&d->sd) < next) {
+        next = dan_sd_next_us(&d->sd);
     }
     if (d->can_up && dan_canif_rx_pending(&d->can)) {
         return now;
@@ -646,6 +690,9 @@ static void housekeeping(gwd_t *d, uint64_t now)
         write_stats(d);
         d->stats_due_us = now + STATS_PERIOD_US;
     }
+    /* Pinged from the loop: a hung loop stops the pings, and systemd
+     * restarts the daemon (which starts DISARMED, safety on). */
+    dan_sd_poll(&d->sd, now);
 }
 
 /* A reply due within ANSWER_SPIN_US (its turnaround: 2 characters, 10 us
@@ -712,8 +759,18 @@ int main(int argc, char **argv)
 {
     gwd_t *d = &g_d;
     dan_gw_node_config_t nc;
-    opts_t o = {NULL, DEFAULT_BAUD, DEFAULT_GAP_MS, DEFAULT_WINDOW_MS, 0, false, false, NULL, NULL,
-                0,    false};
+    opts_t o = {NULL,
+                DEFAULT_BAUD,
+                DEFAULT_GAP_MS,
+                DEFAULT_WINDOW_MS,
+                0,
+                false,
+                false,
+                NULL,
+                NULL,
+                0,
+                false,
+                0};
     int r;
 
     tool_prog = "dan-gatewayd";
@@ -735,13 +792,23 @@ int main(int argc, char **argv)
     if (open_devices(d, &o) != 0 || start_engines(d, &o, &nc) != 0) {
         return 2;
     }
+    if (dan_sd_open(&d->sd, dan_posix_now_us()) != 0) {
+        logmsg(LOG_WARNING, "NOTIFY_SOCKET unusable (%s): no systemd notifications",
+               strerror(errno));
+    }
+    (void)dan_sd_send(&d->sd, "READY=1");
     run(d);
+    (void)dan_sd_send(&d->sd, "STOPPING=1");
     shutdown_failsafe(d);
     if (d->stats_file) {
         write_stats(d);
     }
     logmsg(LOG_INFO, "stopped (failsafe sent)");
+    dan_sd_close(&d->sd);
     dan_canif_close(&d->can);
     dan_posix_close(&d->uart);
+    if (d->file_dir != NULL) {
+        dan_file_dir_close(&d->files);
+    }
     return tool_stop ? 0 : 1;
 }

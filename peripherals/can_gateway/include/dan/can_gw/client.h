@@ -33,6 +33,7 @@
 
 #include "dan/can_gw/msgs.h"
 #include "dan/can_gw/msgs_fast.h"
+#include "dan/can_gw/msgs_file.h"
 #include "dan/can_gw/msgs_mgmt.h"
 #include "dan/can_gw/msgs_out.h"
 #include "dan/master.h"
@@ -209,6 +210,39 @@ int dan_gw_servo_failsafe(dan_gw_t *gw, const dan_gw_servo_fs_t *s, size_t n, ui
 int dan_gw_lights(dan_gw_t *gw, const dan_gw_light_t *l, size_t n, uint64_t now_us);
 /* BeepCommand: frequency 1..65504 Hz, duration 0..65504000 ms. */
 int dan_gw_beep(dan_gw_t *gw, uint32_t frequency_hz, uint32_t duration_ms, uint64_t now_us);
+
+/* ---- files and firmware updates (gw_client_file.c; docs/PROTOCOL.md
+ * "Files and firmware updates")
+ *
+ * Upload an image: dan_gw_file_open(name, size), then dan_gw_file_write()
+ * from the have of the last response on (chunks of 1..DAN_GW_FILE_CHUNK_MAX
+ * bytes), then dan_gw_file_commit() with dan_gw_crc32() of the whole image.
+ * Every step is retry-safe; after a lost response or a restart of either
+ * side, open again (restart false) and go on at the have it reports. Start
+ * the update with dan_gw_fw_begin() (a NODE_CALL: read its result, a
+ * dan_gw_fw_result_t, with dan_gw_call_result()) and follow it with
+ * dan_gw_node_info() (status, file_flags, bytes_read, file_size). Names:
+ * NUL-terminated, 1..32 bytes of [A-Za-z0-9._-], not starting with '.'. */
+int dan_gw_file_open(dan_gw_t *gw, const char *name, uint32_t size, bool restart, uint64_t now_us);
+/* data: 1..DAN_GW_FILE_CHUNK_MAX bytes for file offset offset. */
+int dan_gw_file_write(dan_gw_t *gw, uint32_t offset, const uint8_t *data, size_t len,
+                      uint64_t now_us);
+int dan_gw_file_commit(dan_gw_t *gw, uint32_t crc32, uint64_t now_us);
+int dan_gw_file_remove(dan_gw_t *gw, const char *name, uint64_t now_us);
+/* After FILE_OPEN, FILE_WRITE, FILE_COMMIT or FILE_REMOVE completed: the
+ * result byte (DAN_GW_FILE_*) and value: have (OPEN, WRITE), the gateway's
+ * CRC-32 of the bytes it holds (COMMIT), 0 (REMOVE). */
+int dan_gw_file_result(const dan_gw_t *gw, uint8_t *result, uint32_t *value);
+/* A page of committed files from index first (0 for the first page); then
+ * dan_gw_file_list_begin() (hdr.next: the next first, DAN_GW_NONE at the
+ * end) and dan_gw_file_list_next() per entry. */
+int dan_gw_file_list(dan_gw_t *gw, uint8_t first, uint64_t now_us);
+int dan_gw_file_list_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_file_list_hdr_t *hdr);
+int dan_gw_file_list_next(dan_reader_t *r, dan_gw_file_entry_t *e);
+/* BeginFirmwareUpdate of node_id from the committed file name (the gateway
+ * refuses, with an error frame, a name that is not one). */
+int dan_gw_fw_begin(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
+                    uint64_t now_us);
 
 #ifdef __cplusplus
 }

@@ -64,8 +64,14 @@ typedef struct {
     uint32_t max_size; /* largest file accepted (bytes) */
 } dan_gw_file_store_t;
 
-/* True when name (len bytes, no NUL needed) is a valid file name. */
+/* True when name (len bytes, no NUL needed) is a valid file name
+ * (gw_file_name.c). */
 bool dan_gw_file_name_ok(const char *name, size_t len);
+/* A DroneCAN path (uavcan.protocol.file.Path bytes, not NUL-terminated):
+ * the name, optionally after one leading '/'. True and name filled
+ * (NUL-terminated) when the path is one; false (name untouched) for any
+ * other path: "../x", "/etc/passwd", "a/b", "//x", "/.x", empty. */
+bool dan_gw_file_path_name(const uint8_t *path, size_t len, char name[DAN_GW_FILE_NAME_MAX + 1u]);
 
 #ifdef __cplusplus
 }

@@ -193,7 +193,14 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(CALLS, calls)                     /* service calls started */                       \
     X(CALL_TIMEOUTS, call_timeouts)     /* service calls never answered */                \
     X(SERVO_CMDS, servo_cmds)           /* SERVO requests */                              \
-    X(SERVO_DROPPED, servo_dropped)     /* actuators beyond the node's table */
+    X(SERVO_DROPPED, servo_dropped)     /* actuators beyond the node's table */           \
+    X(FILE_READS, file_reads)           /* file.Read requests served */                   \
+    X(FILE_BYTES, file_bytes)           /* file bytes served to nodes */                  \
+    X(FILE_ERRORS, file_errors)         /* file.GetInfo / Read answered an error */       \
+    X(UPLOAD_BYTES, upload_bytes)       /* upload bytes written to the store */           \
+    X(FILE_COMMITS, file_commits)       /* uploads committed */                           \
+    X(UPLOAD_ERRORS, upload_errors)     /* store failures of the DAN file messages */     \
+    X(FW_BEGINS, fw_begins)             /* BeginFirmwareUpdate answered OK */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
 enum { DAN_GW_STATS(DAN_GW_STAT_ENUM_) DAN_GW_STAT_COUNT };
@@ -248,7 +255,15 @@ int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n);
  * Request: uint8 node_id. Response: uint8 node_id, uint8 info_state, and
  * when it is DAN_GW_INFO_VALID: uint8 sw_major, uint8 sw_minor, uint8
  * sw_flags, uint32 vcs_commit, uint8 hw_major, uint8 hw_minor, 16 bytes
- * unique_id, string name (<= 80). Unknown node: error frame. */
+ * unique_id, string name (<= 80). Unknown node: error frame.
+ * Appended (after the info, or after info_state without it; an older
+ * response lacks them: follow false): u8 status (health | mode << 2 |
+ * sub_mode << 5 of its last NodeStatus, 0xFF none), u8 file_flags (bit0
+ * BeginFirmwareUpdate answered OK, bit1 it has read since), uv bytes_read
+ * (highest offset + length served since FW_BEGIN), uv file_size (of the
+ * file it read, 0 none), u32 ms since its last read (0xFFFFFFFF never). */
+#define DAN_GW_STATUS_NONE 0xFFu
+#define DAN_GW_NEVER_MS    0xFFFFFFFFu
 typedef struct {
     uint8_t node_id;
     uint8_t info_state;
@@ -257,6 +272,12 @@ typedef struct {
     uint8_t hw_major, hw_minor;
     uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
     char name[DAN_DC_GET_NODE_INFO_NAME_MAX + 1u];
+    bool follow; /* the fields below are sent / were received */
+    uint8_t status;
+    uint8_t file_flags;
+    uint32_t bytes_read;
+    uint32_t file_size;
+    uint32_t since_read_ms;
 } dan_gw_node_info_t;
 
 int dan_gw_msg_node_info_encode(const dan_gw_node_info_t *i, uint8_t *out, size_t cap);

@@ -9,6 +9,7 @@
 #ifndef DAN_CAN_GW_MSGS_MGMT_H
 #define DAN_CAN_GW_MSGS_MGMT_H
 
+#include "dan/can_gw/file_store.h"
 #include "dan/can_gw/msgs.h"
 
 #ifdef __cplusplus
@@ -49,7 +50,8 @@ int dan_gw_msg_value_get(dan_reader_t *r, dan_gw_value_t *v, bool numeric);
  * Request: u16 call_id, u8 node_id (1..127), u8 op, then per op:
  *   PARAM_GET_INDEX uv index; PARAM_GET_NAME string name (1..92);
  *   PARAM_SET string name, value; PARAM_SAVE, PARAM_ERASE nothing;
- *   RESTART u40 magic (5 bytes LE), u8 force (0/1).
+ *   RESTART u40 magic (5 bytes LE), u8 force (0/1); FW_BEGIN string name
+ *   (1..32, a committed file: docs/PROTOCOL.md "Files and firmware updates").
  * Response: u16 call_id, u8 state, and uv result_len when state is DONE. */
 #define DAN_GW_CALL_PARAM_GET_INDEX 0u
 #define DAN_GW_CALL_PARAM_GET_NAME  1u
@@ -57,7 +59,8 @@ int dan_gw_msg_value_get(dan_reader_t *r, dan_gw_value_t *v, bool numeric);
 #define DAN_GW_CALL_PARAM_SAVE      3u
 #define DAN_GW_CALL_PARAM_ERASE     4u
 #define DAN_GW_CALL_RESTART         5u
-#define DAN_GW_CALL_OP_MAX          5u
+#define DAN_GW_CALL_FW_BEGIN        6u /* file.BeginFirmwareUpdate */
+#define DAN_GW_CALL_OP_MAX          6u
 
 #define DAN_GW_CALL_PENDING 0u /* sent, waiting for the node */
 #define DAN_GW_CALL_DONE    1u /* the result can be read */
@@ -73,7 +76,7 @@ typedef struct {
     uint16_t index;       /* PARAM_GET_INDEX */
     uint8_t force;        /* RESTART */
     uint64_t magic;       /* RESTART: uint40 */
-    const char *name;     /* PARAM_GET_NAME, PARAM_SET; decode: a view */
+    const char *name;     /* PARAM_GET_NAME, PARAM_SET, FW_BEGIN; decode: a view */
     uint8_t name_len;     /* into the payload, not NUL-terminated */
     dan_gw_value_t value; /* PARAM_SET */
 } dan_gw_call_t;

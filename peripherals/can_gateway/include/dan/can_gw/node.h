@@ -41,15 +41,25 @@
  *     failsafe value or hold per actuator), LightsCommand, BeepCommand.
  *   - gw_node_table.c: the node table from NodeStatus; GetNodeInfo asked of
  *     every new node up to DAN_GW_NODE_INFO_TRIES times a second apart (and
- *     again after the node restarts: its uptime went down).
+ *     again after the node restarts: its uptime went down, or its mode
+ *     went from SOFTWARE_UPDATE to OPERATIONAL).
  *   - gw_node_tunnel.c: uavcan.tunnel.Targetted as ArduPilot's
  *     AP_DroneCAN_serial does it (chunks <= 120 bytes, an empty keepalive
  *     every 500 ms while idle, options from TUN_OPEN, received only from
  *     the target node with target_node == our id and the port's serial_id)
  *     and tunnel.Broadcast (chunks <= 60, received by protocol and
  *     channel_id).
+ *   - gw_node_file.c: the file server (uavcan.protocol.file.GetInfo and
+ *     Read from cfg.files; no store: the requests are not answered); notes
+ *     each reader's progress in its node table slot (fw). A request whose
+ *     answer does not fit the bulk queue waits (DAN_GW_NODE_FILE_WAIT of
+ *     them, oldest first, up to DAN_GW_NODE_FILE_WAIT_US).
  *   - gw_node_raw.c: every received CAN frame, processed or not, goes
  *     through the raw filter into the raw receive ring; raw frames out.
+ *   - gw_node_dan_file.c: the DAN file messages: one upload at a time
+ *     into cfg.files (resumable, also from a partial the store kept through
+ *     a restart; retried writes write nothing; committed only with its
+ *     CRC-32), listing and removal.
  *   - gw_node_dan.c: the DAN handlers (decode, call the subsystem, encode)
  *     and the seal, as the type's envelope.
  */
@@ -58,6 +68,7 @@
 
 #include "dan/can_gw/dronecan.h"
 #include "dan/can_gw/dsdl.h"
+#include "dan/can_gw/dsdl_file.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
 #include "dan/can_gw/file_store.h"
@@ -82,6 +93,7 @@ extern "C" {
 #define DAN_GW_NODE_FLAP_US         10000000u /* uptime going down 3 times in this: duplicate */
 #define DAN_GW_NODE_FLAP_COUNT      3u
 #define DAN_GW_NODE_FOREIGN_US      60000000u /* HEALTH shows another allocator this long */
+#define DAN_GW_NODE_FILE_WAIT_US    1000000u  /* a file request waits this long for room */
 
 #define DAN_GW_NODE_DEFAULT_ID            10u
 #define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT   500u  /* ms */
@@ -161,6 +173,14 @@ typedef struct {
     uint32_t call_timeouts;   /* calls no attempt of which was answered */
     uint32_t servo_cmds;      /* SERVO requests */
     uint32_t servo_dropped;   /* actuators beyond DAN_GW_NODE_SERVOS */
+    uint32_t file_reads;      /* file.Read requests answered with data or the end */
+    uint32_t file_bytes;      /* file bytes served by them */
+    uint32_t file_errors;     /* file.GetInfo / Read answered with an error */
+    uint32_t file_dropped;    /* file requests not answered: no room for long */
+    uint32_t upload_bytes;    /* upload bytes written to the store */
+    uint32_t file_commits;    /* uploads committed */
+    uint32_t upload_errors;   /* store failures of uploads, lists, removals (IO_ERROR) */
+    uint32_t fw_begins;       /* BeginFirmwareUpdate answered OK */
 } dan_gw_node_stats_t;
 
 /* ---- the subsystems' state (gw_node_*.c); read-only for callers ---- */
@@ -225,6 +245,15 @@ typedef struct {
     uint64_t last_read_us; /* 0: never */
 } dan_gw_node_fw_t;
 
+/* A file request waiting for room in the bulk queue (gw_node_file.c). */
+typedef struct {
+    uint64_t offset; /* Read */
+    uint64_t at_us;  /* received */
+    uint16_t dtid;   /* DAN_DC_FILE_READ_ID or DAN_DC_FILE_GETINFO_ID */
+    uint8_t src, tid, prio;
+    char name[DAN_GW_FILE_NAME_MAX + 1u]; /* "": not a valid path */
+} dan_gw_node_file_req_t;
+
 /* One node of the table (gw_node_table.c). */
 typedef struct {
     dan_gw_node_entry_t e; /* age_ms filled when sent */
@@ -273,6 +302,16 @@ typedef struct {
 } dan_gw_node_call_t;
 #define DAN_GW_NODE_CALL_FREE 0xFFu
 
+/* The one upload into the file store (gw_node_dan_file.c). */
+typedef struct {
+    bool open;      /* an upload is held */
+    bool committed; /* closed by a commit: a retried FILE_COMMIT of crc is OK */
+    char name[DAN_GW_FILE_NAME_MAX + 1u];
+    uint32_t size; /* declared by FILE_OPEN */
+    uint32_t have; /* bytes held, contiguous from 0 */
+    uint32_t crc;  /* CRC-32 of them (zlib's, chained) */
+} dan_gw_node_upload_t;
+
 /* One tunnel port (gw_node_tunnel.c). */
 typedef struct {
     dan_gw_tun_open_t cfg; /* cfg.mode DAN_GW_TUN_CLOSED: unused */
@@ -319,6 +358,9 @@ typedef struct {
     dan_gw_node_raw_t raw;
     dan_gw_node_dna_t dna;
     dan_gw_node_call_t calls[DAN_GW_NODE_CALLS];
+    dan_gw_node_file_req_t file_wait[DAN_GW_NODE_FILE_WAIT]; /* oldest first */
+    uint8_t file_nwait;
+    dan_gw_node_upload_t upload;
     dan_gw_node_stats_t stats;
     /* scratch for DSDL structs too big for a small stack (per instance) */
     union {
@@ -327,6 +369,8 @@ typedef struct {
         dan_dc_tunnel_broadcast_t bcast;
         dan_dc_param_getset_req_t getset_req;
         dan_dc_param_getset_rsp_t getset_rsp;
+        dan_dc_file_req_t file_req;
+        dan_dc_file_read_rsp_t file_rsp;
     } scratch;
     uint8_t scratch_buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
 } dan_gw_node_t;
