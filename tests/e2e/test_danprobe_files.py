@@ -7,6 +7,7 @@ and the follower's verdicts. The real stack: test_fw_update.py."""
 
 import pytest
 
+from conftest import VECTORS
 from danprobe import file_update as U
 from danprobe import gateway_file as F
 from danprobe import gateway_mgmt as M
@@ -315,3 +316,95 @@ def test_follow_done_failed_and_stalled():
     assert f.state == U.FAILED and "not back OPERATIONAL with a new version" in f.why
     with pytest.raises(U.Malformed):
         U.Follow(30, before, 1.0).step(G.NodeInfo(30, 0), 0.0)
+
+
+# ---- the codec against the shared vectors (tests/vectors/gateway_file.txt) ----
+
+
+def unhex(s):
+    return b"" if s == "-" else bytes.fromhex(s)
+
+
+def file_vector_object(msg, d, fields):
+    """(encoded payload, decode, what decode must give) of one vector."""
+    f = dict(fields)
+    i = lambda k: int(f[k])  # noqa: E731
+    rep = lambda k: [v for kk, v in fields if kk == k]  # noqa: E731
+    if msg in ("file_open", "file_write") and d == "rsp":
+        s = F.FileState(i("result"), i("have"))
+        return s.encode(), F.FileState.decode, s
+    if (msg, d) == ("file_open", "req"):
+        o = F.FileOpen(unhex(f["name"]), i("size"), i("flags"))
+        return o.encode(), F.FileOpen.decode, o
+    if (msg, d) == ("file_write", "req"):
+        w = F.FileWrite(i("offset"), unhex(f["data"]))
+        return w.encode(), F.FileWrite.decode, w
+    if (msg, d) == ("file_commit", "req"):
+        c = F.FileCommit(crc=i("crc"))
+        return c.encode_request(), F.FileCommit.decode_request, c
+    if (msg, d) == ("file_commit", "rsp"):
+        c = F.FileCommit(i("result"), i("crc"))
+        return c.encode(), F.FileCommit.decode, c
+    if (msg, d) == ("file_list", "req"):
+        return bytes([i("first")]), G.decode_u8, i("first")
+    if (msg, d) == ("file_list", "rsp"):
+        entries = [F.FileEntry(unhex(n), int(s)) for n, s in (e.split("/") for e in rep("entry"))]
+        p = F.FileListPage(i("next"), entries)
+        return p.encode(), F.FileListPage.decode, p
+    if (msg, d) == ("file_remove", "req"):
+        return F.encode_name(unhex(f["name"])), F.decode_name, unhex(f["name"])
+    if (msg, d) == ("file_remove", "rsp"):
+        return bytes([i("result")]), F.decode_result, i("result")
+    if (msg, d) == ("node_call", "req"):
+        c = M.NodeCall(i("id"), i("node"), i("op"), name=unhex(f["name"]))
+        return c.encode(), M.NodeCall.decode, c
+    if (msg, d) == ("fw_result", "rsp"):
+        r = F.FwBeginResult(i("error"), unhex(f["message"]))
+        return r.encode(), F.FwBeginResult.decode, r
+    if (msg, d) == ("node_info", "rsp"):
+        n = G.NodeInfo(i("node"), i("state"))
+        if n.info_state == G.INFO_VALID:
+            n.sw_major, n.sw_minor, n.sw_flags = map(int, f["sw"].split("/"))
+            n.hw_major, n.hw_minor = map(int, f["hw"].split("/"))
+            n.vcs_commit, n.unique_id, n.name = i("vcs"), unhex(f["uid"]), unhex(f["name"])
+        n.follow = F.FwFollow(i("status"), i("fflags"), i("read"), i("size"), i("since"))
+        return n.encode(), G.NodeInfo.decode, n
+    if (msg, d) == ("stats", "rsp"):
+        values = [int(v) for v in f["values"].split(",")]
+        return G.encode_stats(values), G.decode_stats, values
+    raise AssertionError(f"no codec for {msg} {d}")
+
+
+def test_codec_every_file_vector():
+    decoders = {
+        "file_open": F.FileOpen.decode,
+        "file_write": F.FileWrite.decode,
+        "file_commit": F.FileCommit.decode_request,
+        "file_list": F.FileListPage.decode,
+        "file_remove": F.decode_name,
+        "node_call": M.NodeCall.decode,
+    }
+    kinds, n = set(), 0
+    for line in (VECTORS / "gateway_file.txt").read_text().splitlines():
+        if not line or line.startswith("#"):
+            continue
+        left, payload = line.split(" : ")
+        msg, d, *toks = left.split()
+        fields = [t.split("=", 1) for t in toks]
+        f = dict(fields)
+        payload = unhex(payload)
+        kinds.add((msg, d))
+        n += 1
+        if msg == "crc32":
+            assert F.crc32(unhex(f["data"])) == int(f["crc"]), line
+            continue
+        if d == "bad":
+            with pytest.raises(PayloadError):
+                decoders[msg](payload)
+            continue
+        encoded, decode, want = file_vector_object(msg, d, fields)
+        assert encoded == payload, f"encode: {line}\n got {encoded.hex()}"
+        got = decode(payload)
+        assert got == want, f"decode: {line}"
+        assert decode(payload + b"\x00\x7f") == got, line  # trailing bytes ignored
+    assert n >= 60 and len(kinds) >= 18
