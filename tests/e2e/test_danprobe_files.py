@@ -408,3 +408,37 @@ def test_codec_every_file_vector():
         assert got == want, f"decode: {line}"
         assert decode(payload + b"\x00\x7f") == got, line  # trailing bytes ignored
     assert n >= 60 and len(kinds) >= 18
+
+
+# ---- the master's echo check (compared by slices: FILE_WRITE frames are long) ----
+
+
+class EchoPort:
+    def __init__(self):
+        self.discarded = 0
+
+    def discard_output(self):
+        self.discarded += 1
+
+
+def test_echo_check_by_slices():
+    from danprobe.codec import encode_frame
+    from danprobe.master import Link
+
+    frame = encode_frame(0x5C, bytes(range(150)))
+    reply = encode_frame(0x5C, b"\x00\x01")
+    for chunks in ([frame + reply], [frame[:7], frame[7:100], frame[100:] + reply]):
+        link = Link(EchoPort(), 2000000)
+        link._tx, link._echo_pos = frame, 0
+        for c in chunks:
+            link._rx(c, 1.0)
+        assert link._tx is None and not link._tx_failed and link.stats.collisions == 0
+        assert [f.payload for f in link.frames] == [b"\x00\x01"]  # the reply, not our echo
+    bad = bytearray(frame)
+    bad[90] ^= 0x40
+    link = Link(EchoPort(), 2000000)
+    link._tx, link._echo_pos = frame, 0
+    link._rx(bytes(bad[:50]), 1.0)
+    assert link._tx is not None and link._echo_pos == 50
+    link._rx(bytes(bad[50:]), 1.0)
+    assert link._tx_failed and link.stats.collisions == 1 and link.port.discarded == 1
