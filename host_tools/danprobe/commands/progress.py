@@ -10,6 +10,8 @@ from danprobe.port import now
 
 WIDTH = 24
 STEP_PCT = 10
+RATE_AFTER_S = 0.5
+REDRAW_S = 0.1  # a terminal line at most this often (and at the end)
 
 
 def rate_text(bytes_per_s: float) -> str:
@@ -33,18 +35,24 @@ class Progress:
         self.t0 = now()
         self.last_step: Optional[int] = None
         self.drawn = False
+        self.drawn_at = 0.0
 
     def line(self, done: int) -> tuple[str, float]:
         pct = 100.0 * done / self.total if self.total else 100.0
         dt = now() - self.t0
-        rate = (done - self.start) / dt if dt > 0 else 0.0
-        return f"{self.label}: {done}/{self.total} bytes {pct:5.1f} % {rate_text(rate)}", pct
+        # the rate once it means something (not over the first poll's instant)
+        rate = f" {rate_text((done - self.start) / dt)}" if dt >= RATE_AFTER_S else ""
+        return f"{self.label}: {done}/{self.total} bytes {pct:5.1f} %{rate}", pct
 
     def update(self, done: int):
         if self.quiet:
             return
         text, pct = self.line(done)
         if self.tty:
+            t = now()
+            if done < self.total and t - self.drawn_at < REDRAW_S:
+                return
+            self.drawn_at = t
             filled = int(WIDTH * min(pct, 100.0) / 100)
             bar = "#" * filled + "." * (WIDTH - filled)
             self.stream.write(f"\r[{bar}] {text}\033[K")
