@@ -123,7 +123,7 @@ class Upload:
         }
 
 
-def _guarded(fn: Callable, failures: list):
+def guarded(fn: Callable, failures: list):
     """fn(); a failed transaction (no answer, collisions, bad seals after
     the master's retries) is tolerated FAILURES_MAX times in a row (None
     returned: try again); error frames, malformed answers and the time
@@ -162,7 +162,7 @@ def upload(
     def open_(first: bool):
         st = None
         while st is None:
-            st = _guarded(lambda: file_open(gw, u.name, u.size, restart and first), failures)
+            st = guarded(lambda: file_open(gw, u.name, u.size, restart and first), failures)
         if st.result != F.FILE_OK:
             raise FileError(f"FILE_OPEN {u.name.decode()} ({u.size} bytes)", st.result)
         if st.have > u.size:
@@ -177,7 +177,7 @@ def upload(
         if stop():
             raise Stopped(f"stopped at {u.have} of {u.size} bytes")
         chunk = data[u.have : u.have + WRITE_MAX]
-        st = _guarded(lambda c=chunk: file_write(gw, u.have, c), failures)
+        st = guarded(lambda c=chunk: file_write(gw, u.have, c), failures)
         if st is None:
             continue
         u.writes += 1
@@ -203,7 +203,7 @@ def upload(
     while c is None:
         if stop():
             raise Stopped(f"stopped before the commit ({u.have} of {u.size} bytes held)")
-        c = _guarded(lambda: file_commit(gw, u.crc), failures)
+        c = guarded(lambda: file_commit(gw, u.crc), failures)
     if c.result == F.FILE_CRC:
         raise FileError(
             f"FILE_COMMIT: the gateway holds CRC-32 0x{c.crc:08x}, the file has 0x{u.crc:08x} "
@@ -292,6 +292,16 @@ class Follow:
                     f"{self.file_size or '?'} bytes: no read and no status change for "
                     f"{self.stall:g} s"
                 )
+
+    def idle(self, t: float):
+        """A poll without news (the node out of the table, a failed
+        transaction): only the stall clock runs."""
+        if t - self.last_change > self.stall:
+            self.state = FAILED
+            self.why = (
+                f"node {self.node_id}: no news for {self.stall:g} s (at {self.bytes_read} of "
+                f"{self.file_size or '?'} bytes)"
+            )
 
     def as_dict(self) -> dict:
         return {

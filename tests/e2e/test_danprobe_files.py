@@ -316,6 +316,16 @@ def test_follow_done_failed_and_stalled():
     assert f.state == U.FAILED and "not back OPERATIONAL with a new version" in f.why
     with pytest.raises(U.Malformed):
         U.Follow(30, before, 1.0).step(G.NodeInfo(30, 0), 0.0)
+    # polls without news (the node out of the table while it reboots): the clock runs
+    f = U.Follow(30, before, stall=2.0, last_change=0.0)
+    f.step(info(UPDATING, 1000, 1000, (1, 0)), 1.0)
+    f.idle(2.9)
+    assert f.state == U.ONGOING
+    f.step(info(OPERATIONAL, 1000, 1000, (2, 1)), 3.0)
+    assert f.state == U.DONE
+    f = U.Follow(30, before, stall=2.0, last_change=0.0)
+    f.idle(2.1)
+    assert f.state == U.FAILED and "no news for 2 s" in f.why
 
 
 # ---- the codec against the shared vectors (tests/vectors/gateway_file.txt) ----

@@ -98,29 +98,46 @@ def _begin(ctx, gw, nodes, name, res):
         ctx.progress(f"node {n}: BeginFirmwareUpdate accepted, reading {name} from the gateway")
 
 
+def _poll(gw, node_id: int, failures: list):
+    """The node's NODE_INFO; None when this poll tells nothing: the gateway
+    dropped the node from its table for a while (a reboot) or a transaction
+    failed (tolerated a few times in a row: the stall clock decides)."""
+    try:
+        return file_update.guarded(lambda: gw.node_info(node_id), failures)
+    except RemoteError:
+        return None
+
+
 def _follow(ctx, gw, follows, stop):
     bars = {}
+    failures = [0]
     while any(f.state == file_update.ONGOING for f in follows):
         if stop.stop:
             raise file_update.Stopped("stopped following (the nodes go on updating)")
         for f in follows:
             if f.state != file_update.ONGOING:
                 continue
-            info = gw.node_info(f.node_id)
-            f.step(info, now())
+            info = _poll(gw, f.node_id, failures)
+            if info is None:
+                f.idle(now())
+            else:
+                f.step(info, now())
             if f.file_size and f.node_id not in bars:
                 bars[f.node_id] = Progress(
                     f"node {f.node_id} reads", f.file_size, 0, ctx.args.quiet
                 )
             if f.node_id in bars:
                 bars[f.node_id].update(min(f.bytes_read, f.file_size))
-            if f.state == file_update.FAILED:
-                raise UpdateFailed(f.why)
+            if f.state != file_update.ONGOING and f.node_id in bars:
+                bars[f.node_id].end()
             if f.state == file_update.DONE:
-                if f.node_id in bars:
-                    bars[f.node_id].end()
                 ctx.progress(f"node {f.node_id}: back OPERATIONAL, version {f.after['sw']}")
+            elif f.state == file_update.FAILED and len(follows) > 1:
+                ctx.error(f"node {f.node_id} failed: {f.why}")  # the others go on
         time.sleep(POLL_S)
+    failed = [f.why for f in follows if f.state == file_update.FAILED]
+    if failed:
+        raise UpdateFailed("; ".join(failed))
 
 
 def run(ctx) -> int:
