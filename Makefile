@@ -198,7 +198,7 @@ $(BUILD)/bin/dan-testperiph: $(BUILD)/obj/tests/tools/dan-testperiph.o \
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)
 # dan-fcsim keeps the telemetry of 20 ESCs (all one ESC_CMD drives): it is
 # built with DAN_GW_MAX_ESC=20 together with its own copy of the client,
-# since dan_gw_t's layout depends on it (the library's default stays 8).
+# since dan_gw_t's layout depends on it (the library's default is 4).
 FCSIM_DEFS   := -DDAN_GW_MAX_ESC=20u
 FCSIM_GW_OBJ := $(patsubst %.c,$(BUILD)/obj/fcsim/%.o,$(GW_CLIENT_SRC))
 $(BUILD)/obj/fcsim/%.o: %.c
@@ -207,7 +207,12 @@ $(BUILD)/obj/fcsim/%.o: %.c
 $(BUILD)/obj/tests/tools/dan-fcsim.o: tests/tools/dan-fcsim.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS_POSIX) $(FCSIM_DEFS) -c $< -o $@
-$(BUILD)/bin/dan-fcsim: $(BUILD)/obj/tests/tools/dan-fcsim.o $(FCSIM_GW_OBJ) \
+# its step files (tests/tools/fcsim/), with the same dan_gw_t layout
+FCSIM_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard tests/tools/fcsim/*.c))
+$(BUILD)/obj/tests/tools/fcsim/%.o: tests/tools/fcsim/%.c
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS_POSIX) $(FCSIM_DEFS) -Itests/tools -c $< -o $@
+$(BUILD)/bin/dan-fcsim: $(BUILD)/obj/tests/tools/dan-fcsim.o $(FCSIM_OBJ) $(FCSIM_GW_OBJ) \
                         $(filter-out $(LIBGW),$(ALL_LIBS))
 	@mkdir -p $(@D)
 	$(CC) $(LDSAN) -o $@ $^ $(LDLIBS)

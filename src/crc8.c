@@ -1,8 +1,10 @@
-/* crc8_dvb_s2: poly 0xD5, init 0, no reflection, no xorout.
- * Table-driven: the decoder runs it on every received byte. The table is
- * the CRC of each byte value (generated, not copied). */
+/* crc8_dvb_s2: poly 0xD5, init 0, no reflection, no xorout. The decoder
+ * runs it on every received byte. DAN_CRC8_TABLE (dan/config.h) picks the
+ * table: 1, the CRC of each byte value (256 bytes, the fastest), or 0, of
+ * each nibble (16 bytes, two lookups a byte). Generated, not copied. */
 #include "dan/common.h"
 
+#if DAN_CRC8_TABLE
 static const uint8_t dan_crc8_table[256] = {
     0x00, 0xD5, 0x7F, 0xAA, 0xFE, 0x2B, 0x81, 0x54, 0x29, 0xFC, 0x56, 0x83, 0xD7, 0x02, 0xA8, 0x7D,
     0x52, 0x87, 0x2D, 0xF8, 0xAC, 0x79, 0xD3, 0x06, 0x7B, 0xAE, 0x04, 0xD1, 0x85, 0x50, 0xFA, 0x2F,
@@ -22,16 +24,34 @@ static const uint8_t dan_crc8_table[256] = {
     0x84, 0x51, 0xFB, 0x2E, 0x7A, 0xAF, 0x05, 0xD0, 0xAD, 0x78, 0xD2, 0x07, 0x53, 0x86, 0x2C, 0xF9,
 };
 
-uint8_t dan_crc8_byte(uint8_t crc, uint8_t byte)
+static uint8_t crc8_step(uint8_t crc, uint8_t byte)
 {
     return dan_crc8_table[(uint8_t)(crc ^ byte)];
+}
+#else
+/* The first 16 entries of the byte table: 4 shifts of a register whose
+ * top nibble is i. */
+static const uint8_t dan_crc8_nibble[16] = {0x00, 0xD5, 0x7F, 0xAA, 0xFE, 0x2B, 0x81, 0x54,
+                                            0x29, 0xFC, 0x56, 0x83, 0xD7, 0x02, 0xA8, 0x7D};
+
+static uint8_t crc8_step(uint8_t crc, uint8_t byte)
+{
+    crc ^= byte;
+    crc = (uint8_t)((uint8_t)(crc << 4) ^ dan_crc8_nibble[crc >> 4]);
+    return (uint8_t)((uint8_t)(crc << 4) ^ dan_crc8_nibble[crc >> 4]);
+}
+#endif
+
+uint8_t dan_crc8_byte(uint8_t crc, uint8_t byte)
+{
+    return crc8_step(crc, byte);
 }
 
 uint8_t dan_crc8(uint8_t crc, const uint8_t *data, size_t len)
 {
     size_t i;
     for (i = 0; i < len; i++) {
-        crc = dan_crc8_table[(uint8_t)(crc ^ data[i])];
+        crc = crc8_step(crc, data[i]);
     }
     return crc;
 }

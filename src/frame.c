@@ -56,11 +56,6 @@ void dan_decoder_reset(dan_decoder_t *d)
     d->stats = keep;
 }
 
-bool dan_decoder_busy(const dan_decoder_t *d)
-{
-    return d->len > d->consume;
-}
-
 /* Drops buf[0..n) and any non-sync bytes after it; returns bytes skipped
  * after the first n. Leaves the rest pending (scanned = 0). */
 static size_t drop_front(dan_decoder_t *d, size_t n)

@@ -88,10 +88,10 @@ size_t dan_json_str(char *out, size_t cap, const char *s)
     return b.len;
 }
 
-size_t dan_peer_json(char *out, size_t cap, const dan_peer_t *p, unsigned flags)
+size_t dan_peer_json(char *out, size_t cap, const dan_peer_t *p, const dan_identity_t *id,
+                     unsigned flags)
 {
     const dan_type_info_t *t = dan_type_of_code(p->first_code);
-    const dan_identity_t *id = &p->identity;
     bool full = (flags & DAN_PEER_JSON_FULL) != 0u;
     jbuf_t b = jbuf(out, cap);
     put_str(&b, "{\"type\":");

@@ -55,11 +55,11 @@ int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_co
     }
     m->rng = (m->cfg.seed != 0u) ? m->cfg.seed : 1u;
     for (i = 0; i < ntypes; i++) {
-        m->types[i] = types[i];
         m->peers[i].first_code = types[i];
     }
     m->ntypes = ntypes;
     dan_link_init(&m->link, port, baud, on_frame, m, now_us);
+    m->resp = m->link.tx;
     m->link.gap_us = m->cfg.gap_us;
     /* The echo comes back the way replies do: allow it the same latency. */
     m->link.echo_timeout_us = m->cfg.resp_latency_us;
@@ -85,6 +85,20 @@ const dan_peer_t *dan_master_peer(const dan_master_t *m, uint32_t first_code)
         }
     }
     return NULL;
+}
+
+void dan_master_set_identities(dan_master_t *m, dan_identity_t *ids, size_t n)
+{
+    m->ids = ids;
+    m->nids = (ids != NULL) ? n : 0u;
+    m->id_decode = dan_identity_decode; /* referenced here only: linked when called */
+}
+
+const dan_identity_t *dan_master_identity(const dan_master_t *m, uint32_t first_code)
+{
+    const dan_peer_t *p = dan_master_peer(m, first_code);
+    size_t i = (p != NULL) ? (size_t)(p - m->peers) : m->nids;
+    return (i < m->nids) ? &m->ids[i] : NULL;
 }
 
 bool dan_mst_port_supports(const dan_master_t *m, uint32_t baud)
@@ -169,9 +183,30 @@ static void txn_attempt_failed(dan_master_t *m, int why, uint64_t now_us)
     m->txn_phase = PH_LBT;
 }
 
+/* Ends the transaction with f as its response, kept in the TX buffer (see
+ * dan_master_t.resp): the request is done. tx_len stays (the end of our
+ * frame on the wire); the bytes no longer match it, so no later frame
+ * passes for its late echo. */
+static void keep_response(dan_master_t *m, const dan_frame_t *f, int result)
+{
+    memcpy(m->resp, f->payload, f->len);
+    m->resp_len = f->len;
+    m->resp_code = f->code;
+    txn_finish(m, result);
+}
+
+int dan_master_remote_error(const dan_master_t *m, dan_error_msg_t *e)
+{
+    if (m->resp_code != DAN_CODE_ERROR) { /* set only by an error frame for our request */
+        return DAN_ERR_NOTFOUND;
+    }
+    return dan_error_decode(e, m->resp, m->resp_len);
+}
+
 static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
 {
     dan_master_t *m = (dan_master_t *)owner;
+    uint32_t code;
     /* A reply may arrive in the same read as the last echo byte (or, with a
      * direction pin, before a poll has noticed the end of our frame). */
     bool sent =
@@ -192,18 +227,13 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
             txn_attempt_failed(m, DAN_ERR_MALFORMED, now_us);
             return;
         }
-        memcpy(m->resp, f->payload, f->len);
-        m->resp_len = f->len;
-        m->resp_code = f->code;
-        txn_finish(m, DAN_OK);
+        keep_response(m, f, DAN_OK);
         return;
     }
-    if (f->code == DAN_CODE_ERROR &&
-        dan_error_decode(&m->remote_error, f->payload, f->len) == DAN_OK &&
-        m->remote_error.code == m->req_code) {
+    if (f->code == DAN_CODE_ERROR && dan_error_code(f->payload, f->len, &code) == DAN_OK &&
+        code == m->req_code) {
         m->stats.remote_errors++;
-        m->resp_code = f->code;
-        txn_finish(m, DAN_ERR_REMOTE); /* understood and refused: no retry */
+        keep_response(m, f, DAN_ERR_REMOTE); /* understood and refused: no retry */
         return;
     }
     m->stats.stray++;
@@ -330,8 +360,8 @@ int dan_master_poll(dan_master_t *m, uint64_t now_us)
             m->txn_phase = PH_IDLE;
             if (m->op == DAN_MASTER_OP_TXN) {
                 dan_mst_op_finish(m, m->txn_result);
-            } else {
-                dan_mst_seq_txn_done(m, now_us);
+            } else if (dan_mst_seq_txn_done(m, now_us)) {
+                dan_mst_seq_next(m, now_us);
             }
         }
     } else {

@@ -80,9 +80,9 @@ static bool step_back(dan_master_t *m, uint64_t now_us)
     if (m->idx < m->ntypes) {
         dan_mst_switch_baud(m, m->peers[m->idx].baud, now_us);
         if (m->step == DAN_ST_FAST_BACK) {
-            dan_mst_send_configure(m, m->types[m->idx], m->back_baud[m->idx], now_us);
+            dan_mst_send_configure(m, m->peers[m->idx].first_code, m->back_baud[m->idx], now_us);
         } else {
-            dan_mst_probe(m, m->types[m->idx], (uint8_t)(m->cfg.retries + 1u), now_us);
+            dan_mst_probe(m, m->peers[m->idx].first_code, (uint8_t)(m->cfg.retries + 1u), now_us);
         }
         return true;
     }

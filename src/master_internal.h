@@ -29,7 +29,10 @@ void dan_mst_op_finish(dan_master_t *m, int result);
 
 /* master_seq.c */
 void dan_mst_seq_next(dan_master_t *m, uint64_t now_us);
-void dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us);
+/* Takes the result of the sequencer's transaction; true if the caller is
+ * to go on with dan_mst_seq_next() (called one after the other, not one
+ * inside the other: the deepest stack path, issue 17). */
+bool dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us);
 void dan_mst_switch_baud(dan_master_t *m, uint32_t baud, uint64_t now_us);
 void dan_mst_probe(dan_master_t *m, uint32_t first, uint8_t attempts, uint64_t now_us);
 void dan_mst_send_configure(dan_master_t *m, uint32_t first, uint32_t baud, uint64_t now_us);

@@ -15,7 +15,7 @@ static const uint32_t mask_scan[DAN_DISCOVERY_NBAUDS - 1u] = {115200u, 57600u, 3
 static bool peer_supports(const dan_peer_t *p, uint32_t baud)
 {
     return baud == DAN_BAUD_BASE ||
-           (p->identity.baud_mask & DAN_BAUD_MASK_DEFINED & dan_mask_bit_of_baud(baud)) != 0u;
+           (p->baud_mask & DAN_BAUD_MASK_DEFINED & dan_mask_bit_of_baud(baud)) != 0u;
 }
 
 uint32_t dan_master_best_baud(const dan_master_t *m)
@@ -25,7 +25,7 @@ uint32_t dan_master_best_baud(const dan_master_t *m)
     bool any = false;
     for (i = 0; i < m->ntypes; i++) {
         if (m->peers[i].present) {
-            mask &= m->peers[i].identity.baud_mask;
+            mask &= m->peers[i].baud_mask;
             any = true;
         }
     }
@@ -177,7 +177,7 @@ static bool step_disc_probe(dan_master_t *m, uint64_t now_us)
     }
     if (m->idx < m->ntypes) {
         dan_mst_switch_baud(m, scan_baud(m, NULL, m->bidx), now_us);
-        dan_mst_probe(m, m->types[m->idx], m->cfg.discovery_attempts, now_us);
+        dan_mst_probe(m, m->peers[m->idx].first_code, m->cfg.discovery_attempts, now_us);
         return true;
     }
     found = peers_found(m);
@@ -207,7 +207,7 @@ bool dan_mst_configure_next(dan_master_t *m, bool (*ask)(const dan_master_t *m, 
         return false;
     }
     dan_mst_switch_baud(m, m->peers[m->idx].baud, now_us);
-    dan_mst_send_configure(m, m->types[m->idx], m->target_baud, now_us);
+    dan_mst_send_configure(m, m->peers[m->idx].first_code, m->target_baud, now_us);
     return true;
 }
 
@@ -244,7 +244,7 @@ static bool step_verify(dan_master_t *m, uint64_t now_us)
         m->idx++;
     }
     if (m->idx < m->ntypes) {
-        dan_mst_probe(m, m->types[m->idx], (uint8_t)(m->cfg.retries + 1u), now_us);
+        dan_mst_probe(m, m->peers[m->idx].first_code, (uint8_t)(m->cfg.retries + 1u), now_us);
         return true;
     }
     if (m->step == DAN_ST_REC_VERIFY && m->cfg_auto && m->cidx < m->ncand && peers_found(m) > 0u) {
@@ -278,7 +278,7 @@ static bool step_rec_find(dan_master_t *m, uint64_t now_us)
         return false;
     }
     dan_mst_switch_baud(m, b, now_us);
-    dan_mst_probe(m, m->types[m->idx], m->cfg.discovery_attempts, now_us);
+    dan_mst_probe(m, m->peers[m->idx].first_code, m->cfg.discovery_attempts, now_us);
     return true;
 }
 
@@ -341,7 +341,7 @@ static void rec_txn_done(dan_master_t *m, dan_peer_t *p, uint64_t now_us)
         p->baud = m->link.baud;
         if (p->baud != DAN_BAUD_BASE) {
             m->step = DAN_ST_REC_BACK;
-            dan_mst_send_configure(m, m->types[m->idx], DAN_BAUD_BASE, now_us);
+            dan_mst_send_configure(m, m->peers[m->idx].first_code, DAN_BAUD_BASE, now_us);
             return;
         }
         m->idx++;
@@ -366,13 +366,26 @@ static void rec_txn_done(dan_master_t *m, dan_peer_t *p, uint64_t now_us)
     }
 }
 
-void dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
+/* Takes an IDENTIFY reply: the peer's baud mask, and its whole identity
+ * if the caller keeps them. False if it does not decode. */
+static bool probe_accept(dan_master_t *m, dan_peer_t *p)
+{
+    size_t i = (size_t)(p - m->peers);
+    if (dan_identity_baud_mask(m->resp, m->resp_len, &p->baud_mask) != DAN_OK) {
+        return false;
+    }
+    if (i < m->nids && m->id_decode != NULL) {
+        (void)m->id_decode(&m->ids[i], m->resp, m->resp_len); /* accepted above */
+    }
+    return true;
+}
+
+bool dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
 {
     dan_peer_t *p = (m->idx < m->ntypes) ? &m->peers[m->idx] : NULL;
     switch (m->step) {
     case DAN_ST_DISC_PROBE:
-        if (m->txn_result == DAN_OK &&
-            dan_identity_decode(&p->identity, m->resp, m->resp_len) == DAN_OK) {
+        if (m->txn_result == DAN_OK && probe_accept(m, p)) {
             p->present = true;
             p->baud = m->link.baud;
         }
@@ -385,14 +398,12 @@ void dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
     case DAN_ST_REC_VERIFY:
         rec_txn_done(m, p, now_us);
         if (m->step == DAN_ST_REC_BACK) {
-            return; /* its CONFIGURE is under way */
+            return false; /* its CONFIGURE is under way */
         }
         break;
     default: dan_mst_fast_txn_done(m, now_us); break;
     }
-    if (m->op != DAN_MASTER_OP_NONE) { /* not finished by the step */
-        dan_mst_seq_next(m, now_us);
-    }
+    return m->op != DAN_MASTER_OP_NONE; /* not finished by the step */
 }
 
 int dan_master_discover(dan_master_t *m, uint64_t now_us)

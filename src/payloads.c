@@ -74,6 +74,22 @@ int dan_identity_decode(dan_identity_t *id, const uint8_t *p, size_t len)
     return dan_reader_finish(&r);
 }
 
+int dan_identity_baud_mask(const uint8_t *p, size_t len, uint16_t *mask)
+{
+    dan_reader_t r;
+    const uint8_t *s;
+    size_t n;
+    int i;
+    dan_reader_init(&r, p, len);
+    (void)dan_get_u8(&r); /* dan_version */
+    for (i = 0; i < 4; i++) {
+        dan_get_array_view(&r, &s, &n); /* the four strings, as dan_get_string() reads them */
+    }
+    *mask = dan_get_u16(&r);
+    (void)dan_get_u16(&r); /* capabilities */
+    return dan_reader_finish(&r);
+}
+
 int dan_configure_encode(const dan_configure_t *c, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
@@ -131,6 +147,18 @@ int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *o
     dan_put_uvarint(&w, error);
     dan_put_string(&w, text);
     return dan_writer_finish(&w);
+}
+
+int dan_error_code(const uint8_t *p, size_t len, uint32_t *code)
+{
+    dan_reader_t r;
+    const uint8_t *s;
+    size_t n;
+    dan_reader_init(&r, p, len);
+    *code = dan_get_uvarint(&r);
+    (void)dan_get_uvarint(&r);      /* error */
+    dan_get_array_view(&r, &s, &n); /* text, as dan_get_string() reads it */
+    return dan_reader_finish(&r);
 }
 
 int dan_error_decode(dan_error_msg_t *e, const uint8_t *p, size_t len)

@@ -34,6 +34,7 @@
 #define RAMP_PERIOD_US   20000u /* 50 Hz command rate */
 #define RAMP_MAX         2000   /* raw command at the top (of 8191) */
 #define NUM_ESC          4u
+#define NUM_TYPES        3u      /* bus_types */
 #define DAN_START_BAUD   9600u   /* DAN starts at 9600 */
 #define REPLY_LATENCY_US 50000u  /* a reply may start this late (QEMU, the pty) */
 #define GAP_US           20000u  /* bytes may come in bursts this far apart */
@@ -149,6 +150,7 @@ typedef struct {
 
 struct app {
     dan_master_t m;
+    dan_identity_t ids[NUM_TYPES]; /* discovery reports them here */
     size_t phase;
     uint32_t k;          /* step within the phase */
     uint64_t op_t0;      /* when the running operation started */
@@ -165,8 +167,8 @@ struct app {
     int gw_result;
 };
 
-static const uint32_t bus_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST,
-                                     DAN_TYPE_CAN_GW_FIRST};
+static const uint32_t bus_types[NUM_TYPES] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FIRST,
+                                              DAN_TYPE_CAN_GW_FIRST};
 
 /* -- discover -- */
 
@@ -193,7 +195,8 @@ static step_t discover_done(app_t *a, int r, uint64_t now)
             continue;
         }
         o_str(first ? "" : ",");
-        out_len += dan_peer_json(out_line + out_len, sizeof out_line - 1u - out_len, p, 0);
+        out_len +=
+            dan_peer_json(out_line + out_len, sizeof out_line - 1u - out_len, p, &a->ids[i], 0);
         first = false;
     }
     o_str("]");
@@ -648,6 +651,7 @@ int main(void)
         sh_puts("{\"event\":\"init failed\"}\n");
         return 1;
     }
+    dan_master_set_identities(&a.m, a.ids, NUM_TYPES);
     print_boot(&a, cmdline);
     while (code < 0 && a.phase < NUM_PHASES) {
         code = tick(&a, deadline);

@@ -67,6 +67,10 @@ void Reset_Handler(void)
         probe_in = (uint32_t)dan_master_result(&probe_master);
         probe_in = (uint32_t)(uintptr_t)dan_master_peer(&probe_master, probe_in);
 #if SIZE_PROBE >= 2
+        /* RAM of one telemetry slot (DAN_GW_MAX_ESC), for the report: an
+         * absolute symbol, no code or data */
+        __asm__ volatile(
+            ".global probe_esc_slot\n\t.set probe_esc_slot, %c0" ::"i"(sizeof(dan_gw_telem_t)));
         {
             int16_t v[4] = {1, 2, 3, 4};
             dan_gw_config_t cfg = {0};

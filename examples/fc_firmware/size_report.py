@@ -20,15 +20,24 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import stack_usage  # noqa: E402
 
 PARTS = [
-    ("codec", ("common.o", "crc8.o", "frame.o", "payloads.o")),
+    ("codec", ("common.o", "crc8.o", "crc8_nibble.o", "frame.o", "payloads.o")),
     ("master engine", ("link.o", "master.o", "master_seq.o", "master_fast.o")),
-    ("gateway client", ("gw_client.o", "gw_msgs.o", "gw_msgs_fast.o", "f16.o", "crc16.o")),
+    (
+        "gateway client",
+        ("gw_client.o", "gw_client_can.o", "gw_client_mgmt.o", "gw_client_out.o", "gw_client_any.o")
+        + ("gw_msgs.o", "gw_msgs_fast.o", "gw_msgs_mgmt.o", "gw_msgs_out.o")
+        + ("f16.o", "crc16.o", "gw_esc_map.o"),
+    ),
 ]
 LIB_PARTS = [p for p, _ in PARTS]
 LIBC = "libc/libgcc helpers"
 # Every firmware links these anyway (issue 17): any other helper (64-bit
 # division, float, printf-like) the library pulls in fails the budget.
 FAIR_HELPERS = ("memcpy", "memmove", "memset", "memcmp", "memchr")
+# Issue 17's goals: what an FC links (codec, master, the ESC calls) in 4 KiB
+# of flash, 640 B of RAM per bus (its caller-owned state, telemetry of 4
+# ESCs), 256 B of stack for any public call.
+GOALS = {"flash": 4096, "ram": 640, "stack": 256}
 # ../shared/notes/size-anchors.md (same compiler, -Os, --gc-sections).
 ANCHORS = [
     ("MAVLink2 parser only (common.xml, no signing)", 3392, 632),
@@ -111,6 +120,12 @@ def symbol_sizes(nm, elf):
         f = line.split()
         if len(f) == 4:
             syms[f[3]] = (int(f[1], 16), f[2])
+    # absolute symbols (the probe's constants, e.g. probe_esc_slot): their value
+    out = subprocess.run([nm, elf], capture_output=True, text=True, check=True).stdout
+    for line in out.splitlines():
+        f = line.split()
+        if len(f) == 3 and f[1] in "aA":
+            syms[f[2]] = (int(f[0], 16), f[1])
     return syms
 
 
@@ -149,24 +164,34 @@ def print_stack(a, syms):
     for note in notes:
         print(f"  note: {note}")
     worst = rows[0][1] if rows else 0
-    print(f"budget: stack {worst} / {a.stack_budget} bytes (worst public call)")
+    print(
+        f"budget: stack {worst} / {a.stack_budget} bytes (worst public call; goal {GOALS['stack']})"
+    )
     if worst > a.stack_budget:
         print(f"FAIL: stack {worst} > budget {a.stack_budget}", file=sys.stderr)
         return False
     return True
 
 
-def print_parts(img, full_map):
-    print(f"{'part':<44} {'flash':>6} {'RAM':>5}")
+def print_parts(img, full_map, nibble_map):
+    print(f"{'part':<44} {'flash':>6} {'RAM':>5}   goal")
     for part in LIB_PARTS + [p for p in img if p not in LIB_PARTS and p != "probe"]:
         f, r = img.get(part, (0, 0))
         print(f"{part:<44} {f:>6} {r:>5}")
     lf, lr = total(img, LIB_PARTS)
-    print(f"{'libdan total (codec + master + gateway)':<44} {lf:>6} {lr:>5}")
+    print(f"{'libdan total (codec + master + gateway)':<44} {lf:>6} {lr:>5}   {GOALS['flash']}")
+    if nibble_map:
+        nib, _ = parse_map(nibble_map)
+        nf, _ = total(nib, LIB_PARTS)
+        cf = nib.get("codec", (0, 0))[0]
+        print(f"{'  the same, DAN_CRC8_TABLE=0 (nibble table)':<44} {nf:>6}   (codec {cf})")
     if full_map:
         full, _ = parse_map(full_map)
         ff, fr = full.get("gateway client", (0, 0))
         print(f"{'gateway client, whole API (tunnels, CAN, ...)':<44} {ff:>6} {fr:>5}")
+        print(
+            f"{'  of it linked only when called':<44} {ff - img.get('gateway client', (0, 0))[0]:>6}"
+        )
     return lf, lr
 
 
@@ -185,6 +210,7 @@ def main():
     ap.add_argument("--base", required=True)
     ap.add_argument("--image", required=True)
     ap.add_argument("--full")
+    ap.add_argument("--nibble", help="the image's map with DAN_CRC8_TABLE=0")
     ap.add_argument("--elf", required=True)
     ap.add_argument("--nm", default="arm-none-eabi-nm")
     ap.add_argument("--objdump", default="arm-none-eabi-objdump")
@@ -206,16 +232,19 @@ def main():
         "libdan on Cortex-M4 (arm-none-eabi-gcc -mcpu=cortex-m4 -mthumb -Os, "
         "-ffunction-sections -fdata-sections, --gc-sections)"
     )
-    lf, lr = print_parts(img, a.full)
+    lf, lr = print_parts(img, a.full, a.nibble)
     ok = print_libc(secs)
     print(
         f"{'image delta over a minimal image':<44} {tf - bf:>6} {tr - br:>5}"
         "   (includes the per-bus state below)"
     )
+    slot = syms.get("probe_esc_slot", (0, ""))[0]
     print(f"{'per bus: dan_master_t (caller-owned)':<44} {'':>6} {master_ram:>5}")
     print(f"{'per bus: dan_gw_t (caller-owned)':<44} {'':>6} {gw_ram:>5}")
-    print_symbols(secs)
+    print(f"{'  of it per ESC slot (DAN_GW_MAX_ESC: 4)':<44} {'':>6} {slot:>5}")
     ram_bus = lr + master_ram + gw_ram
+    print(f"{'per bus, total':<44} {'':>6} {ram_bus:>5}   {GOALS['ram']}")
+    print_symbols(secs)
     print_anchors(lf, ram_bus)
     ok = print_stack(a, syms) and ok
     print(

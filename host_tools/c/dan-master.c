@@ -58,6 +58,7 @@ static void usage(FILE *f)
 
 typedef struct {
     dan_master_t m;
+    dan_identity_t ids[DAN_MASTER_MAX_TYPES]; /* discovery reports them here */
     dan_posix_port_t port;
     bool json;
     uint64_t timeout_us;
@@ -121,7 +122,7 @@ static void print_peers(ctx_t *c, int r, double ms)
             if (!p->present) {
                 continue;
             }
-            dan_peer_json(obj, sizeof obj, p, DAN_PEER_JSON_FULL);
+            dan_peer_json(obj, sizeof obj, p, &c->ids[i], DAN_PEER_JSON_FULL);
             printf("%s%s", first ? "" : ",", obj);
             first = false;
         }
@@ -133,10 +134,11 @@ static void print_peers(ctx_t *c, int r, double ms)
            "model", "hw", "sw", "mask");
     for (i = 0; i < c->m.ntypes; i++) {
         const dan_peer_t *p = &c->m.peers[i];
+        const dan_identity_t *id = &c->ids[i];
         if (p->present) {
             printf("%-8s 0x%02X   %-8u %-16s %-16s %-8s %-10s 0x%04X\n", type_name(p->first_code),
-                   p->first_code, p->baud, p->identity.manufacturer, p->identity.model,
-                   p->identity.hw_version, p->identity.sw_version, p->identity.baud_mask);
+                   p->first_code, p->baud, id->manufacturer, id->model, id->hw_version,
+                   id->sw_version, id->baud_mask);
         }
     }
 }
@@ -159,11 +161,13 @@ static int parse_hex(const char *s, uint8_t *out, size_t cap, size_t *len)
 static void print_txn(ctx_t *c, const char *step, uint32_t code, int r, double ms)
 {
     size_t i;
+    dan_error_msg_t e;
+    if (r != DAN_ERR_REMOTE || dan_master_remote_error(&c->m, &e) != DAN_OK) {
+        e.text[0] = '\0';
+    }
     if (c->json) {
         printf("{\"step\":\"%s\",\"code\":%u,\"result\":%d,\"error\":", step, code, r);
-        tool_json_str(stdout, r == DAN_OK           ? ""
-                              : r == DAN_ERR_REMOTE ? c->m.remote_error.text
-                                                    : dan_strerror(r));
+        tool_json_str(stdout, r == DAN_OK ? "" : r == DAN_ERR_REMOTE ? e.text : dan_strerror(r));
         printf(",\"ms\":%.2f,\"payload\":\"", ms);
         for (i = 0; r == DAN_OK && i < c->m.resp_len; i++) {
             printf("%02x", c->m.resp[i]);
@@ -178,7 +182,7 @@ static void print_txn(ctx_t *c, const char *step, uint32_t code, int r, double m
         }
         printf("\n");
     } else if (r == DAN_ERR_REMOTE) {
-        printf("%s 0x%02X: error frame: %s\n", step, code, c->m.remote_error.text);
+        printf("%s 0x%02X: error frame: %s\n", step, code, e.text);
     } else {
         printf("%s 0x%02X: %s\n", step, code, dan_strerror(r));
     }
@@ -352,6 +356,7 @@ static int start(ctx_t *c, const opts_t *o, const uint32_t *types, size_t ntypes
     c->timeout_us = (uint64_t)o->timeout_ms * 1000u;
     dan_master_init(&c->m, dan_posix_port(&c->port), &cfg, types, ntypes, o->baud,
                     dan_posix_now_us());
+    dan_master_set_identities(&c->m, c->ids, DAN_MASTER_MAX_TYPES);
     return 0;
 }
 

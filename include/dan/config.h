@@ -38,6 +38,14 @@
 #define DAN_MAX_STRING 32u
 #endif
 
+/* The crc8 (every received byte) by a 256-byte table (1: about 6 x86
+ * instructions a byte, the parser's 17 instr/B in `make bench`) or a
+ * 16-byte nibble table (0: ~240 bytes less flash, about 10 instructions a
+ * byte more). `make size` reports both. */
+#ifndef DAN_CRC8_TABLE
+#define DAN_CRC8_TABLE 1
+#endif
+
 /* ==== bus engines: timing defaults (docs/PROTOCOL.md section 6) ====
  * Each is only a default: the engines' config structs change them at run
  * time. No RAM cost. */
@@ -97,10 +105,11 @@
 /* ==== CAN gateway type, FC side: the client (dan/can_gw/client.h) ==== */
 
 /* Telemetry slots the client keeps (ESC indexes 0..DAN_GW_MAX_ESC-1;
- * records of higher indexes are counted in telem_ignored). RAM: 40 bytes
- * each in dan_gw_t. */
+ * records of higher indexes are counted in telem_ignored). 4: a quad;
+ * raise it for more motors. RAM: 44 bytes each in dan_gw_t (Cortex-M4;
+ * `make size` states it). */
 #ifndef DAN_GW_MAX_ESC
-#define DAN_GW_MAX_ESC 8u
+#define DAN_GW_MAX_ESC 4u
 #endif
 /* Tunnel ports the client tracks (port numbers 0..DAN_GW_TUNNELS-1). RAM:
  * 24 bytes each in dan_gw_t. */

@@ -81,8 +81,12 @@ void dan_decoder_reset(dan_decoder_t *d);
 int dan_decoder_feed(dan_decoder_t *d, const uint8_t *data, size_t len, size_t *consumed,
                      dan_frame_t *frame);
 
-/* True while a partial frame is buffered (a frame has started). */
-bool dan_decoder_busy(const dan_decoder_t *d);
+/* True while a partial frame is buffered (a frame has started). Inline:
+ * the link asks on every poll. */
+static inline bool dan_decoder_busy(const dan_decoder_t *d)
+{
+    return d->len > d->consume;
+}
 
 /* Call when the line has been idle while a partial frame was buffered
  * (see dan_decoder_busy()): the partial frame is dropped and counted in

@@ -30,12 +30,14 @@ extern "C" {
  * left out. Returns the bytes written without the NUL. */
 size_t dan_json_str(char *out, size_t cap, const char *s);
 
-/* The peer as {"type":NAME,"baud":N,"dan_version":N,"manufacturer":S,
+/* The peer with its identity id (as reported by discovery, see
+ * dan_master_set_identities()) as {"type":NAME,"baud":N,"dan_version":N,"manufacturer":S,
  * "model":S,"sw_version":S,"baud_mask":N}, with DAN_PEER_JSON_FULL also
  * "first_code" after "type", "hw_version" after "model" and "capabilities"
  * last. NAME is the registry's name of p->first_code, or "?". Output and
  * return value as dan_json_str(). */
-size_t dan_peer_json(char *out, size_t cap, const dan_peer_t *p, unsigned flags);
+size_t dan_peer_json(char *out, size_t cap, const dan_peer_t *p, const dan_identity_t *id,
+                     unsigned flags);
 
 #ifdef __cplusplus
 }

@@ -65,11 +65,13 @@ typedef struct {
 
 void dan_master_config_default(dan_master_config_t *c);
 
-/* One discovered peripheral (one type on this UART). */
+/* One discovered peripheral (one type on this UART). Its whole identity
+ * goes to caller-owned storage (dan_master_set_identities()); the master
+ * keeps only what the sequencers need. */
 typedef struct {
     uint32_t first_code; /* its type: IDENTIFY = first_code */
-    dan_identity_t identity;
-    uint32_t baud; /* baud it answers at */
+    uint32_t baud;       /* baud it answers at */
+    uint16_t baud_mask;  /* its identity's baud mask, raw as on the wire */
     bool present;
     bool fast_refused; /* refused (or failed at) a fast baud: asked first next time */
 } dan_peer_t;
@@ -104,9 +106,12 @@ typedef enum {
 typedef struct {
     dan_link_t link;
     dan_master_config_t cfg;
-    uint32_t types[DAN_MASTER_MAX_TYPES];
     size_t ntypes;
-    dan_peer_t peers[DAN_MASTER_MAX_TYPES]; /* one slot per type */
+    dan_peer_t peers[DAN_MASTER_MAX_TYPES]; /* one slot per type, in types' order */
+    /* where discovery reports identities (dan_master_set_identities()) */
+    dan_identity_t *ids;
+    size_t nids;
+    int (*id_decode)(dan_identity_t *id, const uint8_t *p, size_t len);
 
     /* the current transaction */
     uint32_t req_code; /* the request itself waits in link.tx */
@@ -119,11 +124,16 @@ typedef struct {
     bool lbt_counted;
     int txn_result;
 
-    /* the response (valid after a transaction completes) */
+    /* The response of the last transaction: its payload is kept in the
+     * link's TX buffer (half duplex: the request is no longer needed once
+     * its reply is in, and the next request is encoded only when the next
+     * transaction starts). resp == link.tx (set by dan_master_init; do not
+     * copy a dan_master_t); valid after a transaction completes, until the
+     * next call that starts one. After DAN_ERR_REMOTE it is the error
+     * frame's payload (resp_code DAN_CODE_ERROR): dan_master_remote_error(). */
     uint32_t resp_code;
-    uint8_t resp[DAN_MAX_PAYLOAD];
+    uint8_t *resp;
     size_t resp_len;
-    dan_error_msg_t remote_error; /* when the result is DAN_ERR_REMOTE */
 
     /* the current operation */
     dan_master_op_t op;
@@ -172,7 +182,9 @@ int dan_master_result(const dan_master_t *m);
 
 /* Starts a transaction: sends code with payload, waits for the reply with
  * the same code (or an error frame for it), retrying per cfg.retries on
- * timeouts and collisions. The reply is in m->resp / m->resp_len. Needs the
+ * timeouts and collisions. The reply is in m->resp / m->resp_len (in the
+ * TX buffer: valid until the next transaction, discovery or configure
+ * starts). Needs the
  * bus at the peer's baud (after discovery/configure). DAN_ERR_BUSY if an
  * operation runs. */
 int dan_master_request(dan_master_t *m, uint32_t code, const uint8_t *payload, size_t len,
@@ -193,6 +205,23 @@ int dan_master_discover(dan_master_t *m, uint64_t now_us);
  * (9600; in auto mode it then goes on with the mask baud) and the result
  * tells what failed. */
 int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us);
+
+/* Where discovery reports the identity of each peer that answers: ids[i]
+ * for types[i] of dan_master_init() (i < n; the others are not kept),
+ * written when its IDENTIFY reply is in. Caller-owned; it must stay valid
+ * while the master runs. NULL: none kept (the default; the master itself
+ * keeps only each peer's baud mask). The identity decoder is linked only
+ * into programs that call this. */
+void dan_master_set_identities(dan_master_t *m, dan_identity_t *ids, size_t n);
+
+/* The identity reported for a present peer of a type (by its first code),
+ * or NULL (not present, or not kept). */
+const dan_identity_t *dan_master_identity(const dan_master_t *m, uint32_t first_code);
+
+/* The error frame that refused the last transaction (its result was
+ * DAN_ERR_REMOTE), decoded into e: DAN_OK, or DAN_ERR_NOTFOUND if there is
+ * none (valid until the next transaction starts, as m->resp). */
+int dan_master_remote_error(const dan_master_t *m, dan_error_msg_t *e);
 
 /* Installs a reply check (NULL: none). */
 void dan_master_set_reply_check(dan_master_t *m, dan_reply_check_fn fn, void *user);

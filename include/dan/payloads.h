@@ -58,6 +58,10 @@ typedef struct {
 
 int dan_identity_encode(const dan_identity_t *id, uint8_t *out, size_t cap);
 int dan_identity_decode(dan_identity_t *id, const uint8_t *p, size_t len);
+/* Only the baud mask of an identity payload: DAN_OK for exactly the
+ * payloads dan_identity_decode() accepts, else DAN_ERR_MALFORMED (*mask
+ * then undefined). No string buffers: what the master keeps of a peer. */
+int dan_identity_baud_mask(const uint8_t *p, size_t len, uint16_t *mask);
 
 /* DAN-PERIPHERAL-CONFIGURATION-REQUEST-TYPE-ENUM-V1 */
 #define DAN_CONFIGURE_BPS 0u
@@ -91,6 +95,9 @@ typedef struct {
 
 int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *out, size_t cap);
 int dan_error_decode(dan_error_msg_t *e, const uint8_t *p, size_t len);
+/* Only the request code of an error payload: DAN_OK for exactly the
+ * payloads dan_error_decode() accepts (no text buffer). */
+int dan_error_code(const uint8_t *p, size_t len, uint32_t *code);
 
 #ifdef __cplusplus
 }

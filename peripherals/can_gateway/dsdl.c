@@ -3,6 +3,7 @@
 
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/dsdl_file.h"
+#include "dan/can_gw/dsdl_fw.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
 
@@ -209,6 +210,7 @@ bool dan_dc_dsdl_signature(uint8_t transfer_type, uint16_t data_type_id, uint64_
         case DAN_DC_RESTART_ID: sig = DAN_DC_RESTART_SIGNATURE; break;
         case DAN_DC_FILE_GETINFO_ID: sig = DAN_DC_FILE_GETINFO_SIGNATURE; break;
         case DAN_DC_FILE_READ_ID: sig = DAN_DC_FILE_READ_SIGNATURE; break;
+        case DAN_DC_FW_BEGIN_ID: sig = DAN_DC_FW_BEGIN_SIGNATURE; break;
         default: return false;
         }
     } else {

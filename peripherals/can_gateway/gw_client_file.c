@@ -27,7 +27,7 @@ int dan_gw_file_open(dan_gw_t *gw, const char *name, uint32_t size, bool restart
     o.name_len = (uint8_t)name_len(name);
     o.size = size;
     o.flags = restart ? DAN_GW_FILE_RESTART : 0u;
-    return dan_gwc_start(gw, DAN_GW_CODE_FILE_OPEN, buf,
+    return dan_gwc_start(gw, DAN_GW_CODE_FILE_OPEN, NULL, buf,
                          dan_gw_msg_file_open_encode(&o, buf, DAN_GWC_CAP(buf)), sizeof buf,
                          now_us);
 }
@@ -43,7 +43,7 @@ int dan_gw_file_write(dan_gw_t *gw, uint32_t offset, const uint8_t *data, size_t
     w.offset = offset;
     w.data = data;
     w.len = data != NULL ? len : 0u;
-    return dan_gwc_start(gw, DAN_GW_CODE_FILE_WRITE, buf,
+    return dan_gwc_start(gw, DAN_GW_CODE_FILE_WRITE, NULL, buf,
                          dan_gw_msg_file_write_encode(&w, buf, DAN_GWC_CAP(buf)), sizeof buf,
                          now_us);
 }
@@ -57,7 +57,7 @@ int dan_gw_file_commit(dan_gw_t *gw, uint32_t crc32, uint64_t now_us)
     }
     c.result = 0;
     c.crc32 = crc32;
-    return dan_gwc_start(gw, DAN_GW_CODE_FILE_COMMIT, buf,
+    return dan_gwc_start(gw, DAN_GW_CODE_FILE_COMMIT, NULL, buf,
                          dan_gw_msg_file_commit_req_encode(&c, buf, DAN_GWC_CAP(buf)), sizeof buf,
                          now_us);
 }
@@ -68,7 +68,7 @@ int dan_gw_file_remove(dan_gw_t *gw, const char *name, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_FILE_REMOVE, buf,
+    return dan_gwc_start(gw, DAN_GW_CODE_FILE_REMOVE, NULL, buf,
                          dan_gw_msg_file_name_encode(name, name_len(name), buf, DAN_GWC_CAP(buf)),
                          sizeof buf, now_us);
 }
@@ -104,7 +104,7 @@ int dan_gw_file_list(dan_gw_t *gw, uint8_t first, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_FILE_LIST, first, 1u, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_FILE_LIST, NULL, first, 1u, now_us);
 }
 
 int dan_gw_file_list_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_file_list_hdr_t *hdr)

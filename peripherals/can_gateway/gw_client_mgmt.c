@@ -10,7 +10,7 @@ int dan_gw_node_call(dan_gw_t *gw, const dan_gw_call_t *c, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, DAN_GW_CODE_NODE_CALL, buf,
+    return dan_gwc_start(gw, DAN_GW_CODE_NODE_CALL, dan_gwc_done_call, buf,
                          dan_gw_msg_call_encode(c, buf, DAN_GWC_CAP(buf)), sizeof buf, now_us);
 }
 
@@ -89,7 +89,7 @@ int dan_gw_call_result(dan_gw_t *gw, uint16_t call_id, uint32_t offset, uint8_t 
     q.call_id = call_id;
     q.offset = offset;
     q.max = max;
-    return dan_gwc_start(gw, DAN_GW_CODE_CALL_RESULT, buf,
+    return dan_gwc_start(gw, DAN_GW_CODE_CALL_RESULT, NULL, buf,
                          dan_gw_msg_result_req_encode(&q, buf, DAN_GWC_CAP(buf)), sizeof buf,
                          now_us);
 }
@@ -106,7 +106,7 @@ int dan_gw_health(dan_gw_t *gw, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_HEALTH, 0u, 0u, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_HEALTH, dan_gwc_done_health, 0u, 0u, now_us);
 }
 
 int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
@@ -114,7 +114,7 @@ int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_DNA, first, 1u, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_DNA, NULL, first, 1u, now_us);
 }
 
 int dan_gw_dna_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_dna_hdr_t *hdr)
@@ -128,11 +128,14 @@ int dan_gw_dna_next(dan_reader_t *r, dan_gw_dna_entry_t *e)
     return dan_gw_msg_dna_entry_get(r, e);
 }
 
-int dan_gwc_complete_mgmt(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
+int dan_gwc_done_call(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
 {
-    switch (code) {
-    case DAN_GW_CODE_NODE_CALL: return dan_gw_msg_call_state_decode(&gw->call, p, len);
-    case DAN_GW_CODE_HEALTH: return dan_gw_msg_health_decode(&gw->health, p, len);
-    default: return DAN_OK; /* NODES, NODE_INFO, CAN_FILTER, CALL_RESULT, DNA: read on demand */
-    }
+    (void)code;
+    return dan_gw_msg_call_state_decode(&gw->call, p, len);
+}
+
+int dan_gwc_done_health(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
+{
+    (void)code;
+    return dan_gw_msg_health_decode(&gw->health, p, len);
 }

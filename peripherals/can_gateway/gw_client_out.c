@@ -3,13 +3,14 @@
 #include "dan/can_gw/f16.h"
 #include "gw_client_internal.h"
 
-/* Starts code with the payload an encoder wrote into buf (or its error). */
+/* Starts code with the payload an encoder wrote into buf (or its error).
+ * Each response is the gateway flags, SERVO_FAILSAFE's the entries kept. */
 static int start(dan_gw_t *gw, uint32_t code, uint8_t *buf, int len, size_t cap, uint64_t now_us)
 {
     if (!dan_gwc_idle(gw)) {
         return DAN_ERR_BUSY;
     }
-    return dan_gwc_start(gw, code, buf, len, cap, now_us);
+    return dan_gwc_start(gw, code, dan_gwc_done_flags, buf, len, cap, now_us);
 }
 
 int dan_gw_safety(dan_gw_t *gw, bool safety_off, uint64_t now_us)

@@ -45,7 +45,8 @@ static bool accept_cb(void *user, uint16_t dtid, uint8_t ttype, uint8_t src, uin
             return false; /* the services we answer */
         }
     } else if (dtid != DAN_DC_GET_NODE_INFO_ID && dtid != DAN_DC_PARAM_GETSET_ID &&
-               dtid != DAN_DC_PARAM_OPCODE_ID && dtid != DAN_DC_RESTART_ID) {
+               dtid != DAN_DC_PARAM_OPCODE_ID && dtid != DAN_DC_RESTART_ID &&
+               dtid != DAN_DC_FW_BEGIN_ID) {
         return false; /* the services we call */
     }
     return dan_dc_dsdl_signature(ttype, dtid, sig);
@@ -180,6 +181,7 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
     v[DAN_GW_STAT_FILE_COMMITS] = g->stats.file_commits;
     v[DAN_GW_STAT_UPLOAD_ERRORS] = g->stats.upload_errors;
     v[DAN_GW_STAT_FW_BEGINS] = g->stats.fw_begins;
+    v[DAN_GW_STAT_FILE_DROPPED] = g->stats.file_dropped;
 }
 
 /* ---- our own DroneCAN presence ---- */

@@ -1,5 +1,6 @@
 /* Gateway node: DroneCAN service calls made for the FC (NODE_CALL,
- * CALL_RESULT): parameters, ExecuteOpcode, RestartNode. Transfer IDs,
+ * CALL_RESULT): parameters, ExecuteOpcode, RestartNode,
+ * BeginFirmwareUpdate (its OK answer resets the node's update progress). Transfer IDs,
  * response matching, timeouts and retries are kept here; several calls may
  * be in flight at once, to one node or to several. */
 #include <string.h>
@@ -21,6 +22,10 @@ static service_t service_of(uint8_t op)
     } else if (op == DAN_GW_CALL_RESTART) {
         s.dtid = DAN_DC_RESTART_ID;
         s.signature = DAN_DC_RESTART_SIGNATURE;
+        s.priority = DAN_DC_PRIORITY_MEDIUM;
+    } else if (op == DAN_GW_CALL_FW_BEGIN) {
+        s.dtid = DAN_DC_FW_BEGIN_ID;
+        s.signature = DAN_DC_FW_BEGIN_SIGNATURE;
         s.priority = DAN_DC_PRIORITY_MEDIUM;
     }
     return s;
@@ -63,6 +68,14 @@ static int build_request(dan_gw_node_t *g, dan_gw_node_call_t *k, const dan_gw_c
         n = dan_dc_param_opcode_req_encode(&op, k->req, sizeof k->req);
         break;
     case DAN_GW_CALL_RESTART: n = dan_dc_restart_req_encode(c->magic, k->req, sizeof k->req); break;
+    case DAN_GW_CALL_FW_BEGIN:
+        /* source: the gateway (its file server); path: the name */
+        memset(&g->scratch.fw_req, 0, sizeof g->scratch.fw_req);
+        g->scratch.fw_req.source_node_id = g->cfg.node_id;
+        memcpy(g->scratch.fw_req.path, c->name, c->name_len);
+        g->scratch.fw_req.path_len = c->name_len;
+        n = dan_dc_fw_begin_req_encode(&g->scratch.fw_req, k->req, sizeof k->req);
+        break;
     default:
         memset(q, 0, sizeof *q);
         if (c->op == DAN_GW_CALL_PARAM_GET_INDEX) {
@@ -138,20 +151,40 @@ static void state_of(const dan_gw_node_call_t *k, uint16_t call_id, dan_gw_call_
     st->result_len = k != NULL && k->state == DAN_GW_CALL_DONE ? k->result_len : 0u;
 }
 
+/* FW_BEGIN names a committed file: its size, or a negative error (an
+ * error frame; nothing is sent). */
+static int32_t fw_file_size(const dan_gw_node_t *g, const dan_gw_call_t *c)
+{
+    const dan_gw_file_store_t *fs = g->cfg.files;
+    char name[DAN_GW_FILE_NAME_MAX + 1u];
+    int32_t size;
+    if (!dan_gw_file_name_ok(c->name, c->name_len)) {
+        return DAN_ERR_MALFORMED;
+    }
+    if (fs == NULL) {
+        return DAN_ERR_NOTFOUND;
+    }
+    memcpy(name, c->name, c->name_len);
+    name[c->name_len] = '\0';
+    size = fs->size(fs->ctx, name);
+    return size < 0 ? DAN_ERR_NOTFOUND : size;
+}
+
 int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest,
                        dan_gw_call_state_t *st, uint64_t now_us)
 {
     dan_gw_node_call_t *k = dan_gwn_call_find(g, c->call_id);
+    int32_t fw_size = 0;
     int rc;
-    if (c->op == DAN_GW_CALL_FW_BEGIN) {
-        return DAN_ERR_NOTFOUND; /* no committed files yet */
-    }
     if (c->op == DAN_GW_CALL_RESTART && c->magic != DAN_DC_RESTART_MAGIC && !c->force) {
         return DAN_ERR_UNSUPPORTED; /* a bootloader's magic is sent only when forced */
     }
     if (k != NULL && k->digest == digest) {
         state_of(k, c->call_id, st); /* the master's retry: never sent twice */
         return DAN_OK;
+    }
+    if (c->op == DAN_GW_CALL_FW_BEGIN && (fw_size = fw_file_size(g, c)) < 0) {
+        return (int)fw_size;
     }
     if (k == NULL) {
         k = slot_for_new(g);
@@ -170,6 +203,7 @@ int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest
     k->digest = digest;
     k->op = c->op;
     k->node_id = c->node_id;
+    k->file_size = (uint32_t)fw_size;
     k->state = DAN_GW_CALL_PENDING;
     g->stats.calls++;
     send_attempt(g, k, now_us);
@@ -258,6 +292,37 @@ static int restart_result(dan_gw_node_call_t *k, const uint8_t *p, size_t len)
     return DAN_OK;
 }
 
+/* BeginFirmwareUpdate's answer as the DAN result; an OK one starts the
+ * node's progress afresh (NODE_INFO's follow fields). */
+static int fw_begin_result(dan_gw_node_t *g, dan_gw_node_call_t *k, const uint8_t *p, size_t len,
+                           uint64_t now_us)
+{
+    dan_dc_fw_begin_rsp_t m;
+    dan_gw_fw_result_t r;
+    dan_gw_node_slot_t *n;
+    int len_out;
+    if (dan_dc_fw_begin_rsp_decode(&m, p, len) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
+    }
+    r.error = m.error;
+    r.message_len = m.message_len;
+    memcpy(r.message, m.message, m.message_len);
+    len_out = dan_gw_msg_fw_result_encode(&r, k->result, sizeof k->result);
+    if (len_out < 0) {
+        return len_out;
+    }
+    k->result_len = (uint16_t)len_out;
+    n = dan_gwn_find_node(g, k->node_id);
+    if (m.error == DAN_DC_FW_BEGIN_OK && n != NULL) {
+        n->fw.flags = DAN_GW_FW_BEGUN;
+        n->fw.bytes_read = 0;
+        n->fw.file_size = k->file_size;
+        n->fw.last_read_us = now_us ? now_us : 1u;
+    }
+    g->stats.fw_begins += m.error == DAN_DC_FW_BEGIN_OK;
+    return DAN_OK;
+}
+
 void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
 {
     size_t i;
@@ -270,6 +335,8 @@ void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint
         }
         if (k->op == DAN_GW_CALL_RESTART) {
             rc = restart_result(k, t->payload, t->payload_len);
+        } else if (k->op == DAN_GW_CALL_FW_BEGIN) {
+            rc = fw_begin_result(g, k, t->payload, t->payload_len, now_us);
         } else if (k->op == DAN_GW_CALL_PARAM_SAVE || k->op == DAN_GW_CALL_PARAM_ERASE) {
             rc = opcode_result(k, t->payload, t->payload_len);
         } else {

@@ -173,6 +173,24 @@ static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, da
     return DAN_OK;
 }
 
+/* NODE_INFO's appended fields: the node's mode and its firmware update
+ * as far as the gateway saw it (BeginFirmwareUpdate, file reads). */
+static void node_follow(const dan_gw_node_slot_t *n, dan_gw_node_info_t *i, uint64_t now_us)
+{
+    uint32_t since = dan_gwn_age_ms(now_us, n->fw.last_read_us);
+    i->follow = true;
+    i->status = DAN_GW_STATUS_NONE;
+    if (n->seen_us != 0u) {
+        i->status = (uint8_t)(n->e.health | (n->e.mode << 2) | (n->e.sub_mode << 5));
+    }
+    i->file_flags = n->fw.flags;
+    i->bytes_read = n->fw.bytes_read;
+    i->file_size = n->fw.file_size;
+    i->since_read_ms = n->fw.last_read_us == 0u  ? DAN_GW_NEVER_MS
+                       : since < DAN_GW_NEVER_MS ? since
+                                                 : DAN_GW_NEVER_MS - 1u;
+}
+
 static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len,
                        dan_writer_t *resp, const char **err, uint64_t now_us)
 {
@@ -190,12 +208,13 @@ static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len
         return DAN_ERR_NOTFOUND;
     }
     if (n->e.info_state == DAN_GW_INFO_VALID) {
-        PUT_ENCODED(resp, dan_gw_msg_node_info_encode, &n->info);
-        return DAN_OK;
+        tmp = n->info;
+    } else {
+        memset(&tmp, 0, sizeof tmp);
+        tmp.node_id = n->e.node_id;
+        tmp.info_state = n->e.info_state;
     }
-    memset(&tmp, 0, sizeof tmp);
-    tmp.node_id = n->e.node_id;
-    tmp.info_state = n->e.info_state;
+    node_follow(n, &tmp, now_us);
     PUT_ENCODED(resp, dan_gw_msg_node_info_encode, &tmp);
     return DAN_OK;
 }

@@ -21,6 +21,10 @@ int dan_gwn_h_node_call(void *user, uint32_t code, const uint8_t *req, size_t le
         *err = "not RestartNode magic: force";
         return rc;
     }
+    if (rc == DAN_ERR_NOTFOUND || rc == DAN_ERR_MALFORMED) {
+        *err = "FW_BEGIN: not a committed file";
+        return rc;
+    }
     if (rc != DAN_OK) {
         *err = "node call does not fit";
         return rc;

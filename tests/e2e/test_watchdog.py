@@ -92,21 +92,26 @@ def test_sigkill_mid_flight_what_the_escs_see(stack, procs):
     # the FC recovers a gateway that came back at 9600 (--recover)
     p = procs.start(
         [BIN / "dan-fcsim", "--port", s.dan, "--latency-ms", "250", "--recover", "3"]
-        + ["discover", "configure:115200", "esc:300,300,300,300@120000@0"],
+        + ["discover", "configure:115200", "esc:300,300,300,300@120000@100"],
         stdout=subprocess.DEVNULL,
     )
     wait_for(
         lambda: any(e["cmd"] == [300] * 4 for e in s.esc_events("cmd")), 60, 0.1, what="commands"
     )
-    time.sleep(0.5)
     t_kill = time.monotonic()
     procs.stop(s.gwd, signal.SIGKILL)
-    time.sleep(1.0)
+
+    def drained():
+        # commands already on their way (hub, Python ESCs) are logged late on
+        # a loaded host: wait until the log has been quiet for a second
+        cmds = [e["t"] for e in s.esc_events("cmd") if e["src"] == GW_NODE]
+        return time.monotonic() - max(cmds) > 1.0
+
+    wait_for(drained, 60, 0.2, what="the ESCs' backlog")
     # nothing from a dead gateway: its last command was the running value,
     # the ESCs' own command timeout is what stops the motors now
-    after = [e for e in s.esc_events("cmd") if e["src"] == GW_NODE and e["t"] > t_kill + 0.05]
-    assert after == []
     last = max(e["t"] for e in s.esc_events("cmd") if e["src"] == GW_NODE)
+    assert [e["cmd"] for e in s.esc_events("cmd") if e["src"] == GW_NODE][-1] == [300] * 4
     # "systemd" restarts it: DISARMED and safety on go out first
     t_start = time.monotonic()
     g = gateway(s, procs, {}, "gwd-restarted")
@@ -132,7 +137,7 @@ def test_sigkill_mid_flight_what_the_escs_see(stack, procs):
     wait_for(moving, 60, 0.1, what="commands through the restarted gateway")
     assert all(e["t"] > arming["t"] for e in moving())
     print(
-        f"\nSIGKILL: last command {1000 * (last - t_kill):+.0f} ms from the kill; restarted "
+        f"\nSIGKILL: last command logged {1000 * (last - t_kill):+.0f} ms from the kill; restarted "
         f"{1000 * (t_start - t_kill):.0f} ms later, DISARMED after {1000 * (arming['t'] - t_start):.0f} ms, "
         f"safety ON after {1000 * (safety['t'] - t_start):.0f} ms, commands again after {1000 * (moving()[0]['t'] - t_start):.0f} ms"
     )

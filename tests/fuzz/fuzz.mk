@@ -16,11 +16,11 @@ FUZZ_TARGETS ?= frame payloads gw_handlers dronecan_rx dsdl slcan gw_client dna
 FUZZ_CC      ?= clang-14
 FUZZ_DIR     := $(BUILD)/fuzz
 FUZZ_SAN     := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
-FUZZ_CFLAGS  := $(WARN) -g -O1 -D_GNU_SOURCE $(INCLUDES) -I$(GW_DIR)/linux -Ihost_tools/c -Itests/fuzz \
+FUZZ_CFLAGS  := $(WARN) -g -O1 -D_GNU_SOURCE $(INCLUDES) -I$(GW_DIR)/linux -Ihost_tools/c -Itests/fuzz -Itests/unit \
                 $(FUZZ_SAN) -fsanitize=fuzzer-no-link
 # (the SLCAN backend waits with the tools' helper, and src/port for its clock)
 FUZZ_LIBSRC   = $(CORE_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC) $(GW_LINUX_SRC) $(TOOL_LIB_SRC) \
-                $(PORT_SRC) tests/fuzz/targets.c
+                $(PORT_SRC) tests/unit/file_store_ram.c tests/fuzz/targets.c
 FUZZ_OBJS     = $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(FUZZ_LIBSRC))
 FUZZ_BINS     = $(patsubst %,$(FUZZ_DIR)/bin/fuzz_%,$(FUZZ_TARGETS))
 

@@ -9,6 +9,7 @@ the content, so rerunning changes nothing. Input layouts: tests/fuzz/targets.c.
 import hashlib
 import struct
 import sys
+import zlib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -39,9 +40,14 @@ GW_CODES = {
     "beep": 0x58,
     "esc_fast": 0x59,  # ESC_FAST_T (0x5A) takes the same requests
     "esc_fast_rsp": 0x59,  # refused response lengths
+    "file_open": 0x5B,
+    "file_write": 0x5C,
+    "file_commit": 0x5D,
+    "file_list": 0x5E,
+    "file_remove": 0x5F,
 }
-# call result blobs (read through CALL_RESULT), not messages of their own
-GW_RESULTS = {"opcode", "param"}
+# call result blobs (read through CALL_RESULT) and CRC checks, not messages
+GW_RESULTS = {"opcode", "param", "fw_result", "crc32"}
 SEALED_OP = 1  # gw_handlers: op % 4 == 1 seals the request as a client would
 SEALED_SEED = 0x80  # gw_client: seed bit 7 seals the response as the gateway would
 DSDL_SEL = {
@@ -90,6 +96,40 @@ def handler_op(code):
 def client_sel(code):
     """gw_client's first byte for a response code."""
     return code - 0x42 if code <= 0x4F else 14 + code - 0x52
+
+
+def upload_script():
+    """gw_handlers: a whole upload (sealed requests) with a retried write, a
+    gap, a commit, the list, FW_BEGIN of the file, a resumed second upload
+    and a removal."""
+
+    def req(code, payload):
+        return bytes([handler_op(code) | SEALED_OP, len(payload)]) + payload
+
+    def name(n):
+        return bytes([len(n)]) + n
+
+    def uv(v):
+        out = b""
+        while v >= 0x80:
+            out += bytes([(v & 0x7F) | 0x80])
+            v >>= 7
+        return out + bytes([v])
+
+    img = bytes((i * 7) & 0xFF for i in range(300))
+    s = req(0x5B, name(b"fw.bin") + struct.pack("<IB", 300, 0))
+    for off in (0, 0, 150, 290):
+        s += req(0x5C, uv(off) + uv(150 if off < 290 else 10) + img[off : off + 150][:150])
+    s += req(0x5D, struct.pack("<I", zlib.crc32(img)))
+    s += req(0x5D, struct.pack("<I", zlib.crc32(img)))
+    s += req(0x5E, b"\x00")
+    s += req(0x4E, struct.pack("<HBB", 1, 20, 6) + name(b"fw.bin"))
+    s += req(0x5B, name(b"b.bin") + struct.pack("<IB", 200, 0))
+    s += req(0x5C, uv(0) + uv(100) + img[:100])
+    s += req(0x5B, name(b"b.bin") + struct.pack("<IB", 200, 0))
+    s += req(0x5C, uv(150) + uv(10) + img[:10])
+    s += req(0x5F, name(b"fw.bin"))
+    return s
 
 
 def dna_scripts(calls):
@@ -159,7 +199,7 @@ def main():
         add("payloads", bytes([sel[f[0]]]) + (b"" if hx == "-" else bytes.fromhex(hx)))
     # gateway requests (handlers) and responses (client)
     script = bytearray()
-    for line in lines("gateway.txt"):
+    for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
         head, hx = line.split(" : ")
         msg, d = head.split()[:2]
         if msg in GW_RESULTS:
@@ -183,6 +223,7 @@ def main():
     can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
+    add("gw_handlers", upload_script())
     # the allocation server and the node table
     calls = [
         bytes.fromhex(line.split(" : ")[1].strip())

@@ -12,6 +12,7 @@
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/node.h"
 #include "can_backend.h"
+#include "file_store_ram.h"
 #include "targets.h"
 
 #define FUZZ_CHECK(cond) \
@@ -243,6 +244,7 @@ static void drain_can(dan_gw_node_t *g)
 }
 
 static dan_gw_node_t fz_node; /* large: static storage */
+static ram_store_t fz_store;  /* the file store of gw_handlers' gateway */
 static dan_periph_t fz_periph;
 static fuzz_sink_t fz_sink;
 static dan_port_t fz_port;
@@ -329,17 +331,36 @@ static void fz_can_frame(const uint8_t *data, size_t len, size_t *i, dan_can_fra
     memcpy(f->data, b + 6, 8);
 }
 
+/* The one upload is what the store holds: the same name, have bytes
+ * (never over the size) and their CRC-32. */
+static void check_upload(const dan_gw_node_upload_t *u, const ram_store_t *s)
+{
+    if (!u->open) {
+        return;
+    }
+    FUZZ_CHECK(u->have <= u->size && u->size <= s->fs.max_size);
+    FUZZ_CHECK(dan_gw_file_name_ok(u->name, strlen(u->name)));
+    FUZZ_CHECK(s->partial.used && strcmp(s->partial.name, u->name) == 0);
+    FUZZ_CHECK(s->partial.len == u->have);
+    FUZZ_CHECK(dan_gw_crc32(0, s->partial.data, u->have) == u->crc);
+}
+
 /* A script of operations, each starting with an op byte:
  *   op % 4 == 0, 1: a DAN request, code fz_code(op) (both blocks), then a
  *                   length byte (% 161) and that many payload bytes; op 1
  *                   sealed, op 0 as is
  *   op % 4 == 2:    a CAN frame: u32 id LE, flags, dlc, 8 data bytes
- *   op % 4 == 3:    time passes: (op >> 2) * 25 ms (timers fire) */
+ *   op % 4 == 3:    time passes: (op >> 2) * 25 ms (timers fire)
+ * The gateway has a RAM file store (tests/unit/file_store_ram.c). */
 int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
 {
     uint64_t now = 1000000u;
     size_t i = 0;
-    fz_gateway_start(NULL, now);
+    dan_gw_node_config_t cfg;
+    ram_store_init(&fz_store);
+    dan_gw_node_config_default(&cfg);
+    cfg.files = &fz_store.fs;
+    fz_gateway_start(&cfg, now);
     while (i < len) {
         uint8_t op = data[i++];
         switch (op % 4u) {
@@ -366,6 +387,7 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
         FUZZ_CHECK(dan_gw_node_next_us(&fz_node, now) > 0u);
         drain_can(&fz_node);
         check_replies(&fz_sink);
+        check_upload(&fz_node.upload, &fz_store);
     }
     now += 1000000u;
     dan_periph_poll(&fz_periph, now);
@@ -745,6 +767,38 @@ int dan_fuzz_dna(const uint8_t *data, size_t len)
 
 /* ---- DroneCAN: reassembly and DSDL ------------------------------------ */
 
+/* The file services, requests and responses: what decodes comes back
+ * identical. */
+static void dsdl_file(uint16_t dtid, const uint8_t *p, size_t n, uint8_t *buf, size_t cap)
+{
+    static dan_dc_file_req_t qa, qb;
+    static dan_dc_file_read_rsp_t ra, rb;
+    dan_dc_file_getinfo_rsp_t ia, ib;
+    bool rd = dtid == DAN_DC_FILE_READ_ID;
+    int r;
+    if ((rd ? dan_dc_file_read_req_decode(&qa, p, n) : dan_dc_file_getinfo_req_decode(&qa, p, n)) ==
+        DAN_OK) {
+        r = rd ? dan_dc_file_read_req_encode(&qa, buf, cap)
+               : dan_dc_file_getinfo_req_encode(&qa, buf, cap);
+        FUZZ_CHECK(r >= 0);
+        FUZZ_CHECK((rd ? dan_dc_file_read_req_decode(&qb, buf, (size_t)r)
+                       : dan_dc_file_getinfo_req_decode(&qb, buf, (size_t)r)) == DAN_OK);
+        FUZZ_CHECK(qa.path_len <= DAN_DC_FILE_PATH_MAX && qa.path_len == qb.path_len &&
+                   qa.offset == qb.offset && !memcmp(qa.path, qb.path, qa.path_len));
+    }
+    if (rd && dan_dc_file_read_rsp_decode(&ra, p, n) == DAN_OK) {
+        r = dan_dc_file_read_rsp_encode(&ra, buf, cap);
+        FUZZ_CHECK(r >= 0 && dan_dc_file_read_rsp_decode(&rb, buf, (size_t)r) == DAN_OK);
+        FUZZ_CHECK(ra.error == rb.error && ra.data_len == rb.data_len &&
+                   !memcmp(ra.data, rb.data, ra.data_len));
+    }
+    if (!rd && dan_dc_file_getinfo_rsp_decode(&ia, p, n) == DAN_OK) {
+        r = dan_dc_file_getinfo_rsp_encode(&ia, buf, cap);
+        FUZZ_CHECK(r > 0 && dan_dc_file_getinfo_rsp_decode(&ib, buf, (size_t)r) == DAN_OK);
+        FUZZ_CHECK(!memcmp(&ia, &ib, sizeof ia));
+    }
+}
+
 /* Decodes payload as data type dtid; what decodes must re-encode, and the
  * exact-integer types must come back identical. */
 static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
@@ -863,6 +917,8 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
+    case DAN_DC_FILE_READ_ID:
+    case DAN_DC_FILE_GETINFO_ID: dsdl_file(dtid, p, n, buf, sizeof buf); break;
     default: {
         static dan_dc_tunnel_targetted_t tt;
         static dan_dc_tunnel_broadcast_t tb;
@@ -893,8 +949,8 @@ int dan_fuzz_dsdl(const uint8_t *data, size_t len)
                                      DAN_DC_BEEP_COMMAND_ID,
                                      DAN_DC_SAFETY_STATE_ID,
                                      DAN_DC_TEMPERATURE_ID,
-                                     0u,
-                                     0u,
+                                     DAN_DC_FILE_READ_ID,
+                                     DAN_DC_FILE_GETINFO_ID,
                                      0u};
     if (len < 1u) {
         return 0;
@@ -1005,6 +1061,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     len -= 2;
     n = len > DAN_MAX_PAYLOAD ? DAN_MAX_PAYLOAD : len;
     memset(&fz_master, 0, sizeof fz_master);
+    fz_master.resp = fz_master.link.tx; /* as dan_master_init() sets it */
     fz_master.result = DAN_OK;
     fz_master.resp_code = code;
     memcpy(fz_master.resp, data, n);
@@ -1012,18 +1069,17 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     if ((seed & 0x80u) != 0u) {
         /* sealed as the gateway would, so the decoders behind the seal are
          * reached; otherwise as is (the seal check) */
-        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, sizeof fz_master.resp);
+        int sl = dan_gw_seal(code, DAN_GW_RESPONSE, fz_master.resp, n, DAN_MAX_PAYLOAD);
         if (sl > 0) {
             fz_master.resp_len = (size_t)sl;
         }
     }
     dan_gw_init(&gw, &fz_master);
-    gw.code = code;
     gw.port = (uint8_t)(seed % DAN_GW_TUNNELS);
     gw.tun[gw.port].wr_offset = (uint32_t)(seed >> 1) * 0x01010101u;
     gw.tun[gw.port].rd_offset = (uint32_t)(seed >> 2) * 0x00FF00FFu;
     gw.can_rx_next = (uint32_t)seed << 24;
-    (void)dan_gw_complete(&gw, 0);
+    (void)dan_gw_complete_as(&gw, code, 0);
     FUZZ_CHECK(gw.code == 0u);
     FUZZ_CHECK(gw.result == DAN_OK || gw.result < 0);
     switch (code) {
@@ -1086,6 +1142,25 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
             for (i = 0; i < h.count && dan_gw_dna_next(&r, &e) == DAN_OK; i++) {
             }
         }
+        break;
+    }
+    case DAN_GW_CODE_FILE_LIST: {
+        dan_gw_file_list_hdr_t h;
+        dan_gw_file_entry_t e;
+        if (dan_gw_file_list_begin(&gw, &r, &h) == DAN_OK) {
+            for (i = 0; i < h.count && dan_gw_file_list_next(&r, &e) == DAN_OK; i++) {
+                FUZZ_CHECK(e.name_len >= 1u && strlen(e.name) <= e.name_len);
+            }
+        }
+        break;
+    }
+    case DAN_GW_CODE_FILE_OPEN:
+    case DAN_GW_CODE_FILE_WRITE:
+    case DAN_GW_CODE_FILE_COMMIT:
+    case DAN_GW_CODE_FILE_REMOVE: {
+        uint8_t res;
+        uint32_t v;
+        (void)dan_gw_file_result(&gw, &res, &v);
         break;
     }
     default: break;

@@ -20,6 +20,7 @@
 #include "dan/master.h"
 #include "dan/posix.h"
 #include "dan_tool.h"
+#include "fcsim/fcsim.h"
 
 #define POLL_CAP_MS            50  /* longest poll() while an operation runs */
 #define RAMP_HZ                50u /* esc-ramp's command rate */
@@ -81,12 +82,19 @@ static const char HELP[] =
     "                                prints the result (1: table full) and the table\n"
     "  cansend:ID#DATA[,...]         raw frames (cansend syntax, no RTR)\n"
     "  candump:N[:TIMEOUT_MS]        receive N filtered frames\n"
+    "  upload:NAME:PATH              PATH into the gateway's file store as NAME\n"
+    "                                (resumes what it holds; CRC-checked commit)\n"
+    "  files | rm:NAME               list / remove the committed files\n"
+    "  fw-begin:NODE:NAME[:CALL_ID]  BeginFirmwareUpdate of NODE from file NAME;\n"
+    "                                waits for its answer\n"
+    "  node-info:NODE                GetNodeInfo data and the update progress\n"
     "  sleep:MS\n"
     "  stop                          exit at once, no disarm (to test the failsafe)\n";
 
 static dan_posix_port_t g_port;
-static dan_master_t g_m;
-static dan_gw_t g_gw;
+dan_master_t g_m;
+static dan_identity_t g_id; /* the gateway's, reported by discovery */
+dan_gw_t g_gw;
 
 /* Pumps the port until the operation in flight completes; returns its result. */
 static int run(void)
@@ -113,7 +121,7 @@ static int run(void)
 }
 
 /* Waits us, dropping whatever the port receives meanwhile. */
-static void sleep_us(uint64_t us)
+void fcsim_sleep_us(uint64_t us)
 {
     uint64_t end = dan_posix_now_us() + us;
     uint8_t buf[256];
@@ -124,11 +132,12 @@ static void sleep_us(uint64_t us)
     }
 }
 
-static int fail(const char *step, int rc)
+int fcsim_fail(const char *step, int rc)
 {
+    dan_error_msg_t e;
     printf("{\"step\": \"%s\", \"ok\": false, \"error\": \"%s\"", step, dan_strerror(rc));
-    if (rc == DAN_ERR_REMOTE) {
-        printf(", \"remote\": \"%s\"", g_m.remote_error.text);
+    if (rc == DAN_ERR_REMOTE && dan_master_remote_error(&g_m, &e) == DAN_OK) {
+        printf(", \"remote\": \"%s\"", e.text);
     }
     printf("}\n");
     fflush(stdout);
@@ -236,7 +245,7 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
     do {
         uint64_t now = dan_posix_now_us();
         if (hz > 0u && now < next) {
-            sleep_us(next - now);
+            fcsim_sleep_us(next - now);
             now = dan_posix_now_us();
         }
         next += hz ? 1000000u / hz : 0u;
@@ -320,19 +329,19 @@ static int step_xfer(const char *step, char *args)
     int fields =
         sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms);
     if (fields < 4) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     if (strcmp(infile, "-") != 0) {
         in = fopen(infile, "rb");
         if (in == NULL) {
-            return fail(step, DAN_ERR_NOTFOUND);
+            return fcsim_fail(step, DAN_ERR_NOTFOUND);
         }
         wlen = fread(wbuf, 1, sizeof wbuf, in);
         fclose(in);
     }
     out = fopen(outfile, "wb");
     if (out == NULL) {
-        return fail(step, DAN_ERR_IO);
+        return fcsim_fail(step, DAN_ERR_IO);
     }
     start = dan_posix_now_us();
     deadline = start + timeout_ms * 1000u;
@@ -353,7 +362,7 @@ static int step_xfer(const char *step, char *args)
             fwrite(d, 1, n, out);
             got += n;
         } else if (g_gw.tun[port].accepted == 0u) {
-            sleep_us(5000); /* nothing moved: do not spin */
+            fcsim_sleep_us(5000); /* nothing moved: do not spin */
         }
     }
     fclose(out);
@@ -374,7 +383,7 @@ static int step_xfer(const char *step, char *args)
 typedef int (*step_fn)(const char *name, const char *step, char *args);
 
 /* The started operation's result once it ran (rc when it did not start). */
-static int finish(int rc)
+int fcsim_finish(int rc)
 {
     return rc == DAN_OK ? run() : rc;
 }
@@ -393,7 +402,7 @@ static int step_sleep(const char *name, const char *step, char *args)
 {
     (void)name;
     (void)step;
-    sleep_us(args ? strtoull(args, NULL, 0) * 1000u : 0u);
+    fcsim_sleep_us(args ? strtoull(args, NULL, 0) * 1000u : 0u);
     printf("{\"step\": \"sleep\", \"ok\": true}\n");
     return 0;
 }
@@ -401,29 +410,29 @@ static int step_sleep(const char *name, const char *step, char *args)
 static int step_discover(const char *name, const char *step, char *args)
 {
     const dan_peer_t *p;
-    int rc = finish(dan_master_discover(&g_m, dan_posix_now_us()));
+    int rc = fcsim_finish(dan_master_discover(&g_m, dan_posix_now_us()));
     (void)name;
     (void)args;
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     p = dan_master_peer(&g_m, DAN_TYPE_CAN_GW_FIRST);
     if (p == NULL) {
-        return fail(step, DAN_ERR_NOTFOUND);
+        return fcsim_fail(step, DAN_ERR_NOTFOUND);
     }
     printf("{\"step\": \"discover\", \"ok\": true, \"baud\": %u, \"manufacturer\": \"%s\", "
            "\"model\": \"%s\", \"baud_mask\": %u}\n",
-           p->baud, p->identity.manufacturer, p->identity.model, p->identity.baud_mask);
+           p->baud, g_id.manufacturer, g_id.model, g_id.baud_mask);
     return 0;
 }
 
 static int step_configure(const char *name, const char *step, char *args)
 {
     uint32_t baud = args ? (uint32_t)strtoul(args, NULL, 0) : 0u;
-    int rc = finish(dan_master_configure(&g_m, baud, dan_posix_now_us()));
+    int rc = fcsim_finish(dan_master_configure(&g_m, baud, dan_posix_now_us()));
     (void)name;
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"configure\", \"ok\": true, \"baud\": %u, \"fast_refusals\": %u, "
            "\"recoveries\": %u}\n",
@@ -434,10 +443,10 @@ static int step_configure(const char *name, const char *step, char *args)
 /* arm | disarm */
 static int step_arm(const char *name, const char *step, char *args)
 {
-    int rc = finish(dan_gw_arm(&g_gw, name[0] == 'a', dan_posix_now_us()));
+    int rc = fcsim_finish(dan_gw_arm(&g_gw, name[0] == 'a', dan_posix_now_us()));
     (void)args;
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u}\n", name, g_gw.gw_flags);
     return 0;
@@ -447,9 +456,9 @@ static int step_arm(const char *name, const char *step, char *args)
  * settings it returns. */
 static int config_run(const char *name, const char *step, const dan_gw_config_t *c)
 {
-    int rc = finish(dan_gw_config(&g_gw, c, dan_posix_now_us()));
+    int rc = fcsim_finish(dan_gw_config(&g_gw, c, dan_posix_now_us()));
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"%s\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
            "\"arming_rate_hz\": %u, \"flags\": %u, \"telem_timeout_ms\": %u, \"dna\": %u}\n",
@@ -487,7 +496,7 @@ static int step_config_field(const char *name, const char *step, char *args)
     dan_gw_config_t c;
     memset(&c, 0, sizeof c);
     if (args == NULL) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     if (!strcmp(name, "config-dna")) {
         c.set_mask = DAN_GW_CFG_DNA;
@@ -503,10 +512,10 @@ static int step_health(const char *name, const char *step, char *args)
 {
     const dan_gw_health_t *h = &g_gw.health;
     const char *reason;
-    int rc = finish(dan_gw_health(&g_gw, dan_posix_now_us()));
+    int rc = fcsim_finish(dan_gw_health(&g_gw, dan_posix_now_us()));
     (void)args;
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     reason = dan_gw_reason_name(h->reason);
     printf("{\"step\": \"%s\", \"ok\": true, \"verdict\": %u, \"verdict_name\": \"%s\", "
@@ -525,7 +534,7 @@ static int dna_page(uint8_t first, dan_gw_dna_hdr_t *h, size_t *printed, int *rc
     dan_reader_t r;
     dan_gw_dna_entry_t e;
     size_t i, k;
-    *rc = finish(dan_gw_dna(&g_gw, first, dan_posix_now_us()));
+    *rc = fcsim_finish(dan_gw_dna(&g_gw, first, dan_posix_now_us()));
     if (*rc == DAN_OK) {
         *rc = dan_gw_dna_begin(&g_gw, &r, h);
     }
@@ -575,7 +584,7 @@ static int step_esc_ramp(const char *name, const char *step, char *args)
     (void)name;
     if (args == NULL || sscanf(args, "%u:%ld:%ld:%u", &nn, &a, &b, &ms) != 4 || nn < 1 ||
         nn > DAN_GW_ESC_MAX) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     for (i = 0; i < nn; i++) {
         from[i] = (int16_t)a;
@@ -593,7 +602,7 @@ static int step_esc(const char *name, const char *step, char *args)
     char *at;
     (void)name;
     if (args == NULL) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     at = strchr(args, '@');
     if (at) {
@@ -604,7 +613,7 @@ static int step_esc(const char *name, const char *step, char *args)
         }
     }
     if (parse_values(args, from, &n)) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     return esc_run("esc", from, NULL, n, ms, hz);
 }
@@ -616,9 +625,9 @@ static int step_telemetry(const char *name, const char *step, char *args)
     (void)name;
     (void)args;
     do {
-        int rc = finish(dan_gw_telemetry(&g_gw, first, dan_posix_now_us()));
+        int rc = fcsim_finish(dan_gw_telemetry(&g_gw, first, dan_posix_now_us()));
         if (rc != DAN_OK) {
-            return fail(step, rc);
+            return fcsim_fail(step, rc);
         }
         first = g_gw.telem_next;
     } while (first != DAN_GW_NONE && ++pages < TELEM_MAX_PAGES);
@@ -637,7 +646,7 @@ static int read_nodes(dan_gw_node_entry_t *list, size_t cap, size_t *nn)
         dan_reader_t r;
         dan_gw_nodes_hdr_t h;
         size_t i;
-        int rc = finish(dan_gw_nodes(&g_gw, first, dan_posix_now_us()));
+        int rc = fcsim_finish(dan_gw_nodes(&g_gw, first, dan_posix_now_us()));
         if (rc == DAN_OK) {
             rc = dan_gw_nodes_begin(&g_gw, &r, &h);
         }
@@ -660,7 +669,7 @@ static void print_node(const dan_gw_node_entry_t *e, bool first)
     dan_gw_node_info_t ni;
     size_t k;
     memset(&ni, 0, sizeof ni);
-    if (finish(dan_gw_node_info(&g_gw, e->node_id, dan_posix_now_us())) == DAN_OK) {
+    if (fcsim_finish(dan_gw_node_info(&g_gw, e->node_id, dan_posix_now_us())) == DAN_OK) {
         (void)dan_gw_node_info_get(&g_gw, &ni);
     }
     printf("%s{\"id\": %u, \"health\": %u, \"mode\": %u, \"sub_mode\": %u, \"uptime\": %lu, "
@@ -683,7 +692,7 @@ static int step_nodes(const char *name, const char *step, char *args)
     (void)name;
     (void)args;
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"nodes\", \"ok\": true, \"nodes\": [");
     for (i = 0; i < nn; i++) {
@@ -696,11 +705,11 @@ static int step_nodes(const char *name, const char *step, char *args)
 static int step_stats(const char *name, const char *step, char *args)
 {
     unsigned i;
-    int rc = finish(dan_gw_stats(&g_gw, dan_posix_now_us()));
+    int rc = fcsim_finish(dan_gw_stats(&g_gw, dan_posix_now_us()));
     (void)name;
     (void)args;
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"stats\", \"ok\": true");
     for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
@@ -725,7 +734,7 @@ static int step_tunnel(const char *name, const char *step, char *args)
     fields =
         args ? sscanf(args, "%u:%15[^:]:%u:%d:%lu:%u", &port, mode, &a, &serial, &c, &opts) : 0;
     if (fields < 4) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     o.port = (uint8_t)port;
     if (!strcmp(mode, "targetted")) {
@@ -741,9 +750,9 @@ static int step_tunnel(const char *name, const char *step, char *args)
         o.target = (uint8_t)serial; /* the channel */
         o.options = (uint8_t)c;
     }
-    rc = finish(dan_gw_tunnel_open(&g_gw, &o, dan_posix_now_us()));
+    rc = fcsim_finish(dan_gw_tunnel_open(&g_gw, &o, dan_posix_now_us()));
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"tunnel\", \"ok\": true, \"port\": %u, \"options\": %u}\n", port,
            o.options);
@@ -753,7 +762,7 @@ static int step_tunnel(const char *name, const char *step, char *args)
 static int step_xfer_args(const char *name, const char *step, char *args)
 {
     (void)name;
-    return args ? step_xfer("xfer", args) : fail(step, DAN_ERR_ARG);
+    return args ? step_xfer("xfer", args) : fcsim_fail(step, DAN_ERR_ARG);
 }
 
 /* Splits args at commas into at most cap tokens (none for NULL). */
@@ -804,15 +813,15 @@ static int step_filter(const char *name, const char *step, char *args)
     for (i = 0; i < n; i++) {
         char *slash = strchr(tok[i], '/');
         if (slash == NULL) {
-            return fail(step, DAN_ERR_ARG);
+            return fcsim_fail(step, DAN_ERR_ARG);
         }
         f[i].id =
             (uint32_t)strtoul(tok[i], NULL, 16) | ((slash - tok[i]) == 8 ? DAN_GW_CAN_ID_EXT : 0u);
         f[i].mask = (uint32_t)strtoul(slash + 1, NULL, 16);
     }
-    rc = finish(dan_gw_can_filter(&g_gw, op, f, n, dan_posix_now_us()));
+    rc = fcsim_finish(dan_gw_can_filter(&g_gw, op, f, n, dan_posix_now_us()));
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"%s\", \"count\": %zu, ", name, n);
     entries = print_filter_table(&result);
@@ -832,12 +841,12 @@ static int step_cansend(const char *name, const char *step, char *args)
     (void)name;
     for (i = 0; i < n; i++) {
         if (parse_frame(tok[i], &f[i])) {
-            return fail(step, DAN_ERR_ARG);
+            return fcsim_fail(step, DAN_ERR_ARG);
         }
     }
-    rc = finish(dan_gw_can_send(&g_gw, f, n, dan_posix_now_us()));
+    rc = fcsim_finish(dan_gw_can_send(&g_gw, f, n, dan_posix_now_us()));
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"cansend\", \"ok\": %s, \"accepted\": %u}\n",
            g_gw.can_accepted == n ? "true" : "false", g_gw.can_accepted);
@@ -852,7 +861,7 @@ static size_t candump_once(size_t *got)
     dan_gw_can_recv_t h;
     dan_can_frame_t f;
     size_t i, k;
-    int rc = finish(dan_gw_can_recv(&g_gw, DAN_GW_CAN_FRAMES_MAX, dan_posix_now_us()));
+    int rc = fcsim_finish(dan_gw_can_recv(&g_gw, DAN_GW_CAN_FRAMES_MAX, dan_posix_now_us()));
     if (rc != DAN_OK || dan_gw_can_begin(&g_gw, &r, &h) != DAN_OK) {
         return SIZE_MAX;
     }
@@ -885,7 +894,7 @@ static int step_candump(const char *name, const char *step, char *args)
     printf("{\"step\": \"candump\", \"frames\": [");
     while (got < want && dan_posix_now_us() < end) {
         if (candump_once(&got) == 0) {
-            sleep_us(CANDUMP_IDLE_US); /* nothing queued: do not spin */
+            fcsim_sleep_us(CANDUMP_IDLE_US); /* nothing queued: do not spin */
         }
     }
     printf("], \"ok\": %s, \"dropped\": %u}\n", got >= want ? "true" : "false",
@@ -897,7 +906,7 @@ static int step_candump(const char *name, const char *step, char *args)
 static int flags_result(const char *name, const char *step, int rc, size_t count)
 {
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u, \"count\": %zu}\n", name, g_gw.gw_flags,
            count);
@@ -908,10 +917,11 @@ static int flags_result(const char *name, const char *step, int rc, size_t count
 static int step_safety(const char *name, const char *step, char *args)
 {
     if (args == NULL || (strcmp(args, "off") != 0 && strcmp(args, "on") != 0)) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
-    return flags_result(name, step,
-                        finish(dan_gw_safety(&g_gw, !strcmp(args, "off"), dan_posix_now_us())), 1);
+    return flags_result(
+        name, step, fcsim_finish(dan_gw_safety(&g_gw, !strcmp(args, "off"), dan_posix_now_us())),
+        1);
 }
 
 /* One ID=VALUE[:TYPE] (VALUE may be "hold" when hold != NULL, which then
@@ -962,17 +972,18 @@ static int step_servo(const char *name, const char *step, char *args)
     for (i = 0; i < n; i++) {
         bool hold = false;
         if (parse_servo(tok[i], &s[i], failsafe ? &hold : NULL)) {
-            return fail(step, DAN_ERR_ARG);
+            return fcsim_fail(step, DAN_ERR_ARG);
         }
         fs[i].mode = (uint8_t)(hold ? DAN_GW_SERVO_HOLD : DAN_GW_SERVO_VALUE);
         fs[i].value = s[i];
     }
     if (!failsafe) {
-        return flags_result(name, step, finish(dan_gw_servo(&g_gw, s, n, dan_posix_now_us())), n);
+        return flags_result(name, step, fcsim_finish(dan_gw_servo(&g_gw, s, n, dan_posix_now_us())),
+                            n);
     }
-    rc = finish(dan_gw_servo_failsafe(&g_gw, fs, n, dan_posix_now_us()));
+    rc = fcsim_finish(dan_gw_servo_failsafe(&g_gw, fs, n, dan_posix_now_us()));
     if (rc != DAN_OK) {
-        return fail(step, rc);
+        return fcsim_fail(step, rc);
     }
     printf("{\"step\": \"%s\", \"ok\": true, \"count\": %zu, \"kept\": %u}\n", name, n,
            g_gw.servo_fs_kept);
@@ -989,16 +1000,17 @@ static int step_lights(const char *name, const char *step, char *args)
         char *end;
         unsigned long id = strtoul(tok[i], &end, 0), rgb;
         if (end == tok[i] || *end != '=' || id > UINT8_MAX) {
-            return fail(step, DAN_ERR_ARG);
+            return fcsim_fail(step, DAN_ERR_ARG);
         }
         rgb = strtoul(end + 1, &end, 16);
         if (*end != '\0' || rgb > UINT16_MAX) {
-            return fail(step, DAN_ERR_ARG);
+            return fcsim_fail(step, DAN_ERR_ARG);
         }
         l[i].light_id = (uint8_t)id;
         l[i].rgb565 = (uint16_t)rgb;
     }
-    return flags_result(name, step, finish(dan_gw_lights(&g_gw, l, n, dan_posix_now_us())), n);
+    return flags_result(name, step, fcsim_finish(dan_gw_lights(&g_gw, l, n, dan_posix_now_us())),
+                        n);
 }
 
 /* beep:HZ:MS */
@@ -1006,10 +1018,11 @@ static int step_beep(const char *name, const char *step, char *args)
 {
     unsigned long hz, ms;
     if (args == NULL || sscanf(args, "%lu:%lu", &hz, &ms) != 2) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     return flags_result(
-        name, step, finish(dan_gw_beep(&g_gw, (uint32_t)hz, (uint32_t)ms, dan_posix_now_us())), 1);
+        name, step,
+        fcsim_finish(dan_gw_beep(&g_gw, (uint32_t)hz, (uint32_t)ms, dan_posix_now_us())), 1);
 }
 
 /* raw:CODE[:HEX]: a request the client's typed calls cannot make (e.g. ARM
@@ -1022,18 +1035,18 @@ static int step_raw(const char *name, const char *step, char *args)
     unsigned long code = args ? strtoul(args, &end, 0) : 0u;
     int n;
     if (args == NULL || end == args || code == 0u || (*end != '\0' && *end != ':')) {
-        return fail(step, DAN_ERR_ARG);
+        return fcsim_fail(step, DAN_ERR_ARG);
     }
     for (end += *end == ':'; end[0] && end[1] && len < sizeof buf; end += 2) {
         char b[3] = {end[0], end[1], 0};
         buf[len++] = (uint8_t)strtoul(b, NULL, 16);
     }
     n = dan_gw_seal((uint32_t)code, DAN_GW_REQUEST, buf, len, sizeof buf);
-    n = n < 0
-            ? n
-            : finish(dan_master_request(&g_m, (uint32_t)code, buf, (size_t)n, dan_posix_now_us()));
+    n = n < 0 ? n
+              : fcsim_finish(
+                    dan_master_request(&g_m, (uint32_t)code, buf, (size_t)n, dan_posix_now_us()));
     if (n != DAN_OK) {
-        return fail(step, n);
+        return fcsim_fail(step, n);
     }
     printf("{\"step\": \"%s\", \"ok\": true, \"code\": %lu, \"response\": \"", name, code);
     for (i = 0; i + DAN_GW_SEAL_SIZE < g_m.resp_len; i++) {
@@ -1077,6 +1090,11 @@ static const struct {
     {"lights", step_lights},
     {"beep", step_beep},
     {"raw", step_raw},
+    {"upload", fcsim_step_upload},
+    {"files", fcsim_step_files},
+    {"rm", fcsim_step_rm},
+    {"fw-begin", fcsim_step_fw_begin},
+    {"node-info", fcsim_step_node_info},
 };
 
 static int do_step(char *step)
@@ -1159,6 +1177,7 @@ int main(int argc, char **argv)
         tool_error("master init failed");
         return 2;
     }
+    dan_master_set_identities(&g_m, &g_id, 1);
     dan_gw_init(&g_gw, &g_m);
     for (; i < argc && rc != 2; i++) {
         int r = do_step(argv[i]);

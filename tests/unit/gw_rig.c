@@ -75,6 +75,13 @@ int finish(void)
     return dan_gw_complete(&R->gw, R->bus.now);
 }
 
+uint32_t remote_code(void)
+{
+    dan_error_msg_t e;
+    assert_int_equal(dan_master_remote_error(&R->m, &e), DAN_OK);
+    return e.code;
+}
+
 /* The payload of the master's request in flight (it waits encoded in
  * link.tx), to send it again as a retry would. */
 size_t last_req(uint8_t *out)
@@ -143,6 +150,7 @@ int setup(void **state)
     R->np = sim_add_periph(&R->bus, &R->p, 115200, true);
     assert_int_equal(dan_master_init(&R->m, &R->nm->port, &mc, types, 1, 115200, R->bus.now),
                      DAN_OK);
+    dan_master_set_identities(&R->m, &R->id, 1);
     dan_gw_node_config_default(&gc);
     gc.unique_id[0] = 0xAB;
     assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);

@@ -22,6 +22,7 @@ typedef struct {
 typedef struct {
     simbus_t bus;
     dan_master_t m;
+    dan_identity_t id; /* the gateway's, reported by discovery */
     dan_periph_t p;
     sim_node_t *nm, *np;
     dan_gw_t gw;
@@ -44,6 +45,9 @@ void drain(void);
 int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 /* Completes the client's transaction in flight. */
 int finish(void);
+/* The request code of the error frame that refused the last transaction
+ * (fails the test if there is none). */
+uint32_t remote_code(void);
 /* The payload of the master's request in flight, to send it again. */
 size_t last_req(uint8_t *out);
 /* The gateway handles the request in flight but its response is lost: the

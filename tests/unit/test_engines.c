@@ -35,6 +35,7 @@ static const uint32_t probe_types[] = {DAN_TYPE_TEST_A_FIRST, DAN_TYPE_TEST_B_FI
 typedef struct {
     simbus_t bus;
     dan_master_t m;
+    dan_identity_t ids[4]; /* one per probe type */
     dan_periph_t dev1, dev2;
     sim_node_t *nm, *n1, *n2;
 } rig_t;
@@ -60,6 +61,7 @@ static void rig_setup(bool echo)
     rig.n2 = sim_add_periph(&rig.bus, &rig.dev2, 9600, echo);
     assert_int_equal(
         dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    dan_master_set_identities(&rig.m, rig.ids, 4);
     assert_int_equal(
         dan_periph_init(&rig.dev1, &rig.n1->port, types_dev1, 2, NULL, 9600, rig.bus.now), DAN_OK);
     assert_int_equal(
@@ -105,9 +107,9 @@ static void test_discovery_identities(void **state)
     assert_non_null(b);
     assert_non_null(g);
     assert_null(dan_master_peer(&rig.m, DAN_TYPE_VTX_FIRST)); /* nobody is a VTX */
-    assert_string_equal(a->identity.model, "test A");
-    assert_string_equal(b->identity.sw_version, "2.0.0");
-    assert_string_equal(g->identity.manufacturer, "ACME");
+    assert_string_equal(dan_master_identity(&rig.m, DAN_TYPE_TEST_A_FIRST)->model, "test A");
+    assert_string_equal(dan_master_identity(&rig.m, DAN_TYPE_TEST_B_FIRST)->sw_version, "2.0.0");
+    assert_string_equal(dan_master_identity(&rig.m, DAN_TYPE_CAN_GW_FIRST)->manufacturer, "ACME");
     assert_int_equal(a->baud, 9600);
     assert_int_equal(rig.m.link.stats.collisions, 0);
     /* the absent VTX type was probed at every discovery baud */
@@ -190,6 +192,7 @@ static void test_turnaround_gap(void **state)
 static void test_unknown_malformed_silent(void **state)
 {
     uint32_t unknown0;
+    dan_error_msg_t e;
     (void)state;
     rig_setup(true);
     assert_int_equal(discover(), DAN_OK);
@@ -197,12 +200,14 @@ static void test_unknown_malformed_silent(void **state)
     assert_int_equal(request(0x64, NULL, 0), DAN_ERR_TIMEOUT); /* in A's block, not served */
     assert_int_equal(rig.dev1.stats.unknown - unknown0, 3);    /* every attempt ignored */
     assert_int_equal(request(0x62, NULL, 0), DAN_ERR_REMOTE);
-    assert_int_equal(rig.m.remote_error.code, 0x62);
-    assert_string_equal(rig.m.remote_error.text, "empty payload");
+    assert_int_equal(dan_master_remote_error(&rig.m, &e), DAN_OK);
+    assert_int_equal(e.code, 0x62);
+    assert_string_equal(e.text, "empty payload");
     assert_int_equal(rig.dev1.stats.errors_sent, 1);
     /* a malformed CONFIGURE is an error frame too */
     assert_int_equal(request(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_A_FIRST), NULL, 0), DAN_ERR_REMOTE);
-    assert_string_equal(rig.m.remote_error.text, "malformed CONFIGURE payload");
+    assert_int_equal(dan_master_remote_error(&rig.m, &e), DAN_OK);
+    assert_string_equal(e.text, "malformed CONFIGURE payload");
     /* a CONFIGURE for a baud not in the mask is ACK-FAIL, and nothing moves */
     {
         uint8_t p[8];
@@ -235,6 +240,7 @@ static void test_master_restart_recovery(void **state)
     rig.nm->baud = 9600;
     assert_int_equal(
         dan_master_init(&rig.m, &rig.nm->port, &cfg, probe_types, 4, 9600, rig.bus.now), DAN_OK);
+    dan_master_set_identities(&rig.m, rig.ids, 4);
     assert_int_equal(discover(), DAN_OK);
     g = dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST);
     assert_non_null(g);

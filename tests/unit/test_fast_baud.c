@@ -116,7 +116,8 @@ static void assert_all_answer(void)
     for (i = 0; i < rig.m.ntypes; i++) {
         if (rig.m.peers[i].present) {
             assert_int_equal(rig.m.peers[i].baud, dan_master_baud(&rig.m));
-            assert_int_equal(request(DAN_TYPE_IDENTIFY(rig.m.types[i]), NULL, 0), DAN_OK);
+            assert_int_equal(request(DAN_TYPE_IDENTIFY(rig.m.peers[i].first_code), NULL, 0),
+                             DAN_OK);
         }
     }
 }

@@ -38,9 +38,10 @@ static void test_discover_and_identity(void **state)
     assert_int_equal(sim_run_master(&R->bus, &R->m, 5000000), DAN_OK);
     peer = dan_master_peer(&R->m, DAN_TYPE_CAN_GW_FIRST);
     assert_non_null(peer);
-    assert_string_equal(peer->identity.manufacturer, "DAN Project");
-    assert_string_equal(peer->identity.model, "CAN gateway");
-    assert_int_equal(peer->identity.baud_mask, 0x0F);
+    assert_string_equal(R->id.manufacturer, "DAN Project");
+    assert_string_equal(R->id.model, "CAN gateway");
+    assert_int_equal(R->id.baud_mask, 0x0F);
+    assert_int_equal(peer->baud_mask, 0x0F);
     assert_int_equal(dan_master_configure(&R->m, 0, R->bus.now), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 5000000), DAN_OK);
     assert_int_equal(dan_master_baud(&R->m), 115200);
@@ -704,7 +705,7 @@ static void test_malformed(void **state)
     errs = R->p.stats.errors_sent;
     assert_int_equal(request_sealed(DAN_GW_CODE_ESC_CMD, bad_esc, 3), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(R->m.remote_error.code, DAN_GW_CODE_ESC_CMD);
+    assert_int_equal(remote_code(), DAN_GW_CODE_ESC_CMD);
     assert_int_equal(request_sealed(DAN_GW_CODE_ESC_CMD, NULL, 0), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     assert_int_equal(request_sealed(DAN_GW_CODE_CONFIG, bad_cfg, 2), DAN_OK);

@@ -188,7 +188,7 @@ static void test_fast_malformed(void **state)
     p[1] = 0x40; /* one value: bits 14, 15 are padding */
     assert_int_equal(request_sealed(DAN_GW_CODE_ESC_FAST, p, 2), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
-    assert_int_equal(R->m.remote_error.code, DAN_GW_CODE_ESC_FAST);
+    assert_int_equal(remote_code(), DAN_GW_CODE_ESC_FAST);
     assert_int_equal(R->p.stats.errors_sent - errs, bad + 1u);
     assert_int_equal(R->g.stats.esc_cmds, 0);
     assert_false(R->g.esc.active);

@@ -163,8 +163,9 @@ def node_info_vectors(emit):
             + ["since=%d" % since],
             u8(33) + u8(1) + u8(st) + u8(fl) + uvarint(rd) + uvarint(sz) + u32(since),
         )
-    # ... file_reads, file_bytes, file_errors, upload_bytes, file_commits, upload_errors, fw_begins
-    vals = list(range(28)) + [4000, 1000000, 2, 300000, 2, 1, 3]
+    # ... file_reads, file_bytes, file_errors, upload_bytes, file_commits, upload_errors,
+    # fw_begins, file_dropped
+    vals = list(range(28)) + [4000, 1000000, 2, 300000, 2, 1, 3, 0]
     emit(
         "stats",
         "rsp",

@@ -54,17 +54,22 @@ typedef struct {
     uint16_t accepted;   /* of the last xfer's data */
 } dan_gw_tunnel_t;
 
-typedef struct {
+struct dan_gw_s;
+/* Internal: how the response of the call in flight is decoded. */
+typedef int (*dan_gw_done_fn)(struct dan_gw_s *gw, uint32_t code, const uint8_t *p, size_t len);
+
+typedef struct dan_gw_s {
     dan_master_t *m;
-    uint32_t code;      /* code of the call in flight (0: none) */
-    uint8_t port;       /* tunnel port of the call in flight */
-    uint8_t can_seq;    /* CAN_SEND sequence number */
-    int result;         /* of the last completed call */
-    uint8_t gw_flags;   /* DAN_GW_FLAG_*, from the last response */
-    uint8_t esc_seen;   /* ESCs the gateway knows (ESC_CMD rsp) */
-    uint8_t telem_next; /* ESC_TELEM: next page (DAN_GW_NONE: end) */
-    uint8_t last_telem; /* index of the last record received, or DAN_GW_NONE */
-    bool telem_fresh;   /* ESC_FAST_T: that record was a new esc.Status sample */
+    uint32_t code;       /* code of the call in flight (0: none) */
+    dan_gw_done_fn done; /* its response decoder (internal; NULL: none) */
+    uint8_t port;        /* tunnel port of the call in flight */
+    uint8_t can_seq;     /* CAN_SEND sequence number */
+    int result;          /* of the last completed call */
+    uint8_t gw_flags;    /* DAN_GW_FLAG_*, from the last response */
+    uint8_t esc_seen;    /* ESCs the gateway knows (ESC_CMD rsp) */
+    uint8_t telem_next;  /* ESC_TELEM: next page (DAN_GW_NONE: end) */
+    uint8_t last_telem;  /* index of the last record received, or DAN_GW_NONE */
+    bool telem_fresh;    /* ESC_FAST_T: that record was a new esc.Status sample */
     dan_gw_telem_t esc[DAN_GW_MAX_ESC];
     uint32_t telem_ignored;
     dan_gw_config_t config; /* last CONFIG response */
@@ -93,6 +98,10 @@ int dan_gw_poll(dan_gw_t *gw, uint64_t now_us);
  * themselves: call it when dan_master_poll() returned 1). Returns and
  * stores the result. */
 int dan_gw_complete(dan_gw_t *gw, uint64_t now_us);
+/* dan_gw_complete() as if the completed transaction were the call of
+ * code (tests, fuzzing, replaying captures). It links every response
+ * decoder; the calls themselves link only their own. */
+int dan_gw_complete_as(dan_gw_t *gw, uint32_t code, uint64_t now_us);
 
 /* ESC command: n (1..20) raw values -8192..8191 (RawCommand semantics). The
  * response's telemetry record (round-robin over the ESCs) updates gw->esc. */

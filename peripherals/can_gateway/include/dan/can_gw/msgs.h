@@ -84,6 +84,7 @@ typedef struct {
     uint16_t voltage_f16;     /* V */
     uint16_t current_f16;     /* A */
     uint16_t temperature_f16; /* K */
+    uint16_t motor_angle;     /* StatusExtended's; here, it fills the padding */
     int32_t rpm;              /* int18 */
     uint32_t error_count;
     /* StatusExtended */
@@ -91,7 +92,6 @@ typedef struct {
     uint8_t input_pct;
     uint8_t output_pct;
     int16_t motor_temp_c;
-    uint16_t motor_angle;
     uint32_t status_flags; /* uint19 */
     /* device.Temperature sent by the same node (e.g. its MCU) */
     uint32_t dev_age_ms;
@@ -200,7 +200,8 @@ int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
     X(UPLOAD_BYTES, upload_bytes)       /* upload bytes written to the store */           \
     X(FILE_COMMITS, file_commits)       /* uploads committed */                           \
     X(UPLOAD_ERRORS, upload_errors)     /* store failures of the DAN file messages */     \
-    X(FW_BEGINS, fw_begins)             /* BeginFirmwareUpdate answered OK */
+    X(FW_BEGINS, fw_begins)             /* BeginFirmwareUpdate answered OK */             \
+    X(FILE_DROPPED, file_dropped)       /* file requests not answered: no room for long */
 
 #define DAN_GW_STAT_ENUM_(e, name) DAN_GW_STAT_##e,
 enum { DAN_GW_STATS(DAN_GW_STAT_ENUM_) DAN_GW_STAT_COUNT };

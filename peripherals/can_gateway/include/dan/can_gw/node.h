@@ -69,6 +69,7 @@
 #include "dan/can_gw/dronecan.h"
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/dsdl_file.h"
+#include "dan/can_gw/dsdl_fw.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
 #include "dan/can_gw/file_store.h"
@@ -292,10 +293,11 @@ typedef struct {
     uint8_t attempts;
     uint8_t tids[DAN_GW_NODE_CALL_ATTEMPTS];
     uint16_t call_id;
-    uint16_t digest;  /* of the NODE_CALL request (retry check) */
-    uint64_t due_us;  /* this attempt times out */
-    uint64_t done_us; /* finished at (the oldest makes room) */
-    uint16_t req_len; /* the DroneCAN request, for re-sends */
+    uint16_t digest;    /* of the NODE_CALL request (retry check) */
+    uint64_t due_us;    /* this attempt times out */
+    uint64_t done_us;   /* finished at (the oldest makes room) */
+    uint32_t file_size; /* FW_BEGIN: of the file named */
+    uint16_t req_len;   /* the DroneCAN request, for re-sends */
     uint16_t result_len;
     uint8_t req[DAN_DC_PARAM_GETSET_REQ_MAX_SIZE];
     uint8_t result[DAN_GW_PARAM_RESULT_MAX];
@@ -371,6 +373,7 @@ typedef struct {
         dan_dc_param_getset_rsp_t getset_rsp;
         dan_dc_file_req_t file_req;
         dan_dc_file_read_rsp_t file_rsp;
+        dan_dc_fw_begin_req_t fw_req;
     } scratch;
     uint8_t scratch_buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
 } dan_gw_node_t;
