@@ -231,7 +231,9 @@ def test_node_stops_reading(rig, tmp_path):
     rig.bootloader(1, NODE_A, img, "--stall-after", "2048")
     rig.wait_nodes(NODE_A)
     t0 = time.monotonic()
-    doc, err = rig.probe_json("fw-update", "--node", NODE_A, tmp_path / "fw.bin", "--stall", "2", rc=1)
+    doc, err = rig.probe_json(
+        "fw-update", "--node", NODE_A, tmp_path / "fw.bin", "--stall", "2", rc=1
+    )
     node = doc["nodes"][0]
     assert node["state"] == "failed" and "stopped reading at" in node["why"], doc
     assert 0 < node["bytes_read"] < len(img)
