@@ -14,7 +14,8 @@ What can go wrong, and what happens:
   whose transactions keep failing raises that error;
 - the gateway no longer holds the call (CALL_RESULT answered with an error
   frame: it restarted, or made room for newer calls): a parameter call is
-  started again under a new id, a RestartNode is not (it may have run);
+  started again under a new id, a RestartNode or
+  BeginFirmwareUpdate is not (it may have run);
 - the gateway keeps a call PENDING past `patience_s`: NoAnswer as well.
 """
 
@@ -27,6 +28,7 @@ from danprobe.gateway_client import GatewayClient
 from danprobe.gateway_mgmt import (
     CALL_BUSY,
     CALL_DONE,
+    CALL_FW_BEGIN,
     CALL_OP_NAMES,
     CALL_PARAM_GET_INDEX,
     CALL_PENDING,
@@ -173,7 +175,7 @@ class Pipeline:
 
     def _forgotten(self, c: Call) -> None:
         """The gateway does not hold the call any more."""
-        if c.req.op == CALL_RESTART or c.restarts >= RESTARTS_MAX:
+        if c.req.op in (CALL_RESTART, CALL_FW_BEGIN) or c.restarts >= RESTARTS_MAX:
             raise CallLost(
                 f"the gateway no longer holds {describe(c.req)} to node {c.req.node_id} (it "
                 "restarted, or made room for newer calls)"

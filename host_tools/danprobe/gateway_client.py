@@ -54,6 +54,20 @@ from danprobe.gateway_fast import (
     decode_esc_fast,
     encode_esc_fast,
 )
+from danprobe.gateway_file import (
+    CODE_FILE_COMMIT,
+    CODE_FILE_LIST,
+    CODE_FILE_OPEN,
+    CODE_FILE_REMOVE,
+    CODE_FILE_WRITE,
+    FileCommit,
+    FileListPage,
+    FileOpen,
+    FileState,
+    FileWrite,
+    decode_name,
+    decode_result,
+)
 from danprobe.gateway_mgmt import (
     CALL_DONE,
     CALL_PARAM_ERASE,
@@ -161,7 +175,7 @@ def _describer(code: int, direction: int, fn: Callable) -> Callable[[bytes], dic
 
 
 def register_names():
-    """Names codes 0x42..0x4F and 0x52..0x5A in the registry, with describers
+    """Names codes 0x42..0x4F and 0x52..0x5F in the registry, with describers
     of the sealed payloads, so sniff shows and decodes them (the CLI calls
     this at start). A CAN_RECV response is decoded with the opts of the last
     CAN_RECV request described (its layout depends on them)."""
@@ -176,6 +190,12 @@ def register_names():
 
     def fast_req(p):
         return {"values": decode_esc_fast(p)}
+
+    def commit_req(p):
+        return {"crc32": f"0x{FileCommit.decode_request(p).crc:08x}"}
+
+    def file_req(p):
+        return {"name": decode_name(p).decode()}
 
     def recv_req(p):
         q = CanRecvRequest.decode(p)
@@ -206,6 +226,11 @@ def register_names():
         (CODE_BEEP, "BEEP", Beep.decode, flags),
         (CODE_ESC_FAST, "ESC_FAST", fast_req, FastResponse.decode),
         (CODE_ESC_FAST_T, "ESC_FAST_T", fast_req, FastResponse.decode),
+        (CODE_FILE_OPEN, "FILE_OPEN", FileOpen.decode, FileState.decode),
+        (CODE_FILE_WRITE, "FILE_WRITE", FileWrite.decode, FileState.decode),
+        (CODE_FILE_COMMIT, "FILE_COMMIT", commit_req, FileCommit.decode),
+        (CODE_FILE_LIST, "FILE_LIST", lambda p: {"first": u8(p)}, FileListPage.decode),
+        (CODE_FILE_REMOVE, "FILE_REMOVE", file_req, lambda p: {"result": decode_result(p)}),
     ):
         registry.register_message(
             code,

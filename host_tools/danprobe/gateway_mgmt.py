@@ -16,6 +16,7 @@ import struct
 from dataclasses import dataclass, field
 from typing import Union
 
+from danprobe.gateway_file import file_name, get_name
 from danprobe.gateway_msgs import check_range
 from danprobe.payloads import PayloadError, Reader, Writer
 
@@ -35,6 +36,8 @@ CALL_PARAM_SET = 2
 CALL_PARAM_SAVE = 3
 CALL_PARAM_ERASE = 4
 CALL_RESTART = 5
+CALL_FW_BEGIN = 6  # file.BeginFirmwareUpdate (gateway_file.py: its result)
+CALL_OP_MAX = CALL_FW_BEGIN
 CALL_OP_NAMES = (
     "param get (index)",
     "param get",
@@ -42,6 +45,7 @@ CALL_OP_NAMES = (
     "param save",
     "param erase",
     "restart",
+    "firmware update",
 )
 
 CALL_PENDING, CALL_DONE, CALL_TIMEOUT, CALL_BUSY = 0, 1, 2, 3
@@ -223,7 +227,8 @@ def _name_bytes(name: Union[str, bytes]) -> bytes:
 class NodeCall:
     """Request: u16 call_id, u8 node_id (1..127), u8 op, then per op:
     GET_INDEX uv index; GET_NAME string name; SET string name, value; SAVE,
-    ERASE nothing; RESTART u40 magic (5 bytes LE), u8 force."""
+    ERASE nothing; RESTART u40 magic (5 bytes LE), u8 force; FW_BEGIN string
+    name (a committed file's: 1..32 bytes of A-Z a-z 0-9 . _ -)."""
 
     call_id: int = 0
     node_id: int = 1
@@ -237,7 +242,7 @@ class NodeCall:
     def encode(self) -> bytes:
         check_range(self.call_id, 0, 0xFFFF, "call_id")
         check_range(self.node_id, 1, NODE_ID_MAX, "node_id")
-        check_range(self.op, 0, CALL_RESTART, "op")
+        check_range(self.op, 0, CALL_OP_MAX, "op")
         w = Writer().u16(self.call_id).u8(self.node_id).u8(self.op)
         if self.op == CALL_PARAM_GET_INDEX:
             w.uvarint(check_range(self.index, 0, PARAM_INDEX_MAX, "index"))
@@ -248,6 +253,8 @@ class NodeCall:
         elif self.op == CALL_RESTART:
             w.raw(check_range(self.magic, 0, MAGIC_MAX, "magic").to_bytes(5, "little"))
             w.u8(1 if self.force else 0)
+        elif self.op == CALL_FW_BEGIN:
+            w.array(file_name(self.name))
         return w.bytes()
 
     @classmethod
@@ -265,10 +272,12 @@ class NodeCall:
             if force > 1:
                 raise PayloadError(f"force: {force}, must be 0 or 1")
             c.force = bool(force)
+        elif c.op == CALL_FW_BEGIN:
+            c.name = get_name(r, "file name")
         named = c.op in (CALL_PARAM_GET_NAME, CALL_PARAM_SET)
         if (
             not 1 <= c.node_id <= NODE_ID_MAX
-            or c.op > CALL_RESTART
+            or c.op > CALL_OP_MAX
             or c.index > PARAM_INDEX_MAX
             or (named and not 1 <= len(c.name) <= PARAM_NAME_MAX)
         ):
@@ -286,6 +295,8 @@ class NodeCall:
                 d.update(type=self.value.type_name, value=self.value.plain())
         elif self.op == CALL_RESTART:
             d.update(magic=f"0x{self.magic:X}", force=self.force)
+        elif self.op == CALL_FW_BEGIN:
+            d["file"] = _text(self.name)
         return d
 
 

@@ -20,8 +20,10 @@ so a reply whose seal fails is retried, never decoded.
 import struct
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from typing import Optional
 
 from danprobe.codec import MalformedError, crc_table, uvarint_encode
+from danprobe.gateway_file import FwFollow
 from danprobe.payloads import PayloadError, Reader, Writer
 
 # ---- codes (block 0x40..0x4F: 0x40 IDENTIFY, 0x41 CONFIGURE) ----
@@ -116,6 +118,13 @@ STAT_NAMES = (
     "call_timeouts",
     "servo_cmds",
     "servo_dropped",
+    "file_reads",
+    "file_bytes",
+    "file_errors",
+    "upload_bytes",
+    "file_commits",
+    "upload_errors",
+    "fw_begins",
 )
 
 # node table info_state
@@ -687,6 +696,9 @@ class NodeInfo:
     hw_minor: int = 0
     unique_id: bytes = bytes(16)
     name: bytes = b""
+    # the fields an update is followed by (gateway_file.py); None: a gateway
+    # from before them sent none
+    follow: Optional[FwFollow] = None
 
     def encode(self) -> bytes:
         w = Writer().u8(self.node_id).u8(self.info_state)
@@ -703,6 +715,8 @@ class NodeInfo:
                 .raw(self.unique_id)
                 .array(self.name)
             )
+        if self.follow is not None:
+            self.follow.put(w)
         return w.bytes()
 
     @classmethod
@@ -714,6 +728,8 @@ class NodeInfo:
             i.sw_flags, i.vcs_commit = r.u8("sw_flags"), r.u32("vcs_commit")
             i.hw_major, i.hw_minor = r.u8("hw_major"), r.u8("hw_minor")
             i.unique_id, i.name = r.raw(16, "unique_id"), r.array("name")
+        if r.remaining():  # appended: all of them, or malformed
+            i.follow = FwFollow.get(r)
         return i
 
     def as_dict(self) -> dict:
@@ -727,6 +743,8 @@ class NodeInfo:
                 hw=[self.hw_major, self.hw_minor],
                 unique_id=self.unique_id.hex(),
             )
+        if self.follow is not None:
+            d["follow"] = self.follow.as_dict()
         return d
 
 

@@ -224,14 +224,19 @@ class Link:
         self.last_rx = t
         i = 0
         if self._tx is not None and self.echo:
-            while i < len(data) and self._echo_pos < len(self._tx):
-                if data[i] != self._tx[self._echo_pos]:
-                    self.stats.collisions += 1  # someone else drove the wire
-                    self.echo_late_at = t  # the rest of our frame may still come
-                    self._end_tx(failed=True)
-                    break
-                self._echo_pos += 1
-                i += 1
+            # compared as slices: a byte loop in Python costs a third of a
+            # 2 Mbit/s transaction (measured on 160-byte FILE_WRITE frames)
+            n = min(len(data), len(self._tx) - self._echo_pos)
+            want = self._tx[self._echo_pos : self._echo_pos + n]
+            if data[:n] == want:
+                self._echo_pos += n
+                i = n
+            else:
+                i = next(k for k in range(n) if data[k] != want[k])
+                self._echo_pos += i
+                self.stats.collisions += 1  # someone else drove the wire
+                self.echo_late_at = t  # the rest of our frame may still come
+                self._end_tx(failed=True)
             if self._tx is not None and self._echo_pos == len(self._tx):
                 self._tx_end = t
                 self._end_tx(failed=False)

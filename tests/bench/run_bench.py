@@ -31,6 +31,11 @@ Rows:
   gateway    callgrind instructions per ESC exchange, gateway side and FC side
   latency    ESC_CMD last byte on the wire -> RawCommand out of the hub, against
              a bare vbus pty hop plus a bare hub hop measured the same way
+  files      a 256 KiB firmware image uploaded through DAN (danprobe's client,
+             dan-vbus, dan-gatewayd --file-dir) at 115200 and 2000000, against
+             the wire bound of its FILE_* frames with the gaps (goal >= 0.8), and
+             the time tests/e2e/fw_bootloader.py takes to read it through the
+             gateway behind the SLCAN hub (tests/bench/bench_files.py)
   params     listing the 100 parameters of tests/tools/param_node.py (pydronecan,
              behind the hub) with danprobe's client through the DAN wire at
              115200 (NODE_CALL / CALL_RESULT, 5 calls in flight), against the
@@ -56,6 +61,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))  # this checkout's danprobe, whatever the venv's
+import bench_files  # noqa: E402  (tests/bench, the script's own directory)
+
 import procgroup  # noqa: E402
 from danprobe import gateway_calls, registry  # noqa: E402
 from danprobe.codec import encode_frame  # noqa: E402  (the host tool's codec)
@@ -877,6 +884,7 @@ def table(r):
                 f"{pr['ratio']:.2f}",
             )
         )
+    rows += bench_files.files_rows(r.get("files") or {})
     w0 = max(len(x[0]) for x in rows)
     w1 = max(len(x[1]) for x in rows)
     w2 = max(len(x[2]) for x in rows)
@@ -905,6 +913,7 @@ KEYS = [
     ("latency", "gw_us"),
     ("latency", "ratio"),
     ("params", "seconds"),
+    ("files", "ratio_min"),
 ]
 
 
@@ -928,7 +937,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
     ap.add_argument(
         "--only",
-        help="comma-separated rows (esc,esc_fast,adapters,esc_sim,raw_can,discovery,parser,gateway,latency,params)",
+        help="comma-separated rows (esc,esc_fast,adapters,esc_sim,raw_can,discovery,parser,gateway,latency,params,files)",
     )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
@@ -969,6 +978,10 @@ def main():
             ("gateway", lambda: bench_gateway_instr(build)),
             ("latency", lambda: bench_latency(build)),
             ("params", lambda: bench_params(build)),
+            (
+                "files",
+                lambda: bench_files.bench_files(build, Stack, gw_rig, read_capture, frame_code),
+            ),
         ]
         for name, fn in todo:
             if only and name not in only:

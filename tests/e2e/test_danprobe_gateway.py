@@ -17,7 +17,8 @@ import pytest
 from bus_util import danprobe, ready
 from conftest import BIN, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
-from danprobe import gateway_fast as F
+from danprobe import gateway_fast as FAST
+from danprobe import gateway_file as F
 from danprobe import gateway_mgmt as M
 from danprobe import gateway_msgs as G
 from danprobe import gateway_out as O
@@ -247,26 +248,26 @@ def check_fast_vector(line, msg, d, fields, payload):
     """ESC_FAST / ESC_FAST_T: exact lengths (no trailing bytes: a request's
     length is its value count), and the "bad" payloads refused."""
     if d == "bad":
-        decode = F.decode_esc_fast if msg == "esc_fast" else F.FastResponse.decode
+        decode = FAST.decode_esc_fast if msg == "esc_fast" else FAST.FastResponse.decode
         with pytest.raises(PayloadError):
             decode(payload)
         return
     f = dict(fields)
     if d == "req":
         values = ints(f["values"])
-        assert F.encode_esc_fast(values) == payload, line
-        assert F.decode_esc_fast(payload) == values, line
+        assert FAST.encode_esc_fast(values) == payload, line
+        assert FAST.decode_esc_fast(payload) == values, line
         return
     rec = None
     if "rec" in f:
         idx, fresh, age, *f16s, rpm = f["rec"].split("/")
-        rec = F.FastRecord(int(idx), bool(int(fresh)), int(age), *(int(x, 16) for x in f16s))
+        rec = FAST.FastRecord(int(idx), bool(int(fresh)), int(age), *(int(x, 16) for x in f16s))
         rec.rpm = int(rpm)
-    want = F.FastResponse(int(f["flags"]), rec)
+    want = FAST.FastResponse(int(f["flags"]), rec)
     assert want.encode() == payload, line
-    assert F.FastResponse.decode(payload) == want, line
+    assert FAST.FastResponse.decode(payload) == want, line
     with pytest.raises(PayloadError):
-        F.FastResponse.decode(payload + b"\x00")
+        FAST.FastResponse.decode(payload + b"\x00")
 
 
 def test_codec_every_vector():
@@ -286,6 +287,12 @@ def test_codec_every_vector():
         else:
             assert got == want, f"decode: {line}"
         # trailing bytes are ignored (later versions may append fields)
+        if (msg, d) == ("node_info", "rsp") and got.follow is None:
+            # bytes after the info are the update's fields (all of them)
+            w = G.Writer()
+            follow = F.FwFollow(0x0C, 3, 300, 65536, 20)
+            follow.put(w)
+            got.follow, payload = follow, payload + w.bytes()
         assert decode(payload + b"\x00\x7f") == got, line
         kinds.add((msg, d))
         n += 1
@@ -353,7 +360,8 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 29)["counter_28"] == 0  # later versions append counters
+    assert G.stats_dict([0] * 36)["counter_35"] == 0  # later versions append counters
+    assert G.stats_dict(list(range(35)))["fw_begins"] == 34
     assert G.stats_dict(list(range(26)))["call_timeouts"] == 25
     assert G.stats_dict(list(range(28)))["servo_dropped"] == 27
     assert G.off_diff(5, 0xFFFFFFFF) == 6 and G.off_diff(0, 1) == -1
@@ -399,7 +407,8 @@ def test_codec_details_and_malformed_payloads():
         (G.ConfigRequest.decode, "0432"),  # telem_timeout 50
         (G.ConfigRequest.decode, "0802"),  # dna 2
         (M.NodeCall.decode, "0100000000"),  # node 0
-        (M.NodeCall.decode, "0100140600"),  # op 6
+        (M.NodeCall.decode, "0100140600"),  # op 6 FW_BEGIN without a file name
+        (M.NodeCall.decode, "0100140700"),  # op 7
         (M.NodeCall.decode, "01001400ff7f"),  # index 16383
         (M.NodeCall.decode, "0100140100"),  # empty name
         (M.NodeCall.decode, "01001401" + "5d" + "61" * 93),  # 93-byte name

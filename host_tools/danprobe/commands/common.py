@@ -346,19 +346,27 @@ def report(
 GATEWAY_TYPE = registry.lookup("can-gw")
 
 
-def add_gateway_options(p: argparse.ArgumentParser, *, long_running: bool = False):
+def add_gateway_options(
+    p: argparse.ArgumentParser,
+    *,
+    long_running: bool = False,
+    timeout_default: float = 30.0,
+    timeout_help: Optional[str] = None,
+):
     """The options of every gateway command: the common and bus options
     (--types defaults to can-gw alone), --bus-baud and --configure."""
     add_common_options(
         p,
         baud_help="the baud the bus is at, if known: the gateway is tried there first "
         "(one IDENTIFY), then by discovery from 9600 (default: discovery)",
-        timeout_help=(
+        timeout_default=timeout_default,
+        timeout_help=timeout_help
+        or (
             "give up finding the gateway after S seconds; then fail once it has "
             "not answered for S seconds (default 30)"
-        )
-        if long_running
-        else "give up after S seconds (default 30)",
+            if long_running
+            else "give up after S seconds (default 30)"
+        ),
     )
     add_master_options(p, types_default=GATEWAY_TYPE.name)
     g = p.add_argument_group("gateway options")
@@ -371,6 +379,18 @@ def add_gateway_options(p: argparse.ArgumentParser, *, long_running: bool = Fals
         help="first move the bus to the best baud of every peripheral found "
         "(--types; 115200 for the gateway alone, or up to --max-baud)",
     )
+
+
+def gateway_actions(p: argparse.ArgumentParser, command: str, helps: dict, description: str):
+    """The actions of a gateway command (`param list|get|...`): a subparser
+    per key of helps (dest COMMAND_command), each with the gateway options;
+    yields (action, its "COMMAND ACTION options" group)."""
+    sub = p.add_subparsers(dest=f"{command}_command", metavar="|".join(helps))
+    sub.required = True
+    for name, text in helps.items():
+        s = sub.add_parser(name, help=text, description=description)
+        add_gateway_options(s)
+        yield name, s.add_argument_group(f"{command} {name} options")
 
 
 def find_gateway(ctx: Context, m: Master):

@@ -5,8 +5,8 @@ from danprobe import gateway_calls, gateway_mgmt
 from danprobe.commands.common import (
     EXIT_USAGE,
     CliError,
-    add_gateway_options,
     format_table,
+    gateway_actions,
     gateway_operation,
     gateway_report,
     int_range,
@@ -48,8 +48,6 @@ def add_node_option(p, what: str = "the node"):
 
 
 def add_arguments(p):
-    sub = p.add_subparsers(dest="param_command", metavar="list|get|set|save|erase")
-    sub.required = True
     helps = {
         "list": "every parameter, by index",
         "get": "one parameter by name",
@@ -57,10 +55,7 @@ def add_arguments(p):
         "save": "ExecuteOpcode SAVE: the node stores its parameters",
         "erase": "ExecuteOpcode ERASE: the node erases its stored parameters",
     }
-    for name, text in helps.items():
-        s = sub.add_parser(name, help=text, description=DESCRIPTION)
-        add_gateway_options(s)
-        g = s.add_argument_group(f"param {name} options")
+    for name, g in gateway_actions(p, "param", helps, DESCRIPTION):
         add_node_option(g)
         if name in ("get", "set"):
             g.add_argument("name", metavar="NAME", help="the parameter's name")

@@ -1,0 +1,161 @@
+"""The `files` rows of run_bench.py: a firmware image uploaded into
+dan-gatewayd's file store through DAN (danprobe's client on dan-vbus) at
+115200 and 2000000, against the wire bound of its own bytes, and the time a
+bootloader node behind the SLCAN hub takes to read it through the gateway.
+
+The bound of an upload is the time its frames (FILE_OPEN, FILE_WRITE,
+FILE_COMMIT requests and responses, as the vbus capture holds them) take
+on the wire at 10 bits a byte, plus the mandatory gaps of docs/PROTOCOL.md
+section 6 for each exchange: turnaround 2 C and listen-before-talk 3 C.
+Goal: >= 0.8 of the bound."""
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "host_tools"))
+from danprobe import file_update, registry  # noqa: E402
+from danprobe import gateway_file as F  # noqa: E402
+from danprobe.gateway_client import GatewayClient  # noqa: E402
+from danprobe.master import Master, MasterConfig, RemoteError  # noqa: E402
+from danprobe.port import SerialPort  # noqa: E402
+
+SIZE = 256 * 1024
+BAUDS = (115200, 2000000)
+GOAL = 0.8
+GAP_CHARS = 2 + 3  # turnaround + listen-before-talk, per exchange
+UPLOAD_CODES = (F.CODE_FILE_OPEN, F.CODE_FILE_WRITE, F.CODE_FILE_COMMIT)
+BOOT_NODE = 30
+BOOTLOADER = ROOT / "tests" / "e2e" / "fw_bootloader.py"
+PY = sys.executable
+
+
+def image(size: int) -> bytes:
+    return bytes((i * 131 + (i >> 9)) & 0xFF for i in range(size))
+
+
+def gateway_at(port, baud: int) -> GatewayClient:
+    cfg = MasterConfig(max_baud=max(baud, 115200), resp_latency_s=0.05)
+    m = Master(port, [registry.lookup("can-gw")], 9600, cfg)
+    m.discover()
+    m.configure(baud)
+    if m.baud != baud:
+        raise RuntimeError(f"the bus is at {m.baud}, not {baud}")
+    return GatewayClient(m)
+
+
+def wire_bound(capture, frame_code, baud: int) -> dict:
+    """Bytes and exchanges of the upload's frames at baud; the bound in s."""
+    c_us = (10_000_000 + baud - 1) // baud
+    ours = [b for b in capture if b[2] == baud and frame_code(b[3]) in UPLOAD_CODES]
+    req = sum(len(b[3]) for b in ours if b[1] == 0)
+    rsp = sum(len(b[3]) for b in ours if b[1] == 1)
+    exchanges = sum(1 for b in ours if b[1] == 1)
+    return {
+        "req_bytes": req,
+        "rsp_bytes": rsp,
+        "exchanges": exchanges,
+        "bound_s": (req + rsp + GAP_CHARS * exchanges) * c_us / 1e6,
+    }
+
+
+def bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud: int, read: bool):
+    """One upload of SIZE bytes at baud; with read, the bootloader node then
+    reads the image through the gateway (FW_BEGIN, NODE_INFO until done)."""
+    data = image(SIZE)
+    with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
+        tmp = Path(tmp)
+        (tmp / "store").mkdir()
+        st = stack_cls(tmp)
+        try:
+            gw_rig(
+                st,
+                build,
+                tmp,
+                n_esc=0,
+                extra_can=1,
+                gw_args=("--file-dir", tmp / "store", "--file-max", str(2 * SIZE)),
+            )
+            with SerialPort(str(tmp / "dan0"), 9600) as port:
+                gw = gateway_at(port, baud)
+                u = file_update.upload(gw, "bench.bin", data, restart=True)
+                retries = gw.m.stats.retries
+                out = {"baud": baud, "size": SIZE, "seconds": u.seconds, "retries": retries}
+                if read:  # the node starts after the upload: its CPU is not the upload's
+                    (tmp / "image.bin").write_bytes(data)
+                    boot = st.start(
+                        [PY, BOOTLOADER, "--port", tmp / "can1", "--node-id", BOOT_NODE]
+                        + ["--expect", tmp / "image.bin", "--pipeline", "4"],  # as AP_Bootloader
+                        "fw_bootloader",
+                    )
+                    st.ready(boot)
+                    out.update(read_through_gateway(gw, SIZE))
+        finally:
+            st.close()
+        out.update(wire_bound(read_capture(tmp / "bus.cap"), frame_code, baud))
+    out["ratio"] = out["bound_s"] / out["seconds"]
+    out["goal"] = GOAL
+    return out
+
+
+def read_through_gateway(gw: GatewayClient, size: int) -> dict:
+    """FW_BEGIN to the bootloader node, then NODE_INFO until it read size bytes."""
+    deadline = time.monotonic() + 600
+    while True:  # the node is in the gateway's table once its NodeStatus was heard
+        try:
+            gw.node_info(BOOT_NODE)
+            break
+        except RemoteError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)
+    r = file_update.fw_begin(gw, BOOT_NODE, "bench.bin")
+    if not r.ok:
+        raise RuntimeError(f"the bootloader refused: {r.text()}")
+    t0 = time.monotonic()
+    failures = [0]  # a loaded host can stall a transaction: a few in a row are tolerated
+    while True:
+        info = file_update.guarded(lambda: gw.node_info(BOOT_NODE), failures)
+        if info is not None and info.follow.bytes_read >= size:
+            break
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the bootloader did not read {size} bytes in time")
+        time.sleep(0.02)
+    secs = time.monotonic() - t0
+    return {"read_seconds": secs, "read_bytes_per_s": size / secs}
+
+
+def bench_files(build, stack_cls, gw_rig, read_capture, frame_code) -> dict:
+    rows = [
+        bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud, baud == BAUDS[-1])
+        for baud in BAUDS
+    ]
+    return {"rows": rows, "ratio_min": min(r["ratio"] for r in rows)}
+
+
+def files_rows(r: dict) -> list:
+    """The table rows of bench_files()'s result."""
+    out = []
+    for e in r.get("rows", []):
+        kib = e["size"] // 1024
+        out.append(
+            (
+                f"upload {kib} KiB {e['baud']} (FILE_WRITE)",
+                f"{e['seconds']:.2f} s, {e['size'] / e['seconds'] / 1024:.1f} KiB/s",
+                f"wire+gaps {e['bound_s']:.2f} s ({e['exchanges']} exch, "
+                f"{e['req_bytes'] + e['rsp_bytes']} B); goal {e['goal']}",
+                f"{e['ratio']:.2f}",
+            )
+        )
+        if "read_seconds" in e:
+            out.append(
+                (
+                    f"  bootloader reads {kib} KiB (SLCAN hub)",
+                    f"{e['read_seconds']:.2f} s, {e['read_bytes_per_s'] / 1024:.1f} KiB/s",
+                    f"the upload at {e['baud']}: {e['seconds']:.2f} s",
+                    f"{e['read_seconds'] / e['seconds']:.2f}",
+                )
+            )
+    return out
