@@ -141,9 +141,10 @@ typedef struct {
     size_t idx;   /* type index / baud index (internal) */
     size_t bidx;
     uint32_t target_baud;
-    /* configure's candidates (fast bauds, highest first): cand[cidx] is
-     * being tried; ntried of them were (recovery scans them) */
-    uint32_t cand[DAN_MASTER_MAX_FAST];
+    /* configure's candidates (the fast bauds, highest first, or the one
+     * fast baud the caller named): number cidx is being tried; ntried of
+     * them were (recovery scans them) */
+    uint32_t named_baud;
     uint8_t ncand, cidx, ntried;
     bool cfg_auto;                            /* configure(0): fall back to the best mask baud */
     uint8_t pass;                             /* 0: peers that refused before, 1: the others */
