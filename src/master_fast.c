@@ -7,22 +7,37 @@
 #include "dan/codes.h"
 #include "master_internal.h"
 
-size_t dan_mst_fast_list(const dan_master_t *m, uint32_t out[DAN_MASTER_MAX_FAST])
+size_t dan_mst_fast_list(const dan_master_t *m, uint32_t *out, size_t skip, size_t cap)
 {
     const uint32_t *list = (m->cfg.fast_bauds != NULL) ? m->cfg.fast_bauds : dan_fast_bauds;
     size_t i = (m->cfg.fast_bauds != NULL) ? m->cfg.nfast_bauds : DAN_NFAST_BAUDS;
     size_t k = 0;
+    uint32_t last = UINT32_MAX;
     if (m->cfg.fast_max_baud == 0u) {
         return 0;
     }
     while (i-- > 0u && k < DAN_MASTER_MAX_FAST) { /* ascending list: from its end */
         uint32_t b = list[i];
         if (b <= m->cfg.fast_max_baud && !dan_baud_is_v1(b) && dan_mst_port_supports(m, b) &&
-            (k == 0u || b < out[k - 1u])) {
-            out[k++] = b;
+            b < last) {
+            if (k >= skip && k - skip < cap) {
+                out[k - skip] = b;
+            }
+            k++;
+            last = b;
         }
     }
     return k;
+}
+
+uint32_t dan_mst_cand(const dan_master_t *m, size_t i)
+{
+    uint32_t b = 0;
+    if (m->named_baud != 0u) {
+        return m->named_baud;
+    }
+    (void)dan_mst_fast_list(m, &b, i, 1u);
+    return b;
 }
 
 bool dan_mst_fast_candidate(dan_master_t *m)
@@ -32,7 +47,7 @@ bool dan_mst_fast_candidate(dan_master_t *m)
         m->moved[i] = false;
     }
     if (m->cidx < m->ncand) {
-        m->target_baud = m->cand[m->cidx];
+        m->target_baud = dan_mst_cand(m, m->cidx);
         if (m->ntried < m->cidx + 1u) {
             m->ntried = (uint8_t)(m->cidx + 1u);
         }

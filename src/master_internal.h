@@ -50,8 +50,12 @@ void dan_mst_start_v1_configure(dan_master_t *m);
 
 /* master_fast.c */
 /* The fast bauds this master offers (cfg.fast_*, the port's maximum),
- * highest first, without the v1 bauds; returns the count. */
-size_t dan_mst_fast_list(const dan_master_t *m, uint32_t out[DAN_MASTER_MAX_FAST]);
+ * highest first, without the v1 bauds; returns the count. Baud k goes to
+ * out[k - skip] for skip <= k < skip + cap (out may be NULL if cap is 0):
+ * computed again when needed rather than kept in dan_master_t (RAM). */
+size_t dan_mst_fast_list(const dan_master_t *m, uint32_t *out, size_t skip, size_t cap);
+/* Configure's candidate i: the baud the caller named, or fast baud i. */
+uint32_t dan_mst_cand(const dan_master_t *m, size_t i);
 /* Starts candidate m->cidx, or the v1 fallback (auto), or finishes with
  * the refusal (a baud the caller named). Returns true when finished. */
 bool dan_mst_fast_candidate(dan_master_t *m);

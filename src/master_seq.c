@@ -67,11 +67,11 @@ static size_t scan_list(const dan_master_t *m, const dan_peer_t *p, uint32_t lis
      * most 1 + ntried + 1 <= SCAN_MAX - DAN_MASTER_MAX_FAST entries come
      * before it, so list[n] is written below each fast entry still unread. */
     uint32_t *fast = list + (SCAN_MAX - DAN_MASTER_MAX_FAST);
-    size_t n = 0, i, nf = dan_mst_fast_list(m, fast);
+    size_t n = 0, i, nf = dan_mst_fast_list(m, fast, 0, DAN_MASTER_MAX_FAST);
     if (p != NULL) {
         n = scan_add(m, list, n, p->baud);
-        for (i = 0; i < m->ntried; i++) {
-            n = scan_add(m, list, n, m->cand[i]);
+        for (i = 0; i < m->ntried; i++) { /* the candidates tried: dan_mst_cand(m, i) */
+            n = scan_add(m, list, n, m->named_baud != 0u ? m->named_baud : fast[i]);
         }
     }
     n = scan_add(m, list, n, DAN_BAUD_BASE);
@@ -456,11 +456,12 @@ int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us)
     m->ncand = 0;
     m->cidx = 0;
     m->ntried = 0;
+    m->named_baud = 0;
     m->fast_error = DAN_OK;
     if (baud == 0u) {
-        m->ncand = (uint8_t)dan_mst_fast_list(m, m->cand);
+        m->ncand = (uint8_t)dan_mst_fast_list(m, NULL, 0, 0);
     } else if (!dan_baud_is_v1(baud)) {
-        m->cand[0] = baud; /* one candidate, named by the caller */
+        m->named_baud = baud; /* one candidate, named by the caller */
         m->ncand = 1;
     }
     if (m->ncand == 0u) {

@@ -24,16 +24,16 @@
 /* Largest payload a frame may carry, bytes (64..16383). A decoder rejects
  * (counted "oversize") a frame declaring a longer one; encoders refuse to
  * build one. 160 fits a 120-byte tunnel chunk plus its header, or twelve
- * raw CAN frames. RAM: ~3 x this per master (decoder, TX frame, response)
- * and 3 x per peripheral engine. */
+ * raw CAN frames. RAM: ~2 x this per master (decoder, TX frame; the last
+ * response is kept in the TX frame) and 3 x per peripheral engine. */
 #ifndef DAN_MAX_PAYLOAD
 #define DAN_MAX_PAYLOAD 160u
 #endif
 
 /* Longest string kept by the common payload decoders (identity fields,
  * error text), bytes including the NUL (2..255). Longer strings on the wire
- * are accepted and truncated (flagged). RAM: 4 x this per discovered peer
- * (the identity's strings). */
+ * are accepted and truncated (flagged). RAM: 4 x this per dan_identity_t
+ * (the caller's, dan_master_set_identities(); the master keeps none). */
 #ifndef DAN_MAX_STRING
 #define DAN_MAX_STRING 32u
 #endif
@@ -80,7 +80,7 @@
 /* ==== master engine ==== */
 
 /* Peripheral types one master probes (= peers per UART). RAM: one
- * dan_peer_t each (~4 x DAN_MAX_STRING + 20 bytes). */
+ * dan_peer_t each and its configure state (~20 bytes). */
 #ifndef DAN_MASTER_MAX_TYPES
 #define DAN_MASTER_MAX_TYPES 4u
 #endif

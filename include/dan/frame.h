@@ -50,13 +50,13 @@ typedef struct {
  */
 typedef struct {
     uint8_t buf[DAN_MAX_FRAME];
+    uint8_t hdr;    /* the candidate's header length (sync, code, length) */
     size_t len;     /* bytes buffered; buf[0] == DAN_SYNC when len > 0 */
     size_t scanned; /* buffered bytes already examined as the candidate */
     size_t consume; /* length of the frame last returned, dropped on the next call */
     size_t need;    /* total length of the candidate once its header is read */
     size_t guard;   /* buffered bytes that belonged to rejected candidates */
     uint32_t code;  /* the candidate's code, once its header is read */
-    uint8_t hdr;    /* the candidate's header length (sync, code, length) */
     dan_decoder_stats_t stats;
 } dan_decoder_t;
 

@@ -73,21 +73,21 @@ typedef enum {
 
 typedef void (*dan_frame_cb_t)(void *owner, const dan_frame_t *frame, uint64_t now_us);
 
-typedef struct {
+typedef struct { /* fields ordered for no padding (RAM) */
     dan_port_t port;
     uint32_t baud;
     uint32_t char_us;         /* one character time at baud */
     uint32_t gap_us;          /* 0 = default: max(DAN_GAP_CHARS * C, DAN_GAP_MIN_US) */
     uint32_t echo_timeout_us; /* echo must be complete by T_end + this (0 = gap) */
     uint64_t echo_late_us;    /* when our echo last went missing or broke (0: never) */
-    dan_decoder_t dec;
-    uint8_t tx[DAN_MAX_FRAME];
-    size_t tx_len;
-    size_t echo_pos; /* echoed bytes matched so far */
     uint64_t tx_start_us;
     uint64_t last_rx_us; /* time of the last byte received (or echoed) */
-    bool rx_any;         /* a byte was received since the last frame/send */
+    dan_decoder_t dec;
+    uint8_t tx[DAN_MAX_FRAME];
+    bool rx_any; /* a byte was received since the last frame/send */
     dan_link_state_t state;
+    size_t tx_len;
+    size_t echo_pos; /* echoed bytes matched so far */
     dan_frame_cb_t on_frame;
     void *owner;
     dan_link_stats_t stats;

@@ -113,14 +113,14 @@ typedef struct {
     size_t nids;
     int (*id_decode)(dan_identity_t *id, const uint8_t *p, size_t len);
 
-    /* the current transaction */
-    uint32_t req_code; /* the request itself waits in link.tx */
-    uint8_t attempts_left;
-    uint8_t attempt;        /* attempts made, for the backoff */
-    uint8_t txn_phase;      /* internal */
+    /* the current transaction (fields ordered for no padding: RAM) */
+    uint32_t req_code;      /* the request itself waits in link.tx */
     uint64_t wait_until_us; /* not before: backoff or settle after a baud switch */
     uint64_t deadline_us;   /* the reply must have started by then */
     uint64_t busy_since_us;
+    uint8_t attempts_left;
+    uint8_t attempt;   /* attempts made, for the backoff */
+    uint8_t txn_phase; /* internal */
     bool lbt_counted;
     int txn_result;
 
@@ -138,19 +138,20 @@ typedef struct {
     /* the current operation */
     dan_master_op_t op;
     uint8_t step; /* sequencer state (internal) */
-    size_t idx;   /* type index / baud index (internal) */
+    bool done;
+    bool cfg_auto; /* configure(0): fall back to the best mask baud */
+    size_t idx;    /* type index / baud index (internal) */
     size_t bidx;
     uint32_t target_baud;
-    /* configure's candidates (fast bauds, highest first): cand[cidx] is
-     * being tried; ntried of them were (recovery scans them) */
-    uint32_t cand[DAN_MASTER_MAX_FAST];
+    /* configure's candidates (the fast bauds, highest first, or the one
+     * fast baud the caller named): number cidx is being tried; ntried of
+     * them were (recovery scans them) */
+    uint32_t named_baud;
     uint8_t ncand, cidx, ntried;
-    bool cfg_auto;                            /* configure(0): fall back to the best mask baud */
     uint8_t pass;                             /* 0: peers that refused before, 1: the others */
     int fast_error;                           /* why the last candidate was refused */
     uint32_t back_baud[DAN_MASTER_MAX_TYPES]; /* where a moved peer was */
     bool moved[DAN_MASTER_MAX_TYPES];         /* acknowledged the candidate */
-    bool done;
     int result;
     uint32_t rng;
     dan_reply_check_fn reply_check;

@@ -20,8 +20,9 @@
  * are read straight out of the master's response buffer with the
  * dan_gw_*_get/next functions below; they stay valid until the next
  * transaction starts, so the client itself stays small:
- *   sizeof(dan_gw_t) ~ 100 + 40 * DAN_GW_MAX_ESC + 4 * DAN_GW_STAT_COUNT
- *                      + 24 * DAN_GW_TUNNELS bytes (~540 with the defaults).
+ *   sizeof(dan_gw_t) ~ 100 + 44 * DAN_GW_MAX_ESC + 4 * DAN_GW_STAT_COUNT
+ *                      + 24 * DAN_GW_TUNNELS bytes (436 on Cortex-M4 with
+ *                      the defaults; `make size` reports it).
  *
  * Retries: the master retries a transaction whose response was lost. Every
  * gateway message is idempotent under retry (ESC commands and ARM are
