@@ -351,6 +351,8 @@ def main():
     ap.add_argument("--keep", help="run in this directory and keep the logs")
     ap.add_argument("--faults", default=",".join(FAULTS), help="the faults to draw from")
     a = ap.parse_args()
+    # SIGTERM (a timeout, make's Ctrl-C) unwinds: every process is stopped
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if a.seconds <= 0:
         ap.error("--seconds must be positive")
     faults = a.faults.split(",")

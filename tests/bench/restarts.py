@@ -255,6 +255,8 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", help="write the results as JSON here")
     a = ap.parse_args()
+    # SIGTERM (a timeout, make's Ctrl-C) unwinds: every process is stopped
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if a.count < 1:
         ap.error("--count must be at least 1")
     try:
