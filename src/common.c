@@ -37,19 +37,13 @@ size_t dan_uvarint_size(uint32_t v)
 int dan_uvarint_encode(uint32_t v, uint8_t *out, size_t cap)
 {
     size_t n = dan_uvarint_size(v);
-    size_t i;
     if (out == NULL) {
         return (int)n;
     }
     if (cap < n) {
         return DAN_ERR_OVERFLOW;
     }
-    for (i = 0; i + 1 < n; i++) {
-        out[i] = (uint8_t)((v & 0x7Fu) | 0x80u);
-        v >>= 7;
-    }
-    out[i] = (uint8_t)v;
-    return (int)n;
+    return (int)dan_uvarint_put(v, out);
 }
 
 int dan_uvarint_decode(const uint8_t *in, size_t len, uint32_t *v)

@@ -25,8 +25,8 @@ int dan_frame_encode(uint32_t code, const uint8_t *payload, size_t len, uint8_t 
     }
     out[0] = DAN_SYNC;
     pos = 1;
-    pos += (size_t)dan_uvarint_encode(code, out + pos, cap - pos);
-    pos += (size_t)dan_uvarint_encode((uint32_t)len, out + pos, cap - pos);
+    pos += dan_uvarint_put(code, out + pos); /* cap >= n: they fit */
+    pos += dan_uvarint_put((uint32_t)len, out + pos);
     if (len > 0u) {
         memcpy(out + pos, payload, len);
     }

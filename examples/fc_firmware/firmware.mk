@@ -28,7 +28,7 @@ FW_ARCH   := -mcpu=cortex-m4 -mthumb
 FW_FLASH_BUDGET ?= 9856
 FW_RAM_BUDGET   ?= 1248
 # Worst-case stack of any public call (-fcallgraph-info=su, summed along the calls).
-FW_STACK_BUDGET ?= 288
+FW_STACK_BUDGET ?= 280
 
 DEBS_FW   := gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qemu-system-arm clang
 DEBS_RV   := gcc-riscv64-unknown-elf picolibc-riscv64-unknown-elf

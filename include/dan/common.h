@@ -55,6 +55,19 @@ int dan_uvarint_encode(uint32_t v, uint8_t *out, size_t cap);
 
 /* Bytes v takes on the wire (1..5). */
 size_t dan_uvarint_size(uint32_t v);
+/* Writes v as a uvarint at out (room for DAN_UVARINT_MAX_BYTES assumed,
+ * no checks); returns the bytes written. Inline: the frame encoder writes
+ * its header with it, one call less on the master's deepest stack path. */
+static inline size_t dan_uvarint_put(uint32_t v, uint8_t *out)
+{
+    size_t i = 0;
+    while (v >= 0x80u) {
+        out[i++] = (uint8_t)((v & 0x7Fu) | 0x80u);
+        v >>= 7;
+    }
+    out[i++] = (uint8_t)v;
+    return i;
+}
 
 /* Decodes one uvarint from in (len bytes available). Returns bytes used
  * (1..5); 0 if the input ends before the uvarint does (truncated: feed more);
