@@ -50,6 +50,18 @@ def gateway_cmds(s, values, least):
     return wait_for(per_esc, 60, 0.2, what=f"{least} commands {values} at every ESC")
 
 
+def only_values_then_zeros(s, values):
+    """Every command the ESCs got from the gateway is values, except the
+    failsafe's zeros after the FC stopped (a lagging ESC log may already
+    hold them): none before an ESC's last command with values."""
+    cmds = [e for e in s.esc_events("cmd") if e["src"] == GW_NODE]
+    assert {tuple(e["cmd"]) for e in cmds} <= {tuple(values), (0,) * len(values)}, cmds[-5:]
+    for esc in {e["esc"] for e in cmds}:
+        mine = [tuple(e["cmd"]) for e in cmds if e["esc"] == esc]
+        last = max(i for i, c in enumerate(mine) if c == tuple(values))
+        assert (0,) * len(values) not in mine[:last], (esc, mine[:last][-5:])
+
+
 def fcsim_fast_run(s, baud, ms):
     """dan-fcsim: discover, configure to baud, ESC_FAST with 11,-22,8191,-8192
     for ms (a record every 4th exchange), stats; (output lines, the esc step)."""
@@ -89,8 +101,7 @@ def test_fcsim_fast_exact_values_and_telemetry_of_every_esc(stack, baud):
     # per exchange (at 1M the exchanges outrun the SLCAN hub and the Python
     # ESCs: throttle is latest-wins on the way, so fewer arrive, none wrong)
     gateway_cmds(s, [11, -22, 8191, -8192], 0.9 * n if baud == 115200 else 100)
-    others = {tuple(e["cmd"]) for e in s.esc_events("cmd") if e["src"] == GW_NODE}
-    assert others == {(11, -22, 8191, -8192)}
+    only_values_then_zeros(s, [11, -22, 8191, -8192])
     stats = next(line for line in out if line["step"] == "stats")
     assert stats["esc_cmds"] >= n and stats["bad_checks"] == 0
     # on the wire: ESC_FAST requests of 13 bytes, responses of 7 or 17, at the baud
