@@ -119,8 +119,10 @@ def test_firmware_discovers_configures_and_transacts(fc_bus, procs, tmp_path):
     # The host saw the baud change: the firmware's divisor write reached the
     # pty's termios, so dan-vbus put its bytes on the wire at 115200.
     bursts = read_capture(tmp_path)
-    configures = [
-        b for b in bursts if b[1] == 0 and len(b[3]) > 1 and b[3][1] in (0x41, 0x61, 0x71)
+    configures = [  # frames that start a burst ('D'): a burst may also be a frame's tail
+        b
+        for b in bursts
+        if b[1] == 0 and len(b[3]) > 1 and b[3][0] == 0x44 and b[3][1] in (0x41, 0x61, 0x71)
     ]
     assert len(configures) == 3 and all(b[2] == 9600 for b in configures)
     after = [b for b in bursts if b[1] == 0 and b[0] > configures[-1][0] + 0.005]
