@@ -3,6 +3,7 @@
 dan-vbus, dan-testperiph and dan-master."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -446,3 +447,19 @@ def test_help():
     for cmd in ("discover", "configure", "sniff"):
         rc, out, err = danprobe(cmd, "--help")
         assert rc == 0 and "--port" in out and "--json" in out and "--timeout" in out
+
+
+def test_latency_default_from_the_environment(procs, tmp_path):
+    """$DANPROBE_LATENCY_MS is --latency-ms's default (a slow adapter or
+    host, set once); a bad value is a usage error. A discovery that finds
+    nobody waits the whole window for each attempt: 5 bauds x 2 attempts,
+    so it cannot end sooner than 10 windows (a lower bound, not a speed)."""
+    _, eps, _ = start_vbus(procs, tmp_path, 2)
+    args = ("discover", "--port", eps[0], "--types", "test-a", "--json", "-q")
+    env = dict(os.environ, DANPROBE_LATENCY_MS="300")
+    r = subprocess.run([sys.executable, "-m", "danprobe", *args], env=env, capture_output=True)
+    doc = json.loads(r.stdout)
+    assert r.returncode == 1 and doc["ms"] >= 10 * 300, doc
+    env["DANPROBE_LATENCY_MS"] = "0"
+    r = subprocess.run([sys.executable, "-m", "danprobe", *args], env=env, capture_output=True)
+    assert r.returncode == 2 and b"DANPROBE_LATENCY_MS" in r.stderr, r.stderr

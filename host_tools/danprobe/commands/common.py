@@ -5,6 +5,7 @@ add_arguments(parser) and run(ctx) -> exit code (see commands/__init__.py).
 
 import argparse
 import json
+import os
 import signal
 import sys
 from collections.abc import Iterable, Iterator
@@ -167,6 +168,22 @@ def add_pty_options(g):
     add_duration_option(g)
 
 
+LATENCY_ENV = "DANPROBE_LATENCY_MS"
+
+
+def env_latency_ms() -> int:
+    """--latency-ms's default: $DANPROBE_LATENCY_MS (set once for a slow
+    adapter or a loaded host) or 50."""
+    v = os.environ.get(LATENCY_ENV)
+    if v is None:
+        return 50
+    try:
+        return positive_int(v)
+    except argparse.ArgumentTypeError as e:  # while the parser is built: no command yet
+        sys.stderr.write(f"danprobe: ${LATENCY_ENV}: {e}\n")
+        sys.exit(EXIT_USAGE)
+
+
 def add_master_options(p: argparse.ArgumentParser, *, types_default: str = DEFAULT_TYPES):
     """Options of every command that talks on the bus as its master."""
     g = p.add_argument_group("bus options")
@@ -187,9 +204,10 @@ def add_master_options(p: argparse.ArgumentParser, *, types_default: str = DEFAU
     g.add_argument(
         "--latency-ms",
         type=positive_int,
-        default=50,
+        default=env_latency_ms(),
         metavar="N",
-        help="reply start window after our request (default 50: USB adapters, ptys)",
+        help="reply start window after our request (default 50: USB adapters, ptys; "
+        f"or ${LATENCY_ENV} for a slow adapter or host)",
     )
     add_gap_option(g)
     g.add_argument(

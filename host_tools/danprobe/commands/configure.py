@@ -51,7 +51,7 @@ def run(ctx) -> int:
         m,
         failure,
         ms,
-        {"target": target, "recoveries": m.stats.recoveries},
+        {"target": target, "recoveries": m.stats.recoveries, "retries": m.stats.retries},
         f"configure failed: {failure}{recovered}",
         human,
     )
