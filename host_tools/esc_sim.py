@@ -52,27 +52,31 @@ class Esc:
         self.last = time.monotonic()
         self.node.periodic(1.0 / args.status_hz, self.publish)
 
-    def emit(self, event, **kw):
+    def emit(self, event, e=None, **kw):
+        """A log line; t is when the transfer's first frame was read from
+        the port (pydronecan's I/O process stamps it), so a handler running
+        late on a loaded host does not move it; else now."""
         if self.log:
+            t = getattr(e.transfer, "ts_monotonic", None) if e is not None else None
+            t = time.monotonic() if t is None else t
             self.log.write(
-                json.dumps({"t": round(time.monotonic(), 6), "esc": self.idx, "event": event, **kw})
-                + "\n"
+                json.dumps({"t": round(t, 6), "esc": self.idx, "event": event, **kw}) + "\n"
             )
             self.log.flush()
 
     def on_cmd(self, e):
         cmd = list(e.message.cmd)
-        self.emit("cmd", cmd=cmd, src=e.transfer.source_node_id)
+        self.emit("cmd", e, cmd=cmd, src=e.transfer.source_node_id)
         if self.idx < len(cmd):
             self.cmd = int(cmd[self.idx])
         return None
 
     def on_arming(self, e):
-        self.emit("arming", status=int(e.message.status), src=e.transfer.source_node_id)
+        self.emit("arming", e, status=int(e.message.status), src=e.transfer.source_node_id)
         return None
 
     def on_safety(self, e):
-        self.emit("safety", status=int(e.message.status), src=e.transfer.source_node_id)
+        self.emit("safety", e, status=int(e.message.status), src=e.transfer.source_node_id)
         return None
 
     def step(self):

@@ -188,7 +188,7 @@ static void can_drain(gwd_t *d, uint64_t now)
     if (dan_canif_tx_pending(&d->can)) {
         int r = dan_canif_flush(&d->can);
         if (r == DAN_ERR_IO) {
-            can_down(d, "write failed", now);
+            can_down(d, "adapter lost (write failed)", now);
             return;
         }
         if (r == DAN_ERR_BUSY) {
@@ -201,7 +201,7 @@ static void can_drain(gwd_t *d, uint64_t now)
             break;
         }
         if (r == DAN_ERR_IO) {
-            can_down(d, "write failed", now);
+            can_down(d, "adapter lost (write failed)", now);
             return;
         }
         if (r == DAN_OK) {
@@ -226,7 +226,7 @@ static void can_read(gwd_t *d, uint64_t now)
             return;
         }
         if (r < 0) {
-            can_down(d, "adapter lost", now);
+            can_down(d, "adapter lost (read failed)", now);
             return;
         }
         dan_gw_node_rx_can(&d->node, &f, now);
