@@ -135,6 +135,17 @@ class TunnelFarEnd:
     .heard lists (protocol, serial_id, options, baudrate) of every message
     the gateway sent to node_id, keepalives included."""
 
+    # The far end is a serial device: it sends at a steady rate, not in the
+    # bursts a starved test process would make of its backlog. The rate is
+    # low enough that what the SLCAN hub (Python too) holds back while it
+    # is starved and then delivers at once stays within the gateway's
+    # 4096-byte tunnel buffer: 1.3 s of stall (a tunnel has no flow
+    # control: a far end faster than the FC reads loses bytes, counted in
+    # tun_dropped, as with a real device that fast). Bytes a second, and
+    # the most sent at once after a pause.
+    RATE = 3000.0
+    BURST = 240
+
     def __init__(self, node, node_id, serial_id, reply_serial_id=None):
         self.node, self.node_id, self.serial_id = node, node_id, serial_id
         self.reply_serial_id = serial_id if reply_serial_id is None else reply_serial_id
@@ -142,6 +153,7 @@ class TunnelFarEnd:
         self.outq = bytearray()
         self.heard = []
         self.lock = threading.Lock()
+        self.tokens, self.t_last = float(self.BURST), time.monotonic()
         node.add_handler(U.tunnel.Targetted, self._on_targetted)
 
     def _on_targetted(self, e):
@@ -158,9 +170,14 @@ class TunnelFarEnd:
             self.outq.extend(bytes(b ^ 0x5A for b in data))  # a transformed stream back
 
     def pump(self):
+        t = time.monotonic()
+        self.tokens = min(self.BURST, self.tokens + (t - self.t_last) * self.RATE)
+        self.t_last = t
+        n = min(120, int(self.tokens))
         with self.lock:
-            chunk = bytes(self.outq[:120])
-            del self.outq[:120]
+            chunk = bytes(self.outq[:n])
+            del self.outq[:n]
+        self.tokens -= len(chunk)
         if chunk:
             self.node.broadcast(
                 U.tunnel.Targetted(
@@ -177,7 +194,10 @@ class TunnelFarEnd:
 def start_danprobe(procs, *args, name="danprobe"):
     """A long-running danprobe command (--json added) in its own process
     group; returns (proc, its "ready" event)."""
-    p = procs.start([sys.executable, "-m", "danprobe", *map(str, args), "--json"], name=name)
+    args = [*map(str, args)]
+    if "--latency-ms" not in args:  # generous: a loaded test host stalls replies
+        args += ["--latency-ms", "200"]
+    p = procs.start([sys.executable, "-m", "danprobe", *args, "--json"], name=name)
     line = p.stdout.readline().decode()
     assert line, f"{name} ended: {p.log_path.read_text()}"
     ev = json.loads(line)

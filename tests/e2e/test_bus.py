@@ -131,22 +131,25 @@ def test_collisions_detected_and_recovered(bus3, procs, tmp_path):
         fd = os.open(eps[4], os.O_RDWR | os.O_NOCTTY)
         try:
             os.set_blocking(fd, False)
-            seen = 0
+            seen, prev = 0, None
             while not stop.is_set():
                 try:
                     data = os.read(fd, 256)
                 except BlockingIOError:
                     time.sleep(0.0005)
                     continue
-                # On every 7th sync byte heard, talk at once over the frame.
-                # An exchange has at most 2 sync bytes, so a transaction's
-                # next attempt is never jammed too: every one must succeed.
+                # On every 7th frame of code 0x62 heard (the repeat step's,
+                # not discovery's), talk at once over it. An exchange has
+                # at most 2 such frames, so a transaction's next attempt is
+                # not jammed too, and with 4 retries even a jam that a
+                # loaded host delays onto the next attempt leaves three.
                 for b in data:
-                    if b == 0x44:
+                    if prev == 0x44 and b == 0x62:
                         seen += 1
                         if seen % 7 == 0:
                             os.write(fd, b"\x13\x37\x13")
                             jams.append(time.monotonic())
+                    prev = b
         finally:
             os.close(fd)
 

@@ -562,9 +562,10 @@ def stack(procs, tmp_path):
 def test_esc_values_telemetry_arm_stats_nodes(stack):
     s = stack()
     s.wait_gateway_sees(4)
-    # fixed values at 115200: exactly these values reach every ESC
+    # fixed values at 115200: exactly these values reach every ESC (5 s: the
+    # Python ESCs answer with the new rpm seconds late on a loaded host)
     rc, out, err = danprobe(
-        "esc", "--port", s.dan, "--configure", "--values", "0,100,200,300", "--duration", "2.5"
+        "esc", "--port", s.dan, "--configure", "--values", "0,100,200,300", "--duration", "5"
     )
     assert rc == 0, err
     assert "gateway at 115200 baud" in err
@@ -618,11 +619,14 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
     lines = [json.loads(x) for x in out.splitlines()]
     ex = [line for line in lines if line.get("event") == "exchange"]
     end = lines[-1]
-    assert end["event"] == "summary" and end["plot"] == str(png) and end["exchanges"] == len(ex)
+    assert end["event"] == "summary" and end["plot"] == str(png)
+    # one event per exchange, failed ones too (a loaded host may lose one)
+    assert end["exchanges"] == sum(1 for line in ex if line["ok"])
+    assert end["exchanges"] + end["failed"] == len(ex)
     sent = [line["values"][0] for line in ex]
     assert sent == sorted(sent) and sent[0] < 200 and 1800 < sent[-1] <= 2048
     assert len(ex[0]["values"]) == 4
-    assert sum(1 for line in ex if line["telemetry"]) > 0.9 * len(ex)
+    assert sum(1 for line in ex if line.get("telemetry")) > 0.9 * len(ex)
     assert end["esc"][0]["rpm"] > 1000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10000
 

@@ -10,7 +10,6 @@ firmware runs at its fastest baud."""
 
 import json
 import os
-import time
 
 import dronecan
 import pytest
@@ -105,12 +104,15 @@ def test_v1_only_peripheral_mixed_in(procs, tmp_path):
     fast = start_two(procs, eps)
     old = start_periph(procs, eps[3], "test-b", "0x0F", "--v1-only")
     _, out = fast_master(eps[0], 2000000, "discover", "configure", "request:0x62:6869", "stats")
-    _, conf, req, _ = out
+    _, conf, req, mst = out
     assert conf["result"] == 0 and conf["baud"] == 115200, conf
     assert conf["fast_refusals"] == len(FAST) and conf["recoveries"] == 0
     assert bytes.fromhex(req["payload"]) == b"ih"
     st = periph_stats(procs, old)
-    assert st["nacks"] == len(FAST) and st["baud"] == 115200
+    # one refusal per fast baud, and one more for each CONFIGURE the master
+    # repeated (an echo or a reply a loaded host delivered late)
+    assert len(FAST) <= st["nacks"] <= len(FAST) + mst["retries"], (st, mst)
+    assert st["baud"] == 115200
     for p in fast:
         assert periph_stats(procs, p)["baud"] == 115200
     # the v1 peripheral never heard a byte at a fast baud from itself
@@ -161,7 +163,8 @@ def test_danprobe_negotiates_and_finds_fast_bauds(procs, tmp_path):
     old = start_periph(procs, eps[3], "test-b", "0x0F", "--v1-only")
     conf = danprobe_doc("configure", "--port", eps[0], "--types", TYPES, "--max-baud", 2000000)
     assert conf["result"] == 0 and conf["baud"] == 115200 and conf["target"] == 115200, conf
-    assert periph_stats(procs, old)["nacks"] == len(FAST)
+    # one refusal per fast baud (and one per CONFIGURE repeated on a loaded host)
+    assert len(FAST) <= periph_stats(procs, old)["nacks"] <= len(FAST) + conf["retries"], conf
     # Without the v1 peripheral (stopped above): 115200 -> 2M.
     conf = danprobe_doc(
         "configure", "--port", eps[0], "--types", "test-a,can-gw", "--max-baud", 2000000
@@ -189,8 +192,11 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
     r = gw_rig(gw_args=["--esc-timeout-ms", "300"])
     esc = r.node(1, 20, "org.test.esc_a")
     raw = []
+    # (when the frame was read from the port: a handler late on a loaded
+    # host does not move it)
     esc.add_handler(
-        U.equipment.esc.RawCommand, lambda e: raw.append((time.monotonic(), list(e.message.cmd)))
+        U.equipment.esc.RawCommand,
+        lambda e: raw.append((e.transfer.ts_monotonic, list(e.message.cmd))),
     )
     tele = {0: (12.5, 1.25, 300.0, 1000), 1: (16.8, -3.14159, 310.15, -2000)}
 
@@ -215,10 +221,8 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
     assert rc == 0, [line for line in out if not line.get("ok", True)] or out
     conf = step(out, "configure")[0]
     assert conf["baud"] == baud and conf["fast_refusals"] == 0 and conf["recoveries"] == 0
-    cmds = [c for _, c in raw]
-    assert [0, 100, -8192, 8191] in cmds
-    assert [1, 2, 3, 4, 5, 6, 7, -8] in cmds
-    assert [0, 100, 200, 300] in cmds
+    for want in ([0, 100, -8192, 8191], [1, 2, 3, 4, 5, 6, 7, -8], [0, 100, 200, 300]):
+        wait_for(lambda want=want: want in [c for _, c in raw], 20, what=f"{want} at the ESC")
     tel = {e["index"]: e for e in step(out, "telemetry")[0]["esc"]}
     for idx, (v, c, t, rpm) in tele.items():
         e = tel[idx]
@@ -233,13 +237,16 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
     n = len(raw)
     rc, out = r.fcsim("discover", "esc:500,500,500,500@500@50", "stop", opts=fast)
     assert rc == 0 and step(out, "discover")[0]["baud"] == baud, out
-    last = max(t for t, c in raw[n:] if c == [500, 500, 500, 500])
 
-    def zeros_after():  # (the earlier FC's failsafe zeros come before)
-        return [t for t, c in raw[n:] if c == [0, 0, 0, 0] and t > last]
+    def failsafe():
+        """(last command, first zeros after it), in the order received: the
+        earlier FC's failsafe zeros come before its commands."""
+        got = raw[n:]
+        ours = [i for i, (_, c) in enumerate(got) if c == [500, 500, 500, 500]]
+        zeros = [t for t, c in got[ours[-1] + 1 :] if c == [0, 0, 0, 0]] if ours else []
+        return (got[ours[-1]][0], zeros[0]) if zeros else None
 
-    wait_for(zeros_after, 10, what="zero throttle after the last command")
-    zero = min(zeros_after())
+    last, zero = wait_for(failsafe, 20, what="zero throttle after the last command")
     print(f"failsafe at {baud}: zeros {1000 * (zero - last):.0f} ms after the last command")
     assert 0.25 <= zero - last <= 2.0
 

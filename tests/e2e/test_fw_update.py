@@ -31,6 +31,8 @@ from danprobe.port import SerialPort
 
 BOOTLOADER = ROOT / "tests" / "e2e" / "fw_bootloader.py"
 FAST = ("--max-baud", "2000000", "--configure")  # danprobe: the bus at 2 Mbit/s
+# a generous reply window: a loaded test host stalls replies past the default 50 ms
+WINDOW = ("--latency-ms", "200")
 NODE_A, NODE_B = 30, 31
 
 
@@ -77,7 +79,7 @@ class FwRig:
         return p
 
     def probe(self, *args, timeout=120):
-        return danprobe(*args, "--port", self.dan, *FAST, timeout=timeout)
+        return danprobe(*args, "--port", self.dan, *FAST, *WINDOW, timeout=timeout)
 
     def probe_json(self, *args, rc=0, timeout=120):
         code, out, err = self.probe(*args, "--json", timeout=timeout)
@@ -135,10 +137,16 @@ def start_put(procs, rig, path, name, beyond=0):
     """danprobe files put at 115200 (slow enough to stop halfway: about 4 s
     for 32 KiB), its progress in its log; waits for progress past beyond."""
     p = procs.start(
-        [sys.executable, "-m", "danprobe", "files", "put", path, "--port", rig.dan, "--configure"],
+        [sys.executable, "-m", "danprobe", "files", "put", path, "--port", rig.dan, "--configure"]
+        + list(WINDOW),
         name=name,
     )
-    wait_for(lambda: max(progress_bytes(p.log_path) or [0]) > beyond, 60, 0.01, what="progress")
+
+    def progressed():
+        assert p.poll() is None, p.log_path.read_text()  # ended before any progress
+        return max(progress_bytes(p.log_path) or [0]) > beyond
+
+    wait_for(progressed, 60, 0.01, what="progress")
     return p
 
 
