@@ -15,7 +15,8 @@
 
 BENCH_DIR   := $(BUILD)/bench
 BENCH_CFLAGS = $(WARN) -O2 -g $(INCLUDES) -D_GNU_SOURCE
-BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway $(BENCH_DIR)/bench_esc_sim
+BENCH_BINS   = $(BENCH_DIR)/bench_parser $(BENCH_DIR)/bench_gateway $(BENCH_DIR)/bench_esc_sim \
+               $(BENCH_DIR)/bench_pty_rtt
 SOAK        ?=
 BENCH_ARGS  ?=
 

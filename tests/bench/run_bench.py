@@ -11,8 +11,10 @@ Rows:
              gaps (turnaround 2 C + listen-before-talk 3 C per exchange)
   esc_fast   the same loop with dan-fcsim --fast (ESC_FAST, a record by
              ESC_FAST_T every N-th exchange) at 115200 (4 ESCs, N 4), 1000000
-             and 2000000 (4 and 8 ESCs, N 1), bounds the same way (host ptys:
-             compare with the latency row's bare hops)
+             and 2000000 (4 and 8 ESCs, N 1; 8 ESCs at 115200 too), bounds the
+             same way, and each against a bare round trip of the same bytes
+             between two processes on dan-vbus (tests/bench/bench_pty_rtt.c:
+             what the host's ptys allow; 1.0 means the daemon adds nothing)
   esc_sim    ESC loops in simulated time through the real engines on the unit
              tests' simulated wire (tests/bench/bench_esc_sim.c): 4 and 8 ESCs at
              115200, 1000000 and 2000000; ESC_CMD, ESC_FAST, ESC_FAST_T every N-th
@@ -244,7 +246,7 @@ def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4, vbus_args=())
         tmp = Path(tmp)
         st = Stack(tmp)
         try:
-            gw_rig(st, build, tmp, n_esc=n_esc, vbus_args=vbus_args)
+            gwd = gw_rig(st, build, tmp, n_esc=n_esc, vbus_args=vbus_args)[3]
             rc, out = fcsim(
                 st,
                 build,
@@ -263,6 +265,7 @@ def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4, vbus_args=())
             if len(runs) < 2:  # a failed exchange on a loaded host is counted, not fatal
                 raise RuntimeError(f"dan-fcsim failed ({rc}): {out}")
             run = runs[1]
+            gw_cpu = cpu_seconds(gwd.pid)  # its whole life: an upper bound
         finally:
             st.close()
         cap = [
@@ -290,17 +293,65 @@ def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4, vbus_args=())
         "bound_gaps": bound_gaps,
         "ratio": run["rate"] / bound,
         "ratio_gaps": run["rate"] / bound_gaps,
+        # the daemon's CPU per exchange (setup and the warm-up run included):
+        # far below the exchange's period, it is not what limits the rate
+        "gw_cpu_us_per_exchange": (
+            gw_cpu * 1e6 / (runs[0]["exchanges"] + run["exchanges"]) if gw_cpu else None
+        ),
     }
 
 
 # dan-vbus rows of the fast loop: (ESCs, baud, a record every N-th exchange)
-VBUS_FAST = [(4, 115200, 4), (4, 1000000, 1), (4, 2000000, 1), (8, 1000000, 1), (8, 2000000, 1)]
+VBUS_FAST = [
+    (4, 115200, 4),
+    (8, 115200, 4),
+    (4, 1000000, 1),
+    (4, 2000000, 1),
+    (8, 1000000, 1),
+    (8, 2000000, 1),
+]
+
+
+def bare_round_trip(build, baud, req, rsp, seconds):
+    """Exchanges/s of the same bytes between two bare processes on dan-vbus
+    (tests/bench/bench_pty_rtt.c: no DAN engine, no gaps): what the host's
+    ptys allow, against which the daemon's loop is compared."""
+    with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
+        tmp = Path(tmp)
+        st = Stack(tmp)
+        try:
+            st.ready(
+                st.start([build / "bin" / "dan-vbus", "-n", "2", "--link", tmp / "dan"], "vbus")
+            )
+            p = subprocess.run(
+                [build / "bench" / "bench_pty_rtt", tmp / "dan0", tmp / "dan1"]
+                + [str(x) for x in (baud, round(req), round(rsp), seconds)],
+                capture_output=True,
+                text=True,
+                timeout=seconds + 30,
+            )
+        finally:
+            st.close()
+    if p.returncode != 0:
+        raise RuntimeError(f"bench_pty_rtt failed: {p.stderr[-300:]}")
+    return json.loads(p.stdout)["rate"]
+
+
+def with_bare(build, row, seconds):
+    """row (a bench_esc result) with the bare round trip of its bytes."""
+    row["bare_rate"] = bare_round_trip(
+        build, row["baud"], row["req_bytes"], row["rsp_bytes"], seconds
+    )
+    row["vs_bare"] = row["rate"] / row["bare_rate"]
+    return row
 
 
 def bench_esc_fast_vbus(build, seconds):
     return {
         "rows": [
-            bench_esc(build, seconds, fast_every=every, baud=baud, n_esc=n)
+            with_bare(
+                build, bench_esc(build, seconds, fast_every=every, baud=baud, n_esc=n), seconds
+            )
             for n, baud, every in VBUS_FAST
         ]
     }
@@ -722,6 +773,15 @@ def bench_params(build, runs=3, count=100):
     }
 
 
+def cpu_seconds(pid):
+    """User + system CPU time a process has used so far (/proc/PID/stat)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
+
+
 def rss_kb(pid):
     try:
         for line in Path(f"/proc/{pid}/status").read_text().splitlines():
@@ -797,6 +857,17 @@ def table(r):
                 f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
             )
         )
+        if "bare_rate" in e:
+            cpu = e.get("gw_cpu_us_per_exchange")
+            rows.append(
+                (
+                    "  vs a bare pty round trip (same bytes)",
+                    f"{e['rate']:.1f}/s"
+                    + (f", daemon CPU {cpu:.0f} us/exch" if cpu is not None else ""),
+                    f"bare {e['bare_rate']:.0f}/s",
+                    f"{e['vs_bare']:.2f}",
+                )
+            )
     for e in (r.get("adapters") or {}).get("rows", []):
         rows.append(
             (
