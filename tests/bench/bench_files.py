@@ -1,7 +1,9 @@
 """The `files` rows of run_bench.py: a firmware image uploaded into
-dan-gatewayd's file store through DAN (danprobe's client on dan-vbus) at
-115200 and 2000000, against the wire bound of its own bytes, and the time a
-bootloader node behind the SLCAN hub takes to read it through the gateway.
+dan-gatewayd's file store through DAN on dan-vbus at 115200 and 2000000, by
+the FC's C client (libdan's master and dan_gw_file_*, run by dan-fcsim) and
+by danprobe's Python client, against the wire bound of its own bytes, and
+the time a bootloader node behind the SLCAN hub takes to read it through
+the gateway.
 
 The bound of an upload is the time its frames (FILE_OPEN, FILE_WRITE,
 FILE_COMMIT requests and responses, as the vbus capture holds them) take
@@ -9,6 +11,8 @@ on the wire at 10 bits a byte, plus the mandatory gaps of docs/PROTOCOL.md
 section 6 for each exchange: turnaround 2 C and listen-before-talk 3 C.
 Goal: >= 0.8 of the bound."""
 
+import json
+import subprocess
 import sys
 import tempfile
 import time
@@ -61,9 +65,35 @@ def wire_bound(capture, frame_code, baud: int) -> dict:
     }
 
 
-def bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud: int, read: bool):
-    """One upload of SIZE bytes at baud; with read, the bootloader node then
-    reads the image through the gateway (FW_BEGIN, NODE_INFO until done)."""
+def upload_fcsim(build, tmp: Path, data: bytes, baud: int) -> dict:
+    """The upload by dan-fcsim (libdan's master and the FC client's
+    dan_gw_file_* calls, as an FC runs them); its own timing of the upload."""
+    (tmp / "image.bin").write_bytes(data)
+    p = subprocess.run(
+        [build / "bin" / "dan-fcsim", "--port", tmp / "dan0", "--max-baud", str(baud)]
+        + ["discover", f"configure:{baud}", f"upload:bench.bin:{tmp / 'image.bin'}", "stats"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    lines = [json.loads(x) for x in p.stdout.splitlines() if x.strip()]
+    up = [x for x in lines if x.get("step") == "upload"]
+    if p.returncode != 0 or not up or not up[0]["ok"]:
+        raise RuntimeError(f"dan-fcsim upload failed: {lines} {p.stderr[-300:]}")
+    stats = [x for x in lines if x.get("step") == "stats"]
+    return {
+        "client": "fcsim",
+        "baud": baud,
+        "size": len(data),
+        "seconds": up[0]["seconds"],
+        "retries": stats[0].get("master_retries") if stats else None,
+    }
+
+
+def bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud: int, read: bool, client):
+    """One upload of SIZE bytes at baud by client ('fcsim' or 'danprobe');
+    with read (danprobe), the bootloader node then reads the image through
+    the gateway (FW_BEGIN, NODE_INFO until done)."""
     data = image(SIZE)
     with tempfile.TemporaryDirectory(prefix="danbench-") as tmp:
         tmp = Path(tmp)
@@ -78,25 +108,40 @@ def bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud: int, 
                 extra_can=1,
                 gw_args=("--file-dir", tmp / "store", "--file-max", str(2 * SIZE)),
             )
-            with SerialPort(str(tmp / "dan0"), 9600) as port:
-                gw = gateway_at(port, baud)
-                u = file_update.upload(gw, "bench.bin", data, restart=True)
-                retries = gw.m.stats.retries
-                out = {"baud": baud, "size": SIZE, "seconds": u.seconds, "retries": retries}
-                if read:  # the node starts after the upload: its CPU is not the upload's
-                    (tmp / "image.bin").write_bytes(data)
-                    boot = st.start(
-                        [PY, BOOTLOADER, "--port", tmp / "can1", "--node-id", BOOT_NODE]
-                        + ["--expect", tmp / "image.bin", "--pipeline", "4"],  # as AP_Bootloader
-                        "fw_bootloader",
-                    )
-                    st.ready(boot)
-                    out.update(read_through_gateway(gw, SIZE))
+            if client == "fcsim":
+                out = upload_fcsim(build, tmp, data, baud)
+            else:
+                out = upload_danprobe(st, tmp, data, baud, read)
         finally:
             st.close()
         out.update(wire_bound(read_capture(tmp / "bus.cap"), frame_code, baud))
     out["ratio"] = out["bound_s"] / out["seconds"]
     out["goal"] = GOAL
+    return out
+
+
+def upload_danprobe(st, tmp: Path, data: bytes, baud: int, read: bool) -> dict:
+    """The upload by danprobe's client (Python), then the bootloader's read."""
+    with SerialPort(str(tmp / "dan0"), 9600) as port:
+        gw = gateway_at(port, baud)
+        u = file_update.upload(gw, "bench.bin", data, restart=True)
+        retries = gw.m.stats.retries
+        out = {
+            "client": "danprobe",
+            "baud": baud,
+            "size": SIZE,
+            "seconds": u.seconds,
+            "retries": retries,
+        }
+        if read:  # the node starts after the upload: its CPU is not the upload's
+            (tmp / "image.bin").write_bytes(data)
+            boot = st.start(
+                [PY, BOOTLOADER, "--port", tmp / "can1", "--node-id", BOOT_NODE]
+                + ["--expect", tmp / "image.bin", "--pipeline", "4"],  # as AP_Bootloader
+                "fw_bootloader",
+            )
+            st.ready(boot)
+            out.update(read_through_gateway(gw, SIZE))
     return out
 
 
@@ -129,10 +174,17 @@ def read_through_gateway(gw: GatewayClient, size: int) -> dict:
 
 def bench_files(build, stack_cls, gw_rig, read_capture, frame_code) -> dict:
     rows = [
-        bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud, baud == BAUDS[-1])
+        bench_upload(build, stack_cls, gw_rig, read_capture, frame_code, baud, read, client)
+        for client in ("fcsim", "danprobe")
         for baud in BAUDS
+        for read in [client == "danprobe" and baud == BAUDS[-1]]
     ]
-    return {"rows": rows, "ratio_min": min(r["ratio"] for r in rows)}
+    fc = [r["ratio"] for r in rows if r["client"] == "fcsim"]
+    return {
+        "rows": rows,
+        "ratio_min": min(fc),
+        "ratio_min_danprobe": min(r["ratio"] for r in rows if r["client"] == "danprobe"),
+    }
 
 
 def files_rows(r: dict) -> list:
@@ -142,7 +194,7 @@ def files_rows(r: dict) -> list:
         kib = e["size"] // 1024
         out.append(
             (
-                f"upload {kib} KiB {e['baud']} (FILE_WRITE)",
+                f"upload {kib} KiB {e['baud']} ({e.get('client', 'danprobe')})",
                 f"{e['seconds']:.2f} s, {e['size'] / e['seconds'] / 1024:.1f} KiB/s",
                 f"wire+gaps {e['bound_s']:.2f} s ({e['exchanges']} exch, "
                 f"{e['req_bytes'] + e['rsp_bytes']} B); goal {e['goal']}",

@@ -49,6 +49,7 @@ int fcsim_step_upload(const char *name, const char *step, char *args)
     char *path = args != NULL ? strchr(args, ':') : NULL, *stop_s;
     uint32_t size, have, start, writes = 0, crc, stop;
     uint8_t result, *img;
+    uint64_t t0 = dan_posix_now_us();
     (void)name;
     if (path == NULL) {
         return fcsim_fail(step, DAN_ERR_ARG);
@@ -95,8 +96,8 @@ int fcsim_step_upload(const char *name, const char *step, char *args)
         return file_fail(step, result);
     }
     printf("{\"step\": \"upload\", \"ok\": true, \"size\": %u, \"crc\": %u, \"resumed_at\": %u, "
-           "\"writes\": %u}\n",
-           size, crc, start, writes);
+           "\"writes\": %u, \"seconds\": %.6f}\n",
+           size, crc, start, writes, (double)(dan_posix_now_us() - t0) / 1e6);
     return 0;
 }
 
