@@ -140,7 +140,8 @@ typedef struct {
     const char *stats_file;
     uint64_t stats_due_us;
     uint32_t failsafes_logged;
-    const char *dna_db; /* --dna-db, or NULL */
+    uint32_t baud_logged; /* the DAN baud last logged */
+    const char *dna_db;   /* --dna-db, or NULL */
     dan_dna_file_t dna_file;
     uint32_t fast[DAN_NFAST_BAUDS]; /* the fast bauds CONFIGURE may ask for */
     size_t nfast;
@@ -561,6 +562,7 @@ static int start_engines(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     dan_gw_node_attach(&d->node, &d->periph);
     logmsg(LOG_INFO, "DAN on %s at %u baud, DroneCAN node %u on %s", d->uart_path, o->baud,
            nc->node_id, d->can_spec);
+    d->baud_logged = o->baud;
     if (d->file_dir != NULL) {
         logmsg(LOG_INFO, "file store %s (files up to %u bytes)", d->file_dir,
                d->files.store.max_size);
@@ -675,6 +677,11 @@ static void log_dna_saves(gwd_t *d)
 /* After the engines ran: log a new failsafe, reopen CAN, write stats. */
 static void housekeeping(gwd_t *d, uint64_t now)
 {
+    if (dan_periph_baud(&d->periph) != d->baud_logged) {
+        /* a CONFIGURE moved us (or a recovery asked at another baud) */
+        d->baud_logged = dan_periph_baud(&d->periph);
+        logmsg(LOG_INFO, "DAN at %u baud", d->baud_logged);
+    }
     if (d->node.stats.failsafes != d->failsafes_logged) {
         d->failsafes_logged = d->node.stats.failsafes;
         logmsg(LOG_WARNING, "failsafe: no ESC command for %u ms: zero throttle, disarmed",
