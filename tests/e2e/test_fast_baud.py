@@ -251,6 +251,43 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
     assert 0.25 <= zero - last <= 2.0
 
 
+def test_every_fast_baud_exact_values_and_failsafe(gw_rig):
+    """At each of the other fast bauds (1M and 2M above): dan-fcsim moves the
+    bus there, exactly its values reach the ESC node, and after the FC
+    stops the failsafe's zeros come no sooner than the timeout (300 ms)."""
+    r = gw_rig(gw_args=["--esc-timeout-ms", "300"])
+    esc = r.node(1, 20, "org.test.esc_a")
+    raw = []
+    esc.add_handler(
+        U.equipment.esc.RawCommand,
+        lambda e: raw.append((e.transfer.ts_monotonic, list(e.message.cmd))),
+    )
+    r.spin(esc)
+    for k, baud in enumerate(b for b in FAST if b not in (1000000, 2000000)):
+        values = [10 + k, -20 - k, 30 + k, 8191 - k]
+        n = len(raw)
+        rc, out = r.fcsim(
+            "discover",
+            f"configure:{baud}",
+            f"esc:{','.join(map(str, values))}@400@50",
+            "stop",
+            opts=("--max-baud", "2000000"),
+        )
+        assert rc == 0 and step(out, "configure")[0]["baud"] == baud, out
+
+        def failsafe(n=n, values=values):
+            got = raw[n:]
+            ours = [i for i, (_, c) in enumerate(got) if c == values]
+            zeros = [t for t, c in got[ours[-1] + 1 :] if c == [0, 0, 0, 0]] if ours else []
+            return (got[ours[-1]][0], zeros[0], got) if zeros else None
+
+        last, zero, got = wait_for(failsafe, 20, what=f"the failsafe at {baud}")
+        # nothing but this run's values (and the zeros of the failsafes)
+        assert {tuple(c) for _, c in got} <= {tuple(values), (0, 0, 0, 0)}, (baud, got)
+        print(f"\n{baud}: exact values, zeros {1000 * (zero - last):.0f} ms after the last")
+        assert 0.25 <= zero - last <= 2.0, baud
+
+
 # ---- the QEMU firmware (examples/fc_firmware) at its fastest baud ----
 
 
