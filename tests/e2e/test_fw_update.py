@@ -261,3 +261,37 @@ def test_two_nodes_at_once(rig, tmp_path):
     for b in boots:
         end = rig.boot_result(b)
         assert (end["state"], end["equal"], end["bytes"]) == ("done", True, len(img)), end
+
+
+def test_ctrl_c_while_following(rig, procs, tmp_path):
+    """Ctrl-C once BeginFirmwareUpdate was sent: danprobe exits 130 between
+    two transactions and says so; the node goes on reading the image from
+    the gateway's store and finishes (the defined state of the help text)."""
+    img = image(48 * 1024, seed=6)
+    (tmp_path / "fw.bin").write_bytes(img)
+    boot = rig.bootloader(1, NODE_A, img, "--pipeline", "1", "--chunk", "64")  # slow: ~750 reads
+    rig.wait_nodes(NODE_A)
+    p = procs.start(
+        [sys.executable, "-m", "danprobe", "fw-update", "--node", NODE_A, tmp_path / "fw.bin"]
+        + ["--port", rig.dan, *FAST, *WINDOW],
+        name="danprobe-follow",
+    )
+
+    def following():
+        assert p.poll() is None, p.log_path.read_text()
+        return "BeginFirmwareUpdate accepted" in p.log_path.read_text()
+
+    wait_for(following, 120, 0.01, what="the update begun")
+    assert procs.stop(p, signal.SIGINT, timeout=30) == 130
+    log = p.log_path.read_text()
+    assert "stopped following (the nodes go on updating)" in log and "Traceback" not in log, log
+
+    # the node finishes by itself and comes back with its new version
+    def updated():
+        nodes = {n["node_id"]: n for n in rig.probe_json("nodes", "-q")[0]["nodes"]}
+        n = nodes.get(NODE_A)
+        return n is not None and n["mode"] == 0 and list(n["sw"]) == [2, 0]
+
+    wait_for(updated, 120, 0.5, what="the node back OPERATIONAL at 2.0")
+    end = rig.boot_result(boot)
+    assert (end["state"], end["equal"], end["bytes"]) == ("done", True, len(img)), end
