@@ -276,6 +276,7 @@ def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4, vbus_args=())
     req = [len(b[3]) for b in cap if b[1] == 0]
     rsp = [len(b[3]) for b in cap if b[1] == 1]
     nbytes = statistics.mean(req) + statistics.mean(rsp)
+    gw_turn, fc_turn = turnarounds(cap, c_us)
     bound = baud / 10 / nbytes
     bound_gaps = 1e6 / ((nbytes + 2 + 3) * c_us)
     return {
@@ -293,12 +294,33 @@ def bench_esc(build, seconds, fast_every=None, baud=BAUD, n_esc=4, vbus_args=())
         "bound_gaps": bound_gaps,
         "ratio": run["rate"] / bound,
         "ratio_gaps": run["rate"] / bound_gaps,
+        # where an exchange's time goes beyond its bytes (median us, from the
+        # capture): the gateway's answer after the request's last byte (the
+        # rule: 2 C), the FC's next request after the answer's (3 C)
+        "gw_turnaround_us": gw_turn,
+        "fc_turnaround_us": fc_turn,
+        "rule_gw_us": 2 * c_us,
+        "rule_fc_us": 3 * c_us,
         # the daemon's CPU per exchange (setup and the warm-up run included):
         # far below the exchange's period, it is not what limits the rate
         "gw_cpu_us_per_exchange": (
             gw_cpu * 1e6 / (runs[0]["exchanges"] + run["exchanges"]) if gw_cpu else None
         ),
     }
+
+
+def turnarounds(cap, c_us):
+    """Median idle time (us) on the wire between a request's last byte and
+    its answer (the gateway's turnaround), and between an answer's last byte
+    and the next request (the FC's), from capture bursts in order."""
+    gw, fc = [], []
+    for a, b in zip(cap, cap[1:]):
+        idle = (b[0] - a[0]) * 1e6 - len(a[3]) * c_us
+        if (a[1], b[1]) == (0, 1):
+            gw.append(idle)
+        elif (a[1], b[1]) == (1, 0):
+            fc.append(idle)
+    return (statistics.median(gw) if gw else None, statistics.median(fc) if fc else None)
 
 
 # dan-vbus rows of the fast loop: (ESCs, baud, a record every N-th exchange)
@@ -857,6 +879,15 @@ def table(r):
                 f"{e['ratio']:.2f} / {e['ratio_gaps']:.2f}",
             )
         )
+        if e.get("gw_turnaround_us") is not None:
+            rows.append(
+                (
+                    "  idle on the wire per exchange (median)",
+                    f"gateway {e['gw_turnaround_us']:.0f} us, FC {e['fc_turnaround_us']:.0f} us",
+                    f"rules {e['rule_gw_us']} us + {e['rule_fc_us']} us",
+                    "",
+                )
+            )
         if "bare_rate" in e:
             cpu = e.get("gw_cpu_us_per_exchange")
             rows.append(
