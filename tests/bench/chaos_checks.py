@@ -170,15 +170,20 @@ def stream_losses(good, broken, tags):
     return wrong, losses
 
 
-def explain(losses, timeline, slack_s=1.0):
+def explain(losses, timeline, slack_s=1.0, counted=None, keys=()):
     """Splits losses into those a lossy fault (LOSSY) between the last good
-    record and the loss explains, and the rest."""
+    record and the loss explains, those a counter owns up to (counted(t0,
+    t1, keys): the counter that rose around then, or None) and the rest."""
     faults = [(t, name) for t, name, _ in timeline if name in LOSSY]
-    ok, rest = [], []
+    ok, owned, rest = [], [], []
     for t0, t1, n, what in losses:
         hit = next((name for t, name in faults if t0 - slack_s <= t <= t1 + slack_s), None)
-        (ok if hit else rest).append((t0, t1, n, what, hit))
-    return ok, rest
+        if hit:
+            ok.append((t0, t1, n, what, hit))
+            continue
+        by = counted(t0 - slack_s, t1 + slack_s, keys) if counted else None
+        (owned if by else rest).append((t0, t1, n, what, by))
+    return ok, owned, rest
 
 
 def far_to_fc(tmp, runs, tx):
@@ -211,7 +216,7 @@ def far_to_fc(tmp, runs, tx):
 # ---- counters ----
 
 
-def counter_windows(lines, timeline, t_of_start):
+def counter_windows(lines, timeline):
     """Between two stats steps of one FC run with no gateway restart in
     between, the gateway's counters against the FC's counts: esc_cmds
     against the ESC exchanges, servo_cmds against the SERVOs (each at

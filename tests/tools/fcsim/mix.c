@@ -4,7 +4,9 @@
  * tunnel stream (--mix-tunnel), so the gateway carries all three at once
  * as an FC's would; and --restore: after a recovery (the gateway came back
  * at 9600, DISARMED, safety on, without tunnels) the FC sends again what
- * it had set: ARM, SAFETY, SERVO_FAILSAFE, the tunnel.
+ * it had set: ARM, SAFETY, SERVO_FAILSAFE, the tunnel; and ARM, SAFETY
+ * whenever the flags of a response show a failsafe of the gateway undid
+ * them.
  *
  * The tunnel stream is records "TAG:SEQ:CK\n" (SEQ six digits from 0, CK
  * the sum of the bytes before it mod 256 in two hex digits), so the far
@@ -54,7 +56,7 @@ static struct {
     dan_gw_servo_fs_t fs[DAN_GW_SERVO_MAX];
     size_t nfs;
     dan_gw_tun_open_t tun_cfg;
-    uint32_t restored, failed;
+    uint32_t restored, failed, rearms;
 } restore;
 
 static int servo_option(char *arg)
@@ -223,8 +225,25 @@ static void tun_turn(uint32_t turn)
     }
 }
 
+/* A failsafe of the gateway (commands paused too long) disarmed it and set
+ * safety on: an FC that still means to fly says so again. */
+static void keep_state(void)
+{
+    if (restore.armed_set && restore.armed && (g_gw.gw_flags & DAN_GW_FLAG_ARMED) == 0u &&
+        fcsim_finish(dan_gw_arm(&g_gw, true, dan_posix_now_us())) == DAN_OK) {
+        restore.rearms++;
+    }
+    if (restore.safety_set && restore.safety_off &&
+        (g_gw.gw_flags & DAN_GW_FLAG_SAFETY_OFF) == 0u) {
+        (void)fcsim_finish(dan_gw_safety(&g_gw, true, dan_posix_now_us()));
+    }
+}
+
 void fcsim_mix_turn(uint32_t turn)
 {
+    if (restore.on) {
+        keep_state();
+    }
     if (servo.n > 0u && turn % MIX_SERVO_EVERY == 0u) {
         if (fcsim_finish(dan_gw_servo(&g_gw, servo.s, servo.n, dan_posix_now_us())) == DAN_OK) {
             servo.ok++;
@@ -249,7 +268,8 @@ void fcsim_mix_print(void)
                g_gw.tun[tun.port].rd_lost);
     }
     if (restore.on) {
-        printf("\"restored\": %u, \"restore_failed\": %u, ", restore.restored, restore.failed);
+        printf("\"restored\": %u, \"restore_failed\": %u, \"rearms\": %u, ", restore.restored,
+               restore.failed, restore.rearms);
     }
     servo.ok = servo.errors = 0;
     tun.xfers = tun.errors = tun.written = tun.read = 0;
