@@ -71,6 +71,7 @@ from restarts import (  # noqa: E402
     RECOVER_DEADLINE_S,
     EscLog,
     check_values,
+    recoveries,
 )
 from run_bench import PY, Stack, rss_kb, start_gwd  # noqa: E402
 
@@ -143,8 +144,7 @@ class Chaos:
         self.log = EscLog(self.tmp / "esc.log")
         self.runs = []  # [start, kill, values, superseded]
         self.fc = None
-        self.fc_recover, self.gw_recover, self.failsafe = [], [], []
-        self.fc_failed = self.gw_failed = 0
+        self.failsafe = []
         self.counts = {f: 0 for f in FAULTS}
         self.gw_samples = []  # (instance, t, rss_kb, fds)
         self.gw_instance = 0
@@ -152,7 +152,7 @@ class Chaos:
         self.timeline = []  # (s since the start, fault, s it took incl. recovery)
         self.events = []  # (monotonic start, fault, s)
         self.losses = []  # (kill, end of the pause) of each loss of the master checked
-        self.gw_starts = []  # (start, recovered or None)
+        self.gw_starts = []  # (start, the values the FC was sending)
         self.gw_counters = []  # the stats file of each instance, read before its kill
         self.t_start = time.monotonic()
         self.faults = FAULTS
@@ -238,13 +238,10 @@ class Chaos:
             stdout=open(self.tmp / f"fc{k}.out", "wb"),
         )
         self.runs.append([t0, None, values, None, baud])
+        # paces the schedule; the recovery is timed at the end, on the whole log
         seen = self.wait(lambda: self.log.first_at_all(values, t0), RECOVER_DEADLINE_S)
-        if seen is None:
-            self.fc_failed += 1
-        else:
-            self.fc_recover.append(seen - t0)
-            if len(self.runs) > 1 and self.runs[-2][3] is None:
-                self.runs[-2][3] = seen
+        if seen is not None and len(self.runs) > 1 and self.runs[-2][3] is None:
+            self.runs[-2][3] = seen
 
     def wait(self, fn, seconds):
         end = time.monotonic() + seconds
@@ -297,12 +294,9 @@ class Chaos:
             self.st, self.build, self.tmp, self.gw_args(), f"gwd{self.gw_instance}"
         )
         values = self.runs[-1][2]
-        seen = self.wait(lambda: self.log.first_at_all(values, g0), RECOVER_DEADLINE_S)
-        self.gw_starts.append((g0, seen))
-        if seen is None:
-            self.gw_failed += 1
-        else:
-            self.gw_recover.append(seen - g0)
+        self.gw_starts.append((g0, values))
+        # paces the schedule; the recovery is timed at the end, on the whole log
+        self.wait(lambda: self.log.first_at_all(values, g0), RECOVER_DEADLINE_S)
 
     def f_fc(self):
         self.st.stop(self.fc, signal.SIGKILL)
@@ -436,15 +430,14 @@ def outputs_summary(c, nodes):
     late = {f: sum(1 for x in loss if x[f] is None or x[f] > BOUND_S) for f in fields}
     undone = sum(1 for x in loss if x["disarmed_undone"] or x["safety_on_undone"])
     # a restarted gateway starts DISARMED with safety ON: heard before the FC is back
-    gw_start_bad = sum(
-        1
-        for g0, seen in c.gw_starts
-        if seen is not None
-        and (
+    gw_start_bad = 0
+    for g0, values in c.gw_starts:
+        seen = c.log.first_at_all(values, g0)
+        if seen is not None and (
             cc.first_state(nodes.arming, 0, g0, seen) is None
             or cc.first_state(nodes.safety, 0, g0, seen) is None
-        )
-    )
+        ):
+            gw_start_bad += 1
     return {
         "servo_commands": len(nodes.servo),
         "wrong_servo": len(bad_servo),
@@ -514,7 +507,9 @@ def summary(c, gw_stats, seconds):
             c.runs[i][3] = c.log.first_at_all(c.runs[i + 1][2], c.runs[i + 1][0])
     bad = check_values(c.log, [tuple(r) for r in c.runs])
     # the ESCs' log lines carry receive times, but a loaded host writes
-    # them late: the zeros are looked for once every line is in
+    # them late: recoveries and zeros are looked for once every line is in
+    c.fc_recover, c.fc_failed = recoveries(c.log, [(r[0], r[2]) for r in c.runs])
+    c.gw_recover, c.gw_failed = recoveries(c.log, c.gw_starts)
     zeros = [c.log.zeros_at_all(k, u) for k, u in c.losses]
     c.failsafe = [None if z is None else z - k for z, (k, _) in zip(zeros, c.losses)]
     late = [x for x in c.failsafe if x is None or x > BOUND_S]
