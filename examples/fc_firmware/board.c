@@ -1,6 +1,6 @@
 /*
- * Board support: SysTick clock, CMSDK APB UART0 with an RX interrupt,
- * semihosting. Register facts, not code, from: the ARMv7-M Architecture
+ * Board support: SysTick clock, CMSDK APB UART0 and UART1 with RX
+ * interrupts, UART2 polled, semihosting. Register facts, not code, from: the ARMv7-M Architecture
  * Reference Manual (SysTick, NVIC, SCB), the Cortex-M System Design Kit
  * TRM ARM DDI0479 (APB UART), ARM AN385/AN386 (memory map, interrupt
  * numbers), the ARM semihosting specification v2 (operation numbers), and
@@ -22,8 +22,10 @@
 #define NVIC_ISER0       REG32(0xE000E100u)
 #define NVIC_IPR_BYTE(n) (*(volatile uint8_t *)(uintptr_t)(0xE000E400u + (n)))
 
-/* CMSDK APB UART (DDI0479, 4.3); UART0 at 0x40004000, RX IRQ 0 (AN386) */
-#define UART0_BASE        0x40004000u
+/* CMSDK APB UART (DDI0479, 4.3); AN386: UART0 at 0x40004000 (RX IRQ 0),
+ * UART1 at 0x40005000 (RX IRQ 2), UART2 at 0x40006000 (RX IRQ 4). QEMU
+ * gives UART k the k-th -serial option's chardev. */
+#define UART2_BASE        0x40006000u
 #define UART_DATA(b)      REG32((b) + 0x00u)
 #define UART_STATE(b)     REG32((b) + 0x04u)
 #define UART_CTRL(b)      REG32((b) + 0x08u)
@@ -36,7 +38,6 @@
 #define UART_CTRL_RXEN    0x2u
 #define UART_CTRL_RXINTEN 0x8u
 #define UART_INT_RX       0x2u
-#define UART0_RX_IRQ      0u
 
 #define TICK_HZ       1000u
 #define TICK_RELOAD   (BOARD_CPU_HZ / TICK_HZ - 1u)
@@ -88,28 +89,44 @@ uint64_t clock_now_us(void)
     return us;
 }
 
-/* ---- UART0 ---- */
+/* ---- UART0, UART1 ---- */
 
-dan_rxring_t uart0_rx;
-volatile uart_stats_t uart0_stats;
+static const uint32_t uart_base[BOARD_UARTS] = {0x40004000u, 0x40005000u};
+static const uint8_t uart_rx_irq[BOARD_UARTS] = {0u, 2u};
+static unsigned uart_index[BOARD_UARTS] = {0u, 1u}; /* the ports' ctx */
+
+dan_rxring_t uart_rx[BOARD_UARTS];
+volatile uart_stats_t uart_stats[BOARD_UARTS];
 
 /* The interrupt is the ring's only producer. */
-void UART0RX_Handler(void);
-void UART0RX_Handler(void)
+static void uart_rx_isr(unsigned k)
 {
-    uart0_stats.rx_irqs = uart0_stats.rx_irqs + 1u;
-    while ((UART_STATE(UART0_BASE) & UART_STATE_RXFULL) != 0u) {
+    uint32_t base = uart_base[k];
+    uart_stats[k].rx_irqs = uart_stats[k].rx_irqs + 1u;
+    while ((UART_STATE(base) & UART_STATE_RXFULL) != 0u) {
         uint8_t b;
         /* Clear the flag before reading the data register: the read lets
          * the next byte in, whose flag would otherwise be cleared too. */
-        UART_INT(UART0_BASE) = UART_INT_RX;
-        b = (uint8_t)UART_DATA(UART0_BASE);
-        (void)dan_rxring_put(&uart0_rx, b); /* full: counted in the ring */
+        UART_INT(base) = UART_INT_RX;
+        b = (uint8_t)UART_DATA(base);
+        (void)dan_rxring_put(&uart_rx[k], b); /* full: counted in the ring */
     }
-    if ((UART_STATE(UART0_BASE) & UART_STATE_RXOVR) != 0u) {
-        UART_STATE(UART0_BASE) = UART_STATE_RXOVR; /* write 1 to clear */
-        uart0_stats.rx_overruns = uart0_stats.rx_overruns + 1u;
+    if ((UART_STATE(base) & UART_STATE_RXOVR) != 0u) {
+        UART_STATE(base) = UART_STATE_RXOVR; /* write 1 to clear */
+        uart_stats[k].rx_overruns = uart_stats[k].rx_overruns + 1u;
     }
+}
+
+void UART0RX_Handler(void);
+void UART0RX_Handler(void)
+{
+    uart_rx_isr(0u);
+}
+
+void UART1RX_Handler(void);
+void UART1RX_Handler(void)
+{
+    uart_rx_isr(1u);
 }
 
 static uint32_t divisor_of(uint32_t baud)
@@ -119,24 +136,24 @@ static uint32_t divisor_of(uint32_t baud)
 
 static int port_write(void *ctx, const uint8_t *data, size_t len)
 {
+    unsigned k = *(const unsigned *)ctx;
     size_t i;
-    (void)ctx;
     /* Polled: the CMSDK UART holds one byte, so on hardware this waits for
      * the frame to leave (len * C; 15 ms for 170 bytes at 115200). QEMU
      * sends at once. A TX interrupt with a second ring removes the wait. */
     for (i = 0; i < len; i++) {
-        while ((UART_STATE(UART0_BASE) & UART_STATE_TXFULL) != 0u) {
+        while ((UART_STATE(uart_base[k]) & UART_STATE_TXFULL) != 0u) {
         }
-        UART_DATA(UART0_BASE) = data[i];
+        UART_DATA(uart_base[k]) = data[i];
     }
-    uart0_stats.tx_bytes = uart0_stats.tx_bytes + (uint32_t)len;
+    uart_stats[k].tx_bytes = uart_stats[k].tx_bytes + (uint32_t)len;
     return (int)len;
 }
 
 static int port_set_baud(void *ctx, uint32_t baud)
 {
+    unsigned k = *(const unsigned *)ctx;
     uint32_t div;
-    (void)ctx;
     if (baud == 0u) {
         return DAN_ERR_ARG;
     }
@@ -146,37 +163,52 @@ static int port_set_baud(void *ctx, uint32_t baud)
     }
     /* The master switches only after its last frame was echoed, so no byte
      * of ours is in the UART now. */
-    UART_BAUDDIV(UART0_BASE) = div;
-    uart0_stats.baud_changes = uart0_stats.baud_changes + 1u;
+    UART_BAUDDIV(uart_base[k]) = div;
+    uart_stats[k].baud_changes = uart_stats[k].baud_changes + 1u;
     return DAN_OK;
 }
 
-static const dan_port_t port0 = {
-    port_write,
-    port_set_baud,
-    NULL,
-    NULL,
-    NULL,
-    NULL,
-    BOARD_CPU_HZ / BOARD_UART_MIN_DIV, /* max baud: divisor 16 */
-    true                               /* one wire: we hear our bytes */
+static const dan_port_t ports[BOARD_UARTS] = {
+    /* max baud: divisor 16; one wire: we hear our bytes */
+    {port_write, port_set_baud, NULL, NULL, NULL, &uart_index[0], BOARD_CPU_HZ / BOARD_UART_MIN_DIV,
+     true},
+    {port_write, port_set_baud, NULL, NULL, NULL, &uart_index[1], BOARD_CPU_HZ / BOARD_UART_MIN_DIV,
+     true},
 };
 
-void uart0_init(uint32_t baud)
+void uart_init(unsigned k, uint32_t baud)
 {
-    dan_rxring_init(&uart0_rx);
-    UART_CTRL(UART0_BASE) = 0;
+    uint32_t base = uart_base[k];
+    dan_rxring_init(&uart_rx[k]);
+    UART_CTRL(base) = 0;
     /* The divisor must be >= 16 before TX is enabled. */
-    UART_BAUDDIV(UART0_BASE) = divisor_of(baud);
-    UART_INT(UART0_BASE) = 0xFu;
-    UART_CTRL(UART0_BASE) = UART_CTRL_TXEN | UART_CTRL_RXEN | UART_CTRL_RXINTEN;
-    NVIC_IPR_BYTE(UART0_RX_IRQ) = 0x40u;
-    NVIC_ISER0 = 1u << UART0_RX_IRQ;
+    UART_BAUDDIV(base) = divisor_of(baud);
+    UART_INT(base) = 0xFu;
+    UART_CTRL(base) = UART_CTRL_TXEN | UART_CTRL_RXEN | UART_CTRL_RXINTEN;
+    NVIC_IPR_BYTE(uart_rx_irq[k]) = 0x40u;
+    NVIC_ISER0 = 1u << uart_rx_irq[k];
 }
 
-const dan_port_t *uart0_port(void)
+const dan_port_t *uart_port(unsigned k)
 {
-    return &port0;
+    return &ports[k];
+}
+
+/* ---- UART2: the control line ---- */
+
+void ctl_init(void)
+{
+    UART_CTRL(UART2_BASE) = 0;
+    UART_BAUDDIV(UART2_BASE) = divisor_of(115200u);
+    UART_CTRL(UART2_BASE) = UART_CTRL_RXEN; /* polled: no interrupt */
+}
+
+int ctl_getc(void)
+{
+    if ((UART_STATE(UART2_BASE) & UART_STATE_RXFULL) == 0u) {
+        return -1;
+    }
+    return (int)(UART_DATA(UART2_BASE) & 0xFFu);
 }
 
 /* The divisor (25 MHz / BAUDDIV, BAUDDIV >= 16, so at most 1562500) gives
@@ -196,9 +228,9 @@ const uint32_t *board_fast_bauds(size_t *n)
     return fast_bauds;
 }
 
-uint32_t uart0_actual_baud(void)
+uint32_t uart_actual_baud(unsigned k)
 {
-    uint32_t div = UART_BAUDDIV(UART0_BASE);
+    uint32_t div = UART_BAUDDIV(uart_base[k]);
     return div != 0u ? BOARD_CPU_HZ / div : 0u;
 }
 
@@ -206,8 +238,13 @@ void board_idle(void)
 {
     /* With interrupts masked, WFI still wakes on a pending interrupt, so a
      * byte that arrives between the check and the WFI is not slept over. */
+    unsigned k;
+    size_t waiting = 0;
     __asm__ volatile("cpsid i" ::: "memory");
-    if (dan_rxring_count(&uart0_rx) == 0u) {
+    for (k = 0; k < BOARD_UARTS; k++) {
+        waiting += dan_rxring_count(&uart_rx[k]);
+    }
+    if (waiting == 0u) {
         __asm__ volatile("dsb\n\twfi" ::: "memory");
     }
     __asm__ volatile("cpsie i" ::: "memory");

@@ -17,6 +17,8 @@
  *   fast=on|N            configure offers the fast bauds the UART can do
  *                        (board_fast_bauds(), highest first), or every fast
  *                        baud up to N (default: none, DAN v1 bauds only)
+ *   buses=2              two buses instead (UART0 and UART1, a gateway on
+ *                        each, both driving ESCs): twobus.c
  */
 #include <string.h>
 
@@ -25,6 +27,8 @@
 #include "dan/rxring.h"
 #include "dan/can_gw/client.h"
 #include "board.h"
+#include "fw_out.h"
+#include "twobus.h"
 
 #ifndef FW_RUN_LIMIT_US
 #define FW_RUN_LIMIT_US 120000000u /* the whole run, as a last resort */
@@ -41,94 +45,6 @@
 #define RETRIES          2u      /* extra attempts per transaction */
 #define BACKOFF_SEED     0x5EEDu /* any value: the backoff jitter's seed */
 #define IDLE_MIN_US      1000u   /* sleep only when nothing is due within a SysTick */
-
-/* ---- output: one JSON object per line ---- */
-
-static char out_line[1024];
-static size_t out_len;
-
-static void o_str(const char *s)
-{
-    while (*s != '\0' && out_len < sizeof out_line - 2u) {
-        out_line[out_len++] = *s++;
-    }
-}
-
-static void o_u64(uint64_t v)
-{
-    char tmp[21];
-    size_t n = 0;
-    do {
-        tmp[n++] = (char)('0' + (int)(v % 10u));
-        v /= 10u;
-    } while (v != 0u);
-    while (n > 0u && out_len < sizeof out_line - 2u) {
-        out_line[out_len++] = tmp[--n];
-    }
-}
-
-static void o_u32(uint32_t v)
-{
-    o_u64(v);
-}
-
-static void o_int(int32_t v)
-{
-    if (v < 0) {
-        o_str("-");
-        o_u64((uint64_t)(-(int64_t)v));
-    } else {
-        o_u64((uint64_t)v);
-    }
-}
-
-static void o_hex(const uint8_t *p, size_t n)
-{
-    static const char digits[] = "0123456789abcdef";
-    size_t i;
-    for (i = 0; i < n && out_len < sizeof out_line - 3u; i++) {
-        out_line[out_len++] = digits[p[i] >> 4];
-        out_line[out_len++] = digits[p[i] & 15u];
-    }
-}
-
-/* A JSON string, escaped by libdan's one JSON formatter. */
-static void o_jstr(const char *s)
-{
-    out_len += dan_json_str(out_line + out_len, sizeof out_line - 1u - out_len, s);
-}
-
-/* ,"key": */
-static void o_key(const char *k)
-{
-    o_str(",\"");
-    o_str(k);
-    o_str("\":");
-}
-
-static void o_begin(const char *step)
-{
-    out_len = 0;
-    o_str("{\"step\":");
-    o_jstr(step);
-}
-
-static void o_end(void)
-{
-    out_line[out_len++] = '}';
-    out_line[out_len++] = '\n';
-    out_line[out_len < sizeof out_line ? out_len : sizeof out_line - 1u] = '\0';
-    sh_puts(out_line);
-    out_len = 0;
-}
-
-static void o_result(int r)
-{
-    o_key("result");
-    o_int(r);
-    o_key("error");
-    o_jstr(r == DAN_OK ? "" : dan_strerror(r));
-}
 
 /* ---- the application ---- */
 
@@ -218,7 +134,7 @@ static step_t configure_done(app_t *a, int r, uint64_t now)
     o_key("baud");
     o_u32(dan_master_baud(&a->m));
     o_key("uart_baud");
-    o_u32(uart0_actual_baud()); /* 25 MHz / divisor */
+    o_u32(uart_actual_baud(0u)); /* 25 MHz / divisor */
     o_key("ms");
     o_u64((now - a->op_t0) / 1000u);
     o_key("recoveries");
@@ -483,13 +399,13 @@ static void print_stats(const app_t *a, int code)
     o_key("tx_bytes");
     o_u32(l->tx_bytes);
     o_key("rx_irqs");
-    o_u32(uart0_stats.rx_irqs);
+    o_u32(uart_stats[0].rx_irqs);
     o_key("uart_overruns");
-    o_u32(uart0_stats.rx_overruns);
+    o_u32(uart_stats[0].rx_overruns);
     o_key("ring_dropped");
-    o_u32(dan_rxring_dropped(&uart0_rx));
+    o_u32(dan_rxring_dropped(&uart_rx[0]));
     o_key("baud_changes");
-    o_u32(uart0_stats.baud_changes);
+    o_u32(uart_stats[0].baud_changes);
     o_key("exit");
     o_int(code);
     o_end();
@@ -569,7 +485,7 @@ static int tick(app_t *a, uint64_t deadline)
 
     /* The only consumer of the ring: bytes go to the engine in order,
      * stamped with the time they are handed over. */
-    while ((n = dan_rxring_get_many(&uart0_rx, buf, sizeof buf)) > 0u) {
+    while ((n = dan_rxring_get_many(&uart_rx[0], buf, sizeof buf)) > 0u) {
         dan_master_rx(&a->m, buf, n, clock_now_us());
     }
     now = clock_now_us();
@@ -632,8 +548,11 @@ int main(void)
     int code = -1;
 
     clock_init();
-    uart0_init(DAN_START_BAUD);
+    uart_init(0u, DAN_START_BAUD);
     sh_cmdline(cmdline, sizeof cmdline);
+    if (strstr(cmdline, "buses=2") != NULL) {
+        return twobus_main(cmdline);
+    }
     a.gw_mode = parse_gw_mode(cmdline);
 
     /* The same settings as dan-master on a pty: a reply may start 50 ms
@@ -646,8 +565,8 @@ int main(void)
     parse_fast(cmdline, &cfg);
     now = clock_now_us();
     deadline = now + FW_RUN_LIMIT_US;
-    if (dan_master_init(&a.m, uart0_port(), &cfg, bus_types, sizeof bus_types / sizeof bus_types[0],
-                        DAN_START_BAUD, now) != DAN_OK) {
+    if (dan_master_init(&a.m, uart_port(0u), &cfg, bus_types,
+                        sizeof bus_types / sizeof bus_types[0], DAN_START_BAUD, now) != DAN_OK) {
         sh_puts("{\"event\":\"init failed\"}\n");
         return 1;
     }

@@ -17,6 +17,7 @@ void Default_Handler(void);
 void HardFault_Handler(void);
 void SysTick_Handler(void);
 void UART0RX_Handler(void);
+void UART1RX_Handler(void);
 
 void Reset_Handler(void)
 {
@@ -61,7 +62,7 @@ __attribute__((section(".isr_vector"), used)) const vector_t vector_table[16u + 
     SysTick_Handler,
     UART0RX_Handler, /* IRQ 0: UART0 RX */
     Default_Handler,
-    Default_Handler,
+    UART1RX_Handler, /* IRQ 2: UART1 RX */
     Default_Handler,
     Default_Handler, /* 1..4 */
     Default_Handler,

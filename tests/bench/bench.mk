@@ -8,7 +8,7 @@
 #   make soak [SOAK=300]       the same (default 300 s)
 #   make soak CHAOS=1 SOAK=600 the chaos soak (tests/bench/chaos.py): faults on a
 #                              seeded schedule, invariants checked; chaos.json
-#   make restarts [RESTARTS=100] [RESTART_BAUDS=115200,1000000]
+#   make restarts [RESTARTS=100] [RESTART_BAUDS=115200,1000000,2000000]
 #                              the FC and the gateway each killed RESTARTS times
 #                              at random moments (tests/bench/restarts.py);
 #                              build/bench/restarts.json
@@ -22,7 +22,7 @@ BENCH_ARGS  ?=
 
 .PHONY: bench soak restarts bench-build
 RESTARTS      ?= 100
-RESTART_BAUDS ?= 115200,1000000
+RESTART_BAUDS ?= 115200,1000000,2000000
 
 $(BENCH_DIR)/bench_%: tests/bench/bench_%.c $(ALL_LIBS)
 	@mkdir -p $(@D)

@@ -42,6 +42,12 @@ Rows:
              behind the hub) with danprobe's client through the DAN wire at
              115200 (NODE_CALL / CALL_RESULT, 5 calls in flight), against the
              goal of 3 s
+  chaos      the chaos soak (tests/bench/chaos.py) for 60 s: faults survived,
+             wrong values (0), worst recovery, the daemon's RSS growth; OK
+             when every invariant held (tests/bench/bench_reliability.py)
+  hostile    tests/e2e/test_hostile_can.py with $DAN_HOSTILE_OUT: the ESC
+             exchange rate under hostile CAN traffic against the clean rate
+             (goal >= 0.9)
 Results: OUT/results.json (+ results-YYYYmmdd-HHMMSS.json); the delta against
 the previous results.json is printed. --soak N: the ESC loop for N seconds
 with dan-gatewayd's RSS and counters sampled (also in the JSON).
@@ -64,6 +70,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))  # this checkout's danprobe, whatever the venv's
 import bench_files  # noqa: E402  (tests/bench, the script's own directory)
+import bench_reliability  # noqa: E402
 
 import procgroup  # noqa: E402
 from danprobe import gateway_calls, registry  # noqa: E402
@@ -987,6 +994,7 @@ def table(r):
             )
         )
     rows += bench_files.files_rows(r.get("files") or {})
+    rows += bench_reliability.rows(r)
     w0 = max(len(x[0]) for x in rows)
     w1 = max(len(x[1]) for x in rows)
     w2 = max(len(x[2]) for x in rows)
@@ -1016,6 +1024,9 @@ KEYS = [
     ("latency", "ratio"),
     ("params", "seconds"),
     ("files", "ratio_min"),
+    ("chaos", "faults"),
+    ("chaos", "rss_growth_kb"),
+    ("hostile", "ratio"),
 ]
 
 
@@ -1039,7 +1050,8 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0, help="length of the rate runs")
     ap.add_argument(
         "--only",
-        help="comma-separated rows (esc,esc_fast,adapters,esc_sim,raw_can,discovery,parser,gateway,latency,params,files)",
+        help="comma-separated rows (esc,esc_fast,adapters,esc_sim,raw_can,discovery,parser,"
+        "gateway,latency,params,files,chaos,hostile)",
     )
     a = ap.parse_args()
     build = (ROOT / a.build).resolve()
@@ -1084,6 +1096,8 @@ def main():
                 "files",
                 lambda: bench_files.bench_files(build, Stack, gw_rig, read_capture, frame_code),
             ),
+            ("chaos", lambda: bench_reliability.bench_chaos(build)),
+            ("hostile", lambda: bench_reliability.bench_hostile(PY)),
         ]
         for name, fn in todo:
             if only and name not in only:

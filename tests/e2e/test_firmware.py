@@ -37,10 +37,8 @@ def need_firmware():
         pytest.fail(f"needs qemu-system-arm and {FW_ELF}: make test installs and builds both")
 
 
-def run_firmware(procs, tmp_path, endpoint, append=None):
-    """Boots the firmware on a vbus endpoint; returns (exit code, JSON lines)."""
-    pty = os.path.realpath(endpoint)  # /dev/pts/N: QEMU's tty backend
-    assert pty.startswith("/dev/pts/")
+def qemu_command(serials, append=None):
+    """QEMU running the firmware, UART k on serials[k] (pty paths)."""
     args = [
         QEMU,
         "-M",
@@ -53,11 +51,19 @@ def run_firmware(procs, tmp_path, endpoint, append=None):
         "enable=on,target=native",
         "-kernel",
         FW_ELF,
-        "-serial",
-        pty,
     ]
+    for path in serials:
+        args += ["-serial", path]
     if append:
         args += ["-append", append]
+    return args
+
+
+def run_firmware(procs, tmp_path, endpoint, append=None):
+    """Boots the firmware on a vbus endpoint; returns (exit code, JSON lines)."""
+    pty = os.path.realpath(endpoint)  # /dev/pts/N: QEMU's tty backend
+    assert pty.startswith("/dev/pts/")
+    args = qemu_command([pty], append)
     with open(tmp_path / "qemu.stdout", "wb") as out:
         p = procs.start(args, name="qemu", stdout=out)
         try:

@@ -34,11 +34,27 @@ def test_one_bus_failing_leaves_the_other_unaffected(stack, procs):
         stdout=subprocess.PIPE,
     )
 
-    def bus_cmds(s, values):
-        return [e for e in s.esc_events("cmd") if e["src"] == GW_NODE and e["cmd"] == values]
-
     wait_for(lambda: bus_cmds(b, [11, 21, 31, 41]), 120, 0.1, what="bus 1 running")
     time.sleep(1.0)
+    g = restart_gateway_midflight(procs, b, [11, 21, 31, 41])
+    fc.send_signal(signal.SIGTERM)  # ends the run: one summary per bus
+    out, _ = fc.communicate(timeout=120)
+    lines = [json.loads(x) for x in out.decode().splitlines()]
+    summary = {x["bus"]: x for x in lines if x.get("summary")}
+    windows = [x for x in lines if not x.get("summary")]
+    assert fc.returncode == 0, lines
+    check_one_failing(summary, windows, a, b)
+    procs.stop(g)
+
+
+def bus_cmds(s, values):
+    """The RawCommands with values the ESCs of stack s heard from the gateway."""
+    return [e for e in s.esc_events("cmd") if e["src"] == GW_NODE and e["cmd"] == values]
+
+
+def restart_gateway_midflight(procs, b, values, timeout=30):
+    """Kills bus b's gateway, starts it again (at 9600) 3 s later and waits
+    until b's ESCs hear values through it; returns the new gateway."""
     procs.stop(b.gwd, signal.SIGKILL)  # bus 1 fails ...
     time.sleep(3.0)
     restart_t = time.monotonic()
@@ -49,19 +65,18 @@ def test_one_bus_failing_leaves_the_other_unaffected(stack, procs):
     )
     wait_for(
         lambda: (
-            len(bus_cmds(b, [11, 21, 31, 41])) > 0
-            and max(e["t"] for e in bus_cmds(b, [11, 21, 31, 41])) > restart_t
+            len(bus_cmds(b, values)) > 0 and max(e["t"] for e in bus_cmds(b, values)) > restart_t
         ),
-        30,
+        timeout,
         0.2,
         what="bus 1's ESCs commanded through the restarted gateway",
     )
-    fc.send_signal(signal.SIGTERM)  # ends the run: one summary per bus
-    out, _ = fc.communicate(timeout=120)
-    lines = [json.loads(x) for x in out.decode().splitlines()]
-    summary = {x["bus"]: x for x in lines if x.get("summary")}
-    windows = [x for x in lines if not x.get("summary")]
-    assert fc.returncode == 0, lines
+    return g
+
+
+def check_one_failing(summary, windows, a, b):
+    """summary: bus -> its summary line; windows: the per-second lines
+    ("bus", "exchanges", "errors"); a, b: the two buses' stacks."""
     # bus 0: exchanges in every second after it started, not one error
     a_win = [w for w in windows if w["bus"] == 0]
     assert summary[0]["errors"] == 0 and summary[0]["recoveries"] == 0, summary
@@ -73,4 +88,3 @@ def test_one_bus_failing_leaves_the_other_unaffected(stack, procs):
     for s, mine in ((a, [10, 20, 30, 40]), (b, [11, 21, 31, 41])):
         seen = {tuple(e["cmd"]) for e in s.esc_events("cmd") if e["src"] == GW_NODE}
         assert seen <= {tuple(mine), (0, 0, 0, 0)} and tuple(mine) in seen, seen
-    procs.stop(g)

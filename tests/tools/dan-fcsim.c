@@ -33,10 +33,20 @@
 
 static const char HELP[] =
     "usage: dan-fcsim --port TTY [--latency-ms 50] [--gap-ms 20] [--no-echo] [--recover N]\n"
-    "                 [--baud B] [--max-baud B] [--fast [--telem-every N]] STEP...\n"
+    "                 [--baud B] [--max-baud B] [--fast [--telem-every N]]\n"
+    "                 [--mix-servo ID=V[:TYPE],...] [--mix-tunnel PORT:TAG:OUTFILE:RATE]\n"
+    "                 [--restore] STEP...\n"
     "  --baud B       the port's starting baud (default 9600)\n"
     "  --max-baud B   configure offers the fast bauds up to B (230400..2000000)\n"
     "                 first, and discovery scans them (default 0: DAN v1 bauds)\n"
+    "  --mix-servo S  the ESC loops send SERVO S after every 10th exchange\n"
+    "  --mix-tunnel PORT:TAG:OUTFILE:RATE\n"
+    "                 the ESC loops also write records TAG:SEQ:CK (newline-ended)\n"
+    "                 at RATE B/s to tunnel PORT once a tunnel step opened it, and\n"
+    "                 append what comes back to OUTFILE (counts in the esc line)\n"
+    "  --restore      after a --recover: ARM, SAFETY, SERVO_FAILSAFE, the tunnel\n"
+    "                 again as the steps had set them; in the ESC loops ARM and\n"
+    "                 SAFETY again when the gateway's flags show them undone\n"
     "  --fast         esc and esc-ramp send ESC_FAST, and ESC_FAST_T (a telemetry\n"
     "                 record) every N-th exchange (--telem-every, default 1; 0: never)\n"
     "Steps (each prints one JSON line):\n"
@@ -267,7 +277,7 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
             errors++;
             if (g_recover > 0u && ++in_row >= g_recover) {
                 in_row = 0;
-                if (recover_bus() == DAN_OK) {
+                if (recover_bus() == DAN_OK && fcsim_mix_restore() == DAN_OK) {
                     recoveries++;
                 }
             }
@@ -276,6 +286,7 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
             in_row = 0;
             telem += g_gw.last_telem != DAN_GW_NONE;
             fresh += g_fast && g_gw.telem_fresh;
+            fcsim_mix_turn(count);
         }
     } while (dan_posix_now_us() < end);
     {
@@ -287,6 +298,7 @@ static int esc_run(const char *step, const int16_t *from, const int16_t *to, siz
                step, errors == 0 ? "true" : "false", count, errors, telem, secs,
                secs > 0 ? count / secs : 0.0, g_gw.esc_seen, g_gw.gw_flags, dan_master_baud(&g_m),
                recoveries, g_fast ? "true" : "false", g_telem_every, fresh);
+        fcsim_mix_print();
         print_all_telem();
         printf("}\n");
     }
@@ -448,6 +460,7 @@ static int step_arm(const char *name, const char *step, char *args)
     if (rc != DAN_OK) {
         return fcsim_fail(step, rc);
     }
+    fcsim_mix_note_arm(name[0] == 'a');
     printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u}\n", name, g_gw.gw_flags);
     return 0;
 }
@@ -715,8 +728,11 @@ static int step_stats(const char *name, const char *step, char *args)
     for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
         printf(", \"%s\": %u", dan_gw_stat_name(i), g_gw.stats[i]);
     }
-    printf(", \"master_timeouts\": %u, \"master_retries\": %u, \"master_bad_replies\": %u}\n",
-           g_m.stats.timeouts, g_m.stats.retries, g_m.stats.bad_replies);
+    /* t: CLOCK_MONOTONIC seconds, to place the line among other processes' events */
+    printf(", \"master_timeouts\": %u, \"master_retries\": %u, \"master_bad_replies\": %u, "
+           "\"t\": %.6f}\n",
+           g_m.stats.timeouts, g_m.stats.retries, g_m.stats.bad_replies,
+           (double)dan_posix_now_us() / 1e6);
     return 0;
 }
 
@@ -754,6 +770,7 @@ static int step_tunnel(const char *name, const char *step, char *args)
     if (rc != DAN_OK) {
         return fcsim_fail(step, rc);
     }
+    fcsim_mix_note_tunnel(&o);
     printf("{\"step\": \"tunnel\", \"ok\": true, \"port\": %u, \"options\": %u}\n", port,
            o.options);
     return 0;
@@ -766,7 +783,7 @@ static int step_xfer_args(const char *name, const char *step, char *args)
 }
 
 /* Splits args at commas into at most cap tokens (none for NULL). */
-static size_t split_commas(char *args, char **tok, size_t cap)
+size_t fcsim_split_commas(char *args, char **tok, size_t cap)
 {
     char *t, *save = NULL;
     size_t n = 0;
@@ -803,7 +820,7 @@ static int step_filter(const char *name, const char *step, char *args)
 {
     dan_gw_filter_t f[DAN_GW_FILTERS_MAX];
     char *tok[DAN_GW_FILTERS_MAX];
-    size_t n = split_commas(args, tok, DAN_GW_FILTERS_MAX), i;
+    size_t n = fcsim_split_commas(args, tok, DAN_GW_FILTERS_MAX), i;
     uint8_t op = !strcmp(name, "filter-add")      ? DAN_GW_FILTER_ADD
                  : !strcmp(name, "filter-remove") ? DAN_GW_FILTER_REMOVE
                  : !strcmp(name, "filter-read")   ? DAN_GW_FILTER_READ
@@ -836,7 +853,7 @@ static int step_cansend(const char *name, const char *step, char *args)
 {
     dan_can_frame_t f[DAN_GW_CAN_FRAMES_MAX];
     char *tok[DAN_GW_CAN_FRAMES_MAX];
-    size_t n = split_commas(args, tok, DAN_GW_CAN_FRAMES_MAX), i;
+    size_t n = fcsim_split_commas(args, tok, DAN_GW_CAN_FRAMES_MAX), i;
     int rc;
     (void)name;
     for (i = 0; i < n; i++) {
@@ -916,17 +933,18 @@ static int flags_result(const char *name, const char *step, int rc, size_t count
 /* safety:off|on */
 static int step_safety(const char *name, const char *step, char *args)
 {
+    int rc;
     if (args == NULL || (strcmp(args, "off") != 0 && strcmp(args, "on") != 0)) {
         return fcsim_fail(step, DAN_ERR_ARG);
     }
-    return flags_result(
-        name, step, fcsim_finish(dan_gw_safety(&g_gw, !strcmp(args, "off"), dan_posix_now_us())),
-        1);
+    rc = fcsim_finish(dan_gw_safety(&g_gw, !strcmp(args, "off"), dan_posix_now_us()));
+    if (rc == DAN_OK) {
+        fcsim_mix_note_safety(!strcmp(args, "off"));
+    }
+    return flags_result(name, step, rc, 1);
 }
 
-/* One ID=VALUE[:TYPE] (VALUE may be "hold" when hold != NULL, which then
- * tells whether it was); 0, or -1 when it does not parse. */
-static int parse_servo(char *tok, dan_gw_servo_t *s, bool *hold)
+int fcsim_parse_servo(char *tok, dan_gw_servo_t *s, bool *hold)
 {
     char *end;
     unsigned long id = strtoul(tok, &end, 0), type = 0;
@@ -966,12 +984,12 @@ static int step_servo(const char *name, const char *step, char *args)
     dan_gw_servo_t s[DAN_GW_SERVO_MAX];
     dan_gw_servo_fs_t fs[DAN_GW_SERVO_MAX];
     char *tok[DAN_GW_SERVO_MAX];
-    size_t n = split_commas(args, tok, DAN_GW_SERVO_MAX), i;
+    size_t n = fcsim_split_commas(args, tok, DAN_GW_SERVO_MAX), i;
     bool failsafe = !strcmp(name, "servo-fs");
     int rc;
     for (i = 0; i < n; i++) {
         bool hold = false;
-        if (parse_servo(tok[i], &s[i], failsafe ? &hold : NULL)) {
+        if (fcsim_parse_servo(tok[i], &s[i], failsafe ? &hold : NULL)) {
             return fcsim_fail(step, DAN_ERR_ARG);
         }
         fs[i].mode = (uint8_t)(hold ? DAN_GW_SERVO_HOLD : DAN_GW_SERVO_VALUE);
@@ -985,6 +1003,7 @@ static int step_servo(const char *name, const char *step, char *args)
     if (rc != DAN_OK) {
         return fcsim_fail(step, rc);
     }
+    fcsim_mix_note_servo_fs(fs, n);
     printf("{\"step\": \"%s\", \"ok\": true, \"count\": %zu, \"kept\": %u}\n", name, n,
            g_gw.servo_fs_kept);
     return 0;
@@ -995,7 +1014,7 @@ static int step_lights(const char *name, const char *step, char *args)
 {
     dan_gw_light_t l[DAN_GW_LIGHTS_MAX];
     char *tok[DAN_GW_LIGHTS_MAX];
-    size_t n = split_commas(args, tok, DAN_GW_LIGHTS_MAX), i;
+    size_t n = fcsim_split_commas(args, tok, DAN_GW_LIGHTS_MAX), i;
     for (i = 0; i < n; i++) {
         char *end;
         unsigned long id = strtoul(tok[i], &end, 0), rgb;
@@ -1146,6 +1165,13 @@ int main(int argc, char **argv)
             g_fast = true;
         } else if (!strcmp(argv[i], "--telem-every") && i + 1 < argc) {
             g_telem_every = (uint32_t)strtoul(argv[++i], NULL, 0);
+        } else if (!strncmp(argv[i], "--mix-", 6) || !strcmp(argv[i], "--restore")) {
+            int took = fcsim_mix_option(argv[i], i + 1 < argc ? argv[i + 1] : NULL);
+            if (took < 0) {
+                tool_error("bad %s", argv[i]);
+                return 2;
+            }
+            i += took;
         } else if (!strcmp(argv[i], "--help")) {
             fputs(HELP, stdout);
             return 0;

@@ -3,6 +3,8 @@
 #ifndef DAN_FCSIM_H
 #define DAN_FCSIM_H
 
+#include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "dan/can_gw/client.h"
@@ -17,6 +19,26 @@ int fcsim_finish(int rc);
 int fcsim_fail(const char *step, int rc);
 /* Waits us, dropping whatever the port receives meanwhile. */
 void fcsim_sleep_us(uint64_t us);
+
+/* Splits args at commas into at most cap tokens (args is cut up). */
+size_t fcsim_split_commas(char *args, char **tok, size_t cap);
+/* One ID=VALUE[:TYPE] (VALUE may be "hold" when hold != NULL, which then
+ * tells whether it was); 0, or -1 when it does not parse. */
+int fcsim_parse_servo(char *tok, dan_gw_servo_t *s, bool *hold);
+
+/* Side traffic in the ESC loops and --restore (fcsim/mix.c). An option:
+ * 1 (it took arg), 0 (no argument taken), -1 (bad). */
+int fcsim_mix_option(const char *opt, char *arg);
+void fcsim_mix_note_arm(bool armed);
+void fcsim_mix_note_safety(bool off);
+void fcsim_mix_note_servo_fs(const dan_gw_servo_fs_t *fs, size_t n);
+void fcsim_mix_note_tunnel(const dan_gw_tun_open_t *cfg);
+/* After a recovery: what the steps had set, again (with --restore). */
+int fcsim_mix_restore(void);
+/* After the turn-th ESC exchange that succeeded: the side calls due. */
+void fcsim_mix_turn(uint32_t turn);
+/* The ESC loop's side counts as JSON members ("k": v, ...), then zeroed. */
+void fcsim_mix_print(void);
 
 /* The file steps (fcsim/files.c): upload:NAME:PATH, files, rm:NAME,
  * fw-begin:NODE:NAME[:CALL_ID], node-info:NODE. Same contract as the
