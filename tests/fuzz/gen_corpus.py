@@ -98,24 +98,28 @@ def client_sel(code):
     return code - 0x42 if code <= 0x4F else 14 + code - 0x52
 
 
+def gw_req(code, payload):
+    """gw_handlers: a sealed DAN request."""
+    return bytes([handler_op(code) | SEALED_OP, len(payload)]) + payload
+
+
+def file_name(n):
+    return bytes([len(n)]) + n
+
+
+def uvarint(v):
+    out = b""
+    while v >= 0x80:
+        out += bytes([(v & 0x7F) | 0x80])
+        v >>= 7
+    return out + bytes([v])
+
+
 def upload_script():
     """gw_handlers: a whole upload (sealed requests) with a retried write, a
     gap, a commit, the list, FW_BEGIN of the file, a resumed second upload
     and a removal."""
-
-    def req(code, payload):
-        return bytes([handler_op(code) | SEALED_OP, len(payload)]) + payload
-
-    def name(n):
-        return bytes([len(n)]) + n
-
-    def uv(v):
-        out = b""
-        while v >= 0x80:
-            out += bytes([(v & 0x7F) | 0x80])
-            v >>= 7
-        return out + bytes([v])
-
+    req, name, uv = gw_req, file_name, uvarint
     img = bytes((i * 7) & 0xFF for i in range(300))
     s = req(0x5B, name(b"fw.bin") + struct.pack("<IB", 300, 0))
     for off in (0, 0, 150, 290):
@@ -130,6 +134,132 @@ def upload_script():
     s += req(0x5C, uv(150) + uv(10) + img[:10])
     s += req(0x5F, name(b"fw.bin"))
     return s
+
+
+FZ_READER = 100  # gw_handlers: the node whose file requests are checked (targets.c)
+CAN_TRANSFER = {"read": 1, "getinfo": 2}  # gw_handlers op 2: k = op >> 2
+
+
+def file_request(kind, path, offset=0, tid=0, src=FZ_READER):
+    """gw_handlers: a uavcan.protocol.file.Read / GetInfo request from node
+    src into the gateway's file server (uint40 offset, then the path)."""
+    body = (offset.to_bytes(5, "little") if kind == "read" else b"") + path
+    return bytes([2 | CAN_TRANSFER[kind] << 2, src, tid & 31, len(body)]) + body
+
+
+def file_server_scripts():
+    """gw_handlers: the CAN side of the file server: an upload, then reads
+    and GetInfo of it (whole file, at and past the end, paths that are no
+    name), a burst of reads that fills the bulk queue (the wait list, its
+    drops), reads while the store fails, a read of the file an upload
+    replaces."""
+    remove = gw_req(0x5F, file_name(b"fw.bin"))
+    up = upload_script()[: -len(remove)]  # fw.bin stays committed
+    wait = bytes([0x07])  # 25 ms: the bus takes what is queued
+    yield (
+        up
+        + file_request("getinfo", b"fw.bin", tid=1)
+        + file_request("read", b"fw.bin", 0, tid=2)
+        + wait
+        + file_request("read", b"/fw.bin", 256, tid=3)
+        + file_request("read", b"fw.bin", 300, tid=4)
+        + file_request("read", b"fw.bin", 5000, tid=5)
+        + wait
+        + file_request("getinfo", b"nope.bin", tid=6)
+        + file_request("read", b"../fw.bin", 0, tid=7)
+        + file_request("read", b"a/fw.bin", 0, tid=8)
+        + file_request("getinfo", b"", tid=9)
+        + file_request("read", b"//fw.bin", 0, tid=10)
+        + wait
+    )
+    burst = b"".join(file_request("read", b"fw.bin", 0, tid=t, src=20 + t % 3) for t in range(12))
+    yield up + burst + wait * 4 + burst + bytes([0xFF]) * 2 + wait
+    yield up + b"\x03" + file_request("read", b"fw.bin", 0, tid=1) + wait + b"\x03"
+    # a new upload of fw.bin: the committed one is still what is served
+    img = bytes(range(200))
+    yield (
+        up
+        + gw_req(0x5B, file_name(b"fw.bin") + struct.pack("<IB", 200, 0))
+        + gw_req(0x5C, uvarint(0) + uvarint(150) + img[:150])
+        + file_request("read", b"fw.bin", 0, tid=1)
+        + wait
+        + gw_req(0x5C, uvarint(150) + uvarint(50) + img[150:])
+        + gw_req(0x5D, struct.pack("<I", zlib.crc32(img)))
+        + file_request("read", b"fw.bin", 100, tid=2)
+        + file_request("getinfo", b"fw.bin", tid=3)
+        + wait
+        + gw_req(0x5B, file_name(b"big.bin") + struct.pack("<IB", 700, 0))
+    )
+
+
+def file_dir_scripts():
+    """file_dir: store calls (targets_files.c dan_fuzz_file_dir)."""
+
+    def nm(name, pick=None):
+        return bytes([0x80 | pick]) if pick is not None else bytes([len(name)]) + name
+
+    def op(k, hi=0):
+        return bytes([k | hi << 3])
+
+    off0 = b"\x00\x00"
+    data = bytes(range(30))
+    w = op(5, 10) + off0 + data  # 30 bytes at 0
+    yield op(4) + nm(b"a") + w + op(6, 31) + off0 + op(7) + nm(b"a") + op(0) + nm(b"a") + off0
+    yield (
+        (
+            op(4)
+            + nm(b"fw.bin")
+            + w
+            + op(5, 10)
+            + b"\x1e\x00"
+            + data
+            + op(5, 10)
+            + b"\x3c\x00"
+            + data
+        )
+        + op(7)
+        + nm(b"fw.bin")
+        + op(1, 31)
+        + nm(b"fw.bin")
+        + b"\x0a\x00"
+        + op(2)
+        + op(2, 1)
+    )
+    yield (
+        op(4)
+        + nm(b"", 7)
+        + op(4)
+        + nm(b"b")
+        + w
+        + op(7)
+        + nm(b"", 3)
+        + op(1, 5)
+        + nm(b"", 3)
+        + off0
+    )
+    yield (
+        op(1, 5)
+        + nm(b"", 3)
+        + off0
+        + op(0)
+        + nm(b"", 4)
+        + off0
+        + op(3)
+        + nm(b"", 5)
+        + op(1)
+        + nm(b"", 6)
+        + off0
+        + op(0)
+        + nm(b"../outside/secret")
+        + off0
+        + op(0)
+        + nm(b"/etc/passwd")
+        + off0
+    )
+    yield op(4) + nm(b"c") + w + op(4, 1) + nm(b"c") + op(6, 31) + off0 + op(7) + nm(b"", 6)
+    yield op(4) + nm(b"d") + op(5, 31) + off0 + data * 4 + op(5, 2) + b"\x50\x00" + data
+    yield op(4) + nm(b"e") + w + op(7) + nm(b"e") + op(3) + nm(b"e") + op(0) + nm(b"e") + off0
+    yield op(4) + nm(b"x" * 33) + op(4) + nm(b".hidden") + op(4) + nm(b"a/b") + op(4) + nm(b"~a")
 
 
 def dna_scripts(calls):
@@ -224,6 +354,35 @@ def main():
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
     add("gw_handlers", upload_script())
+    for script_ in file_server_scripts():
+        add("gw_handlers", script_)
+    # file names and DroneCAN paths; the directory store
+    for n in (
+        b"fw.bin",
+        b"a",
+        b"A-Z_0.9",
+        b"x" * 32,
+        b"x" * 33,
+        b".",
+        b"..",
+        b".hidden",
+        b"/fw.bin",
+        b"//fw.bin",
+        b"/.x",
+        b"a/b",
+        b"../etc/passwd",
+        b"/etc/passwd",
+        b"~partial",
+        b"a\\b",
+        b"a\x00b",
+        b"fw bin",
+        b"\xc3\xa9.bin",
+        b"",
+        b"/",
+    ):
+        add("file_names", n)
+    for script_ in file_dir_scripts():
+        add("file_dir", script_)
     # the allocation server and the node table
     calls = [
         bytes.fromhex(line.split(" : ")[1].strip())
