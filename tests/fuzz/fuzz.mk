@@ -20,7 +20,7 @@
 FUZZ_SECONDS ?= 30
 FUZZ_RUNS    ?= 10000000
 FUZZ_TARGETS ?= frame payloads gw_handlers dronecan_rx dsdl slcan gw_client dna file_names \
-                file_dir
+                file_dir gw_msgs
 FUZZ_CC      ?= clang-14
 FUZZ_DIR     := $(BUILD)/fuzz
 FUZZ_SAN     := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
@@ -29,7 +29,7 @@ FUZZ_CFLAGS  := $(WARN) -g -O1 -D_GNU_SOURCE $(INCLUDES) -I$(GW_DIR)/linux -Ihos
 # (the SLCAN backend waits with the tools' helper, and src/port for its clock)
 FUZZ_LIBSRC   = $(CORE_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC) $(GW_LINUX_SRC) $(TOOL_LIB_SRC) \
                 $(PORT_SRC) tests/unit/file_store_ram.c tests/fuzz/targets.c \
-                tests/fuzz/targets_files.c
+                tests/fuzz/targets_files.c tests/fuzz/targets_msgs.c
 FUZZ_OBJS     = $(patsubst %.c,$(FUZZ_DIR)/obj/%.o,$(FUZZ_LIBSRC))
 FUZZ_BINS     = $(patsubst %,$(FUZZ_DIR)/bin/fuzz_%,$(FUZZ_TARGETS))
 
@@ -77,7 +77,7 @@ FUZZ_COV_OBJS    = $(patsubst %.c,$(FUZZ_COV_DIR)/obj/%.o,$(FUZZ_LIBSRC))
 FUZZ_COV_BINS    = $(patsubst %,$(FUZZ_COV_DIR)/bin/cov_%,$(FUZZ_TARGETS))
 FUZZ_COV_SRC     = src/frame.c src/payloads.c src/common.c $(wildcard $(GW_DIR)/gw_msgs*.c) \
                    $(wildcard $(GW_DIR)/gw_node*.c) $(GW_DIR)/dronecan.c $(wildcard $(GW_DIR)/dsdl*.c) \
-                   $(wildcard $(GW_DIR)/gw_client*.c) $(GW_DIR)/gw_file_name.c \
+                   $(GW_DIR)/gw_file_name.c \
                    $(GW_DIR)/linux/can_slcan.c $(GW_DIR)/linux/file_dir.c
 FUZZ_COV_FAIL   ?= 0
 

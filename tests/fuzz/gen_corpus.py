@@ -50,6 +50,47 @@ GW_CODES = {
 GW_RESULTS = {"opcode", "param", "fw_result", "crc32"}
 SEALED_OP = 1  # gw_handlers: op % 4 == 1 seals the request as a client would
 SEALED_SEED = 0x80  # gw_client: seed bit 7 seals the response as the gateway would
+# gw_msgs: data[0] for (message, direction) of the vectors (targets_msgs.c)
+MSGS_SEL = {
+    ("esc_cmd", "req"): 0,
+    ("esc_fast", "req"): 1,
+    ("esc_fast", "bad"): 1,
+    ("config", "req"): 2,
+    ("config", "rsp"): 3,
+    ("stats", "rsp"): 4,
+    ("node_info", "rsp"): 5,
+    ("tun_open", "req"): 6,
+    ("tun_xfer", "req"): 7,
+    ("tun_xfer", "rsp"): 8,
+    ("can_send", "rsp"): 9,
+    ("can_recv", "req"): 10,
+    ("esc_fast", "rsp"): 11,
+    ("esc_fast_rsp", "bad"): 11,
+    ("file_open", "req"): 12,
+    ("file_open", "bad"): 12,
+    ("file_open", "rsp"): 13,
+    ("file_write", "rsp"): 13,
+    ("file_write", "req"): 14,
+    ("file_write", "bad"): 14,
+    ("file_commit", "req"): 15,
+    ("file_commit", "bad"): 15,
+    ("file_commit", "rsp"): 16,
+    ("file_remove", "req"): 17,
+    ("file_remove", "bad"): 17,
+    ("fw_result", "rsp"): 18,
+    ("node_call", "req"): 19,
+    ("node_call", "bad"): 19,
+    ("node_call", "rsp"): 20,
+    ("call_result", "req"): 21,
+    ("call_result", "rsp"): 22,
+    ("param", "rsp"): 23,
+    ("opcode", "rsp"): 24,
+    ("health", "rsp"): 25,
+    ("servo", "req"): 26,
+    ("servo_fs", "req"): 27,
+    ("lights", "req"): 28,
+    ("beep", "req"): 29,
+}
 DSDL_SEL = {
     "node_status": 0,
     "get_node_info_rsp": 1,
@@ -65,6 +106,13 @@ DSDL_SEL = {
     "beep_command": 10,
     "safety_state": 11,
     "temperature": 12,
+    "allocation": 1,  # the Allocation shares GetNodeInfo's data type ID
+    "getset_req": 16,
+    "getset_rsp": 16,
+    "opcode_req": 17,
+    "opcode_rsp": 17,
+    "restart_req": 18,
+    "restart_rsp": 18,
 }
 
 
@@ -332,9 +380,11 @@ def main():
     for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
         head, hx = line.split(" : ")
         msg, d = head.split()[:2]
+        payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
+        if (msg, d) in MSGS_SEL:
+            add("gw_msgs", bytes([MSGS_SEL[(msg, d)]]) + payload)
         if msg in GW_RESULTS:
             continue
-        payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
         code = GW_CODES[msg]
         if msg == "esc_fast" and d == "rsp":
             code = 0x5A  # the record-bearing response
@@ -402,7 +452,7 @@ def main():
     for line in lines("dronecan.txt"):
         name = line.split()[0]
         if name not in DSDL_SEL:
-            continue  # the bus-management types: dronecan_rx and dna reach them
+            continue
         fr = can_frames(line.split(" : ")[1])
         payload = b"".join(d[:-1] for (_, _, d) in fr)
         if len(fr) > 1:
@@ -417,6 +467,19 @@ def main():
                 + f"{len(d)}".encode()
                 + d.hex().encode(),
             )
+    lines_ = [b"t1230", b"T1FFFFFFF81122334455667788", b"r7FF2", b"z", b"Z", b"\a", b"t12"]
+    add("slcan", b"\r".join(lines_) + b"\r")  # a stream of lines, an error (BEL), a short one
+    add("slcan", b"t" + b"1" * 40 + b"\rt1230\r")  # an overlong line, then a good one
+    add("slcan", b"t1230\n\rT0000000100ABCD\r\r")
+    for arg in (
+        b"123#DEADBEEF",
+        b"1F334455#R",
+        b"123#R8",
+        b"123#11.22.33",
+        b"7FF#",
+        b"12345678#00",
+    ):
+        add("slcan", arg)  # cansend arguments (dan_can_parse_cansend)
     for s in (
         b"t1230",
         b"t12381122334455667788",

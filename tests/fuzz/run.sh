@@ -21,7 +21,7 @@ dir=${FUZZ_DIR:-build/fuzz}
 # enough that an execution stays cheap (tests/fuzz/README.md).
 max_len() {
     case $1 in
-    payloads | gw_client) echo 256 ;;
+    payloads | gw_client | gw_msgs) echo 256 ;;
     slcan | file_names) echo 256 ;;
     dsdl) echo 512 ;;
     file_dir) echo 256 ;;

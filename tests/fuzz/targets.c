@@ -6,6 +6,8 @@
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "dan/dan.h"
 #include "dan/can_gw/client.h"
@@ -95,10 +97,13 @@ int dan_fuzz_frame(const uint8_t *data, size_t len)
 
 /* ---- common payloads -------------------------------------------------- */
 
+static void check_baud_mask(uint16_t mask);
+
 static void check_identity(const uint8_t *p, size_t n)
 {
     dan_identity_t a, b;
     uint8_t buf[DAN_MAX_PAYLOAD];
+    uint16_t mask = 0;
     int r;
     if (dan_identity_decode(&a, p, n) != DAN_OK) {
         return;
@@ -112,6 +117,25 @@ static void check_identity(const uint8_t *p, size_t n)
                a.capabilities == b.capabilities && !b.truncated);
     FUZZ_CHECK(!strcmp(a.manufacturer, b.manufacturer) && !strcmp(a.model, b.model) &&
                !strcmp(a.hw_version, b.hw_version) && !strcmp(a.sw_version, b.sw_version));
+    /* the master's quick look at the baud mask reads what the decoder did */
+    FUZZ_CHECK(dan_identity_baud_mask(p, n, &mask) == DAN_OK && mask == a.baud_mask);
+    check_baud_mask(a.baud_mask);
+}
+
+/* The v1 bauds of a mask: each bit names one baud and back; the highest
+ * is one of them (or the base baud). */
+static void check_baud_mask(uint16_t mask)
+{
+    uint32_t top = dan_baud_highest(mask);
+    unsigned i;
+    FUZZ_CHECK(dan_baud_is_v1(top));
+    FUZZ_CHECK(top == DAN_BAUD_BASE || (mask & dan_mask_bit_of_baud(top)) != 0u);
+    for (i = 0; i < 16u; i++) {
+        uint16_t bit = (uint16_t)(1u << i);
+        uint32_t baud = dan_baud_of_mask_bit(bit);
+        FUZZ_CHECK(baud == 0u || (dan_mask_bit_of_baud(baud) == bit && dan_baud_is_v1(baud)));
+        FUZZ_CHECK(baud == 0u || (mask & bit) == 0u || baud <= top);
+    }
 }
 
 static void check_configure(const uint8_t *p, size_t n)
@@ -144,6 +168,7 @@ static void check_ack(const uint8_t *p, size_t n)
 
 static void check_error(const uint8_t *p, size_t n)
 {
+    uint32_t code = 0;
     dan_error_msg_t a, b;
     uint8_t buf[DAN_MAX_PAYLOAD];
     int r;
@@ -155,6 +180,7 @@ static void check_error(const uint8_t *p, size_t n)
     FUZZ_CHECK(r > 0);
     FUZZ_CHECK(dan_error_decode(&b, buf, (size_t)r) == DAN_OK);
     FUZZ_CHECK(a.code == b.code && a.error == b.error && !strcmp(a.text, b.text));
+    FUZZ_CHECK(dan_error_code(p, n, &code) == DAN_OK && code == a.code);
 }
 
 /* data[0] % 4 picks identity, configure, ack, error; the rest is the payload. */
@@ -958,6 +984,60 @@ static void dsdl_file(uint16_t dtid, const uint8_t *p, size_t n, uint8_t *buf, s
     }
 }
 
+/* A DSDL type's codec pair: what decodes re-encodes to bytes that decode
+ * and encode again to the same bytes (a fixed point; no struct compare, so
+ * unions and padding do not matter). */
+#define DSDL_FIXED_POINT(T, name, p, n)                                             \
+    do {                                                                            \
+        static T a_, b_;                                                            \
+        static uint8_t e1_[512], e2_[512];                                          \
+        if (name##_decode(&a_, p, n) == DAN_OK) {                                   \
+            int r1_ = name##_encode(&a_, e1_, sizeof e1_), r2_;                     \
+            FUZZ_CHECK(r1_ >= 0 && name##_decode(&b_, e1_, (size_t)r1_) == DAN_OK); \
+            r2_ = name##_encode(&b_, e2_, sizeof e2_);                              \
+            FUZZ_CHECK(r2_ == r1_ && !memcmp(e1_, e2_, (size_t)r1_));               \
+        }                                                                           \
+    } while (0)
+
+/* The bus-management and firmware-update types (requests and responses). */
+static void dsdl_mgmt(uint16_t dtid, const uint8_t *p, size_t n)
+{
+    uint8_t buf[16];
+    uint64_t magic;
+    bool ok;
+    switch (dtid) {
+    case DAN_DC_ALLOCATION_ID:
+        DSDL_FIXED_POINT(dan_dc_allocation_t, dan_dc_allocation, p, n);
+        break;
+    case DAN_DC_PARAM_GETSET_ID:
+        DSDL_FIXED_POINT(dan_dc_param_getset_req_t, dan_dc_param_getset_req, p, n);
+        DSDL_FIXED_POINT(dan_dc_param_getset_rsp_t, dan_dc_param_getset_rsp, p, n);
+        break;
+    case DAN_DC_PARAM_OPCODE_ID:
+        DSDL_FIXED_POINT(dan_dc_param_opcode_t, dan_dc_param_opcode_req, p, n);
+        DSDL_FIXED_POINT(dan_dc_param_opcode_t, dan_dc_param_opcode_rsp, p, n);
+        break;
+    case DAN_DC_RESTART_ID:
+        if (dan_dc_restart_req_decode(&magic, p, n) == DAN_OK) {
+            uint64_t again = 0;
+            int r = dan_dc_restart_req_encode(magic, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_restart_req_decode(&again, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(again == magic);
+        }
+        if (dan_dc_restart_rsp_decode(&ok, p, n) == DAN_OK) {
+            bool again = !ok;
+            int r = dan_dc_restart_rsp_encode(ok, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_restart_rsp_decode(&again, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(again == ok);
+        }
+        break;
+    default:
+        DSDL_FIXED_POINT(dan_dc_fw_begin_req_t, dan_dc_fw_begin_req, p, n);
+        DSDL_FIXED_POINT(dan_dc_fw_begin_rsp_t, dan_dc_fw_begin_rsp, p, n);
+        break;
+    }
+}
+
 /* Decodes payload as data type dtid; what decodes must re-encode, and the
  * exact-integer types must come back identical. */
 static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
@@ -976,8 +1056,9 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
-    case DAN_DC_GET_NODE_INFO_ID: {
+    case DAN_DC_GET_NODE_INFO_ID: { /* also the Allocation's ID (a broadcast) */
         static dan_dc_get_node_info_rsp_t a, b;
+        dsdl_mgmt(DAN_DC_ALLOCATION_ID, p, n);
         (void)dan_dc_get_node_info_req_decode(p, n);
         if (dan_dc_get_node_info_rsp_decode(&a, p, n) == DAN_OK) {
             FUZZ_CHECK(a.name_len <= DAN_DC_GET_NODE_INFO_NAME_MAX && a.name[a.name_len] == '\0');
@@ -1078,6 +1159,10 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     }
     case DAN_DC_FILE_READ_ID:
     case DAN_DC_FILE_GETINFO_ID: dsdl_file(dtid, p, n, buf, sizeof buf); break;
+    case DAN_DC_PARAM_GETSET_ID:
+    case DAN_DC_PARAM_OPCODE_ID:
+    case DAN_DC_RESTART_ID:
+    case DAN_DC_FW_BEGIN_ID: dsdl_mgmt(dtid, p, n); break;
     default: {
         static dan_dc_tunnel_targetted_t tt;
         static dan_dc_tunnel_broadcast_t tb;
@@ -1092,10 +1177,10 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     }
 }
 
-/* data[0] % 16 picks the type; the rest is the serialized payload. */
+/* data[0] % 20 picks the type; the rest is the serialized payload. */
 int dan_fuzz_dsdl(const uint8_t *data, size_t len)
 {
-    static const uint16_t ids[16] = {DAN_DC_NODE_STATUS_ID,
+    static const uint16_t ids[20] = {DAN_DC_NODE_STATUS_ID,
                                      DAN_DC_GET_NODE_INFO_ID,
                                      DAN_DC_ESC_RAW_COMMAND_ID,
                                      DAN_DC_ESC_STATUS_ID,
@@ -1110,11 +1195,15 @@ int dan_fuzz_dsdl(const uint8_t *data, size_t len)
                                      DAN_DC_TEMPERATURE_ID,
                                      DAN_DC_FILE_READ_ID,
                                      DAN_DC_FILE_GETINFO_ID,
-                                     0u};
+                                     0u,
+                                     DAN_DC_PARAM_GETSET_ID,
+                                     DAN_DC_PARAM_OPCODE_ID,
+                                     DAN_DC_RESTART_ID,
+                                     DAN_DC_FW_BEGIN_ID};
     if (len < 1u) {
         return 0;
     }
-    dsdl_any(ids[data[0] % 16u], data + 1, len - 1u);
+    dsdl_any(ids[data[0] % 20u], data + 1, len - 1u);
     return 0;
 }
 
@@ -1173,24 +1262,86 @@ int dan_fuzz_dronecan_rx(const uint8_t *data, size_t len)
     return 0;
 }
 
-/* ---- SLCAN line parser ------------------------------------------------ */
+/* ---- SLCAN: line parser, the backend's stream, cansend -------------- */
 
-int dan_fuzz_slcan(const uint8_t *data, size_t len)
+static void check_can_frame(const dan_can_frame_t *f)
 {
-    dan_can_frame_t f, g;
+    FUZZ_CHECK(f->dlc <= 8u && (f->flags & DAN_CAN_ERR) == 0u);
+    FUZZ_CHECK(f->id <= ((f->flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK));
+}
+
+/* A frame formats to a line that parses back to it. */
+static void check_slcan_round_trip(const dan_can_frame_t *f)
+{
+    dan_can_frame_t g;
     char line[64];
-    int r = dan_slcan_parse_line((const char *)data, len, &f);
-    FUZZ_CHECK(r == 0 || r == 1 || r == DAN_ERR_MALFORMED);
-    if (r != 1) {
-        return 0;
-    }
-    FUZZ_CHECK(f.dlc <= 8u && (f.flags & DAN_CAN_ERR) == 0u);
-    FUZZ_CHECK(f.id <= ((f.flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK));
-    r = dan_slcan_format(&f, line, sizeof line);
+    int r = dan_slcan_format(f, line, sizeof line);
     FUZZ_CHECK(r > 1 && r <= DAN_SLCAN_FORMAT_MAX && line[r - 1] == '\r' && line[r] == '\0');
     FUZZ_CHECK(dan_slcan_parse_line(line, (size_t)r - 1u, &g) == 1);
-    FUZZ_CHECK(g.id == f.id && g.flags == f.flags && g.dlc == f.dlc);
-    FUZZ_CHECK((f.flags & DAN_CAN_RTR) || !memcmp(g.data, f.data, f.dlc));
+    FUZZ_CHECK(g.id == f->id && g.flags == f->flags && g.dlc == f->dlc);
+    FUZZ_CHECK((f->flags & DAN_CAN_RTR) || !memcmp(g.data, f->data, f->dlc));
+}
+
+static int fz_slcan_sock[2] = {-1, -1}; /* [0]: the backend's fd, [1]: the adapter */
+
+/* The whole input as bytes from an adapter, read by the SLCAN backend
+ * (dan_canif_slcan_recv: line assembly, BEL, overlong lines); each frame
+ * it returns is sent back (dan_canif_slcan_send) and must come out as the
+ * line that parses to it. */
+static void fz_slcan_stream(const uint8_t *data, size_t len)
+{
+    static dan_canif_t c;
+    char line[DAN_SLCAN_FORMAT_MAX + 1];
+    dan_can_frame_t f, g;
+    uint32_t frames = 0;
+    size_t guard = 0;
+    int r;
+    if (fz_slcan_sock[0] < 0) {
+        FUZZ_CHECK(
+            socketpair(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0, fz_slcan_sock) == 0);
+    }
+    memset(&c, 0, sizeof c);
+    c.kind = DAN_CANIF_SLCAN;
+    c.fd = fz_slcan_sock[0];
+    FUZZ_CHECK(len == 0u || write(fz_slcan_sock[1], data, len) == (ssize_t)len);
+    while ((r = dan_canif_slcan_recv(&c, &f)) == 1) {
+        ssize_t n;
+        check_can_frame(&f);
+        frames++;
+        FUZZ_CHECK(dan_canif_slcan_send(&c, &f) == 0);
+        n = read(fz_slcan_sock[1], line, sizeof line - 1u);
+        FUZZ_CHECK(n > 1 && line[n - 1] == '\r');
+        FUZZ_CHECK(dan_slcan_parse_line(line, (size_t)n - 1u, &g) == 1);
+        FUZZ_CHECK(g.id == f.id && g.flags == f.flags && g.dlc == f.dlc);
+        FUZZ_CHECK(++guard <= len);
+    }
+    FUZZ_CHECK(r == 0 && c.stats.rx == frames && c.stats.tx == frames);
+    FUZZ_CHECK(c.line_len <= DAN_SLCAN_LINE_MAX);
+}
+
+/* The input as one line (dan_slcan_parse_line), as a byte stream from the
+ * adapter (fz_slcan_stream) and as a cansend argument
+ * (dan_can_parse_cansend). */
+int dan_fuzz_slcan(const uint8_t *data, size_t len)
+{
+    dan_can_frame_t f;
+    char arg[257];
+    int r = dan_slcan_parse_line((const char *)data, len, &f);
+    FUZZ_CHECK(r == 0 || r == 1 || r == DAN_ERR_MALFORMED);
+    if (r == 1) {
+        check_can_frame(&f);
+        check_slcan_round_trip(&f);
+    }
+    fz_slcan_stream(data, len);
+    if (len < sizeof arg) {
+        memcpy(arg, data, len);
+        arg[len] = '\0';
+        r = dan_can_parse_cansend(arg, &f);
+        FUZZ_CHECK(r == 0 || r == DAN_ERR_MALFORMED);
+        if (r == 0) {
+            check_can_frame(&f);
+        }
+    }
     return 0;
 }
 
@@ -1338,5 +1489,6 @@ const dan_fuzz_target_t dan_fuzz_targets[] = {
     {"dna", dan_fuzz_dna},
     {"file_names", dan_fuzz_file_names},
     {"file_dir", dan_fuzz_file_dir},
+    {"gw_msgs", dan_fuzz_gw_msgs},
 };
 const size_t dan_fuzz_ntargets = sizeof dan_fuzz_targets / sizeof dan_fuzz_targets[0];

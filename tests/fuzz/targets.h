@@ -39,6 +39,7 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len);   /* client response de
 int dan_fuzz_dna(const uint8_t *data, size_t len);         /* allocation server and node table */
 int dan_fuzz_file_names(const uint8_t *data, size_t len);  /* file name and DroneCAN path rule */
 int dan_fuzz_file_dir(const uint8_t *data, size_t len);    /* the Linux directory store */
+int dan_fuzz_gw_msgs(const uint8_t *data, size_t len);     /* gateway message codecs, both ways */
 
 extern const dan_fuzz_target_t dan_fuzz_targets[];
 extern const size_t dan_fuzz_ntargets;

@@ -1,6 +1,6 @@
 /* Replays every saved fuzz input (tests/fuzz/corpus/<target>/ and
  * tests/fuzz/regressions/<target>/) through the same entry functions the
- * libFuzzer binaries use (tests/fuzz/targets.c and targets_files.c,
+ * libFuzzer binaries use (tests/fuzz/targets*.c,
  * included here so the Makefile's unit-test rule links them). A broken invariant aborts; under the
  * ASan build memory errors are reported. The directory is found from
  * $DAN_FUZZ_DIR, else next to $DAN_VECTORS (tests/vectors), else
@@ -18,6 +18,7 @@
 
 #include "../fuzz/targets.c"
 #include "../fuzz/targets_files.c"
+#include "../fuzz/targets_msgs.c"
 
 static void fuzz_dir(char *out, size_t cap)
 {
