@@ -50,6 +50,47 @@ GW_CODES = {
 GW_RESULTS = {"opcode", "param", "fw_result", "crc32"}
 SEALED_OP = 1  # gw_handlers: op % 4 == 1 seals the request as a client would
 SEALED_SEED = 0x80  # gw_client: seed bit 7 seals the response as the gateway would
+# gw_msgs: data[0] for (message, direction) of the vectors (targets_msgs.c)
+MSGS_SEL = {
+    ("esc_cmd", "req"): 0,
+    ("esc_fast", "req"): 1,
+    ("esc_fast", "bad"): 1,
+    ("config", "req"): 2,
+    ("config", "rsp"): 3,
+    ("stats", "rsp"): 4,
+    ("node_info", "rsp"): 5,
+    ("tun_open", "req"): 6,
+    ("tun_xfer", "req"): 7,
+    ("tun_xfer", "rsp"): 8,
+    ("can_send", "rsp"): 9,
+    ("can_recv", "req"): 10,
+    ("esc_fast", "rsp"): 11,
+    ("esc_fast_rsp", "bad"): 11,
+    ("file_open", "req"): 12,
+    ("file_open", "bad"): 12,
+    ("file_open", "rsp"): 13,
+    ("file_write", "rsp"): 13,
+    ("file_write", "req"): 14,
+    ("file_write", "bad"): 14,
+    ("file_commit", "req"): 15,
+    ("file_commit", "bad"): 15,
+    ("file_commit", "rsp"): 16,
+    ("file_remove", "req"): 17,
+    ("file_remove", "bad"): 17,
+    ("fw_result", "rsp"): 18,
+    ("node_call", "req"): 19,
+    ("node_call", "bad"): 19,
+    ("node_call", "rsp"): 20,
+    ("call_result", "req"): 21,
+    ("call_result", "rsp"): 22,
+    ("param", "rsp"): 23,
+    ("opcode", "rsp"): 24,
+    ("health", "rsp"): 25,
+    ("servo", "req"): 26,
+    ("servo_fs", "req"): 27,
+    ("lights", "req"): 28,
+    ("beep", "req"): 29,
+}
 DSDL_SEL = {
     "node_status": 0,
     "get_node_info_rsp": 1,
@@ -65,6 +106,13 @@ DSDL_SEL = {
     "beep_command": 10,
     "safety_state": 11,
     "temperature": 12,
+    "allocation": 1,  # the Allocation shares GetNodeInfo's data type ID
+    "getset_req": 16,
+    "getset_rsp": 16,
+    "opcode_req": 17,
+    "opcode_rsp": 17,
+    "restart_req": 18,
+    "restart_rsp": 18,
 }
 
 
@@ -98,24 +146,28 @@ def client_sel(code):
     return code - 0x42 if code <= 0x4F else 14 + code - 0x52
 
 
+def gw_req(code, payload):
+    """gw_handlers: a sealed DAN request."""
+    return bytes([handler_op(code) | SEALED_OP, len(payload)]) + payload
+
+
+def file_name(n):
+    return bytes([len(n)]) + n
+
+
+def uvarint(v):
+    out = b""
+    while v >= 0x80:
+        out += bytes([(v & 0x7F) | 0x80])
+        v >>= 7
+    return out + bytes([v])
+
+
 def upload_script():
     """gw_handlers: a whole upload (sealed requests) with a retried write, a
     gap, a commit, the list, FW_BEGIN of the file, a resumed second upload
     and a removal."""
-
-    def req(code, payload):
-        return bytes([handler_op(code) | SEALED_OP, len(payload)]) + payload
-
-    def name(n):
-        return bytes([len(n)]) + n
-
-    def uv(v):
-        out = b""
-        while v >= 0x80:
-            out += bytes([(v & 0x7F) | 0x80])
-            v >>= 7
-        return out + bytes([v])
-
+    req, name, uv = gw_req, file_name, uvarint
     img = bytes((i * 7) & 0xFF for i in range(300))
     s = req(0x5B, name(b"fw.bin") + struct.pack("<IB", 300, 0))
     for off in (0, 0, 150, 290):
@@ -130,6 +182,132 @@ def upload_script():
     s += req(0x5C, uv(150) + uv(10) + img[:10])
     s += req(0x5F, name(b"fw.bin"))
     return s
+
+
+FZ_READER = 100  # gw_handlers: the node whose file requests are checked (targets.c)
+CAN_TRANSFER = {"read": 1, "getinfo": 2}  # gw_handlers op 2: k = op >> 2
+
+
+def file_request(kind, path, offset=0, tid=0, src=FZ_READER):
+    """gw_handlers: a uavcan.protocol.file.Read / GetInfo request from node
+    src into the gateway's file server (uint40 offset, then the path)."""
+    body = (offset.to_bytes(5, "little") if kind == "read" else b"") + path
+    return bytes([2 | CAN_TRANSFER[kind] << 2, src, tid & 31, len(body)]) + body
+
+
+def file_server_scripts():
+    """gw_handlers: the CAN side of the file server: an upload, then reads
+    and GetInfo of it (whole file, at and past the end, paths that are no
+    name), a burst of reads that fills the bulk queue (the wait list, its
+    drops), reads while the store fails, a read of the file an upload
+    replaces."""
+    remove = gw_req(0x5F, file_name(b"fw.bin"))
+    up = upload_script()[: -len(remove)]  # fw.bin stays committed
+    wait = bytes([0x07])  # 25 ms: the bus takes what is queued
+    yield (
+        up
+        + file_request("getinfo", b"fw.bin", tid=1)
+        + file_request("read", b"fw.bin", 0, tid=2)
+        + wait
+        + file_request("read", b"/fw.bin", 256, tid=3)
+        + file_request("read", b"fw.bin", 300, tid=4)
+        + file_request("read", b"fw.bin", 5000, tid=5)
+        + wait
+        + file_request("getinfo", b"nope.bin", tid=6)
+        + file_request("read", b"../fw.bin", 0, tid=7)
+        + file_request("read", b"a/fw.bin", 0, tid=8)
+        + file_request("getinfo", b"", tid=9)
+        + file_request("read", b"//fw.bin", 0, tid=10)
+        + wait
+    )
+    burst = b"".join(file_request("read", b"fw.bin", 0, tid=t, src=20 + t % 3) for t in range(12))
+    yield up + burst + wait * 4 + burst + bytes([0xFF]) * 2 + wait
+    yield up + b"\x03" + file_request("read", b"fw.bin", 0, tid=1) + wait + b"\x03"
+    # a new upload of fw.bin: the committed one is still what is served
+    img = bytes(range(200))
+    yield (
+        up
+        + gw_req(0x5B, file_name(b"fw.bin") + struct.pack("<IB", 200, 0))
+        + gw_req(0x5C, uvarint(0) + uvarint(150) + img[:150])
+        + file_request("read", b"fw.bin", 0, tid=1)
+        + wait
+        + gw_req(0x5C, uvarint(150) + uvarint(50) + img[150:])
+        + gw_req(0x5D, struct.pack("<I", zlib.crc32(img)))
+        + file_request("read", b"fw.bin", 100, tid=2)
+        + file_request("getinfo", b"fw.bin", tid=3)
+        + wait
+        + gw_req(0x5B, file_name(b"big.bin") + struct.pack("<IB", 700, 0))
+    )
+
+
+def file_dir_scripts():
+    """file_dir: store calls (targets_files.c dan_fuzz_file_dir)."""
+
+    def nm(name, pick=None):
+        return bytes([0x80 | pick]) if pick is not None else bytes([len(name)]) + name
+
+    def op(k, hi=0):
+        return bytes([k | hi << 3])
+
+    off0 = b"\x00\x00"
+    data = bytes(range(30))
+    w = op(5, 10) + off0 + data  # 30 bytes at 0
+    yield op(4) + nm(b"a") + w + op(6, 31) + off0 + op(7) + nm(b"a") + op(0) + nm(b"a") + off0
+    yield (
+        (
+            op(4)
+            + nm(b"fw.bin")
+            + w
+            + op(5, 10)
+            + b"\x1e\x00"
+            + data
+            + op(5, 10)
+            + b"\x3c\x00"
+            + data
+        )
+        + op(7)
+        + nm(b"fw.bin")
+        + op(1, 31)
+        + nm(b"fw.bin")
+        + b"\x0a\x00"
+        + op(2)
+        + op(2, 1)
+    )
+    yield (
+        op(4)
+        + nm(b"", 7)
+        + op(4)
+        + nm(b"b")
+        + w
+        + op(7)
+        + nm(b"", 3)
+        + op(1, 5)
+        + nm(b"", 3)
+        + off0
+    )
+    yield (
+        op(1, 5)
+        + nm(b"", 3)
+        + off0
+        + op(0)
+        + nm(b"", 4)
+        + off0
+        + op(3)
+        + nm(b"", 5)
+        + op(1)
+        + nm(b"", 6)
+        + off0
+        + op(0)
+        + nm(b"../outside/secret")
+        + off0
+        + op(0)
+        + nm(b"/etc/passwd")
+        + off0
+    )
+    yield op(4) + nm(b"c") + w + op(4, 1) + nm(b"c") + op(6, 31) + off0 + op(7) + nm(b"", 6)
+    yield op(4) + nm(b"d") + op(5, 31) + off0 + data * 4 + op(5, 2) + b"\x50\x00" + data
+    yield op(4) + nm(b"e") + w + op(7) + nm(b"e") + op(3) + nm(b"e") + op(0) + nm(b"e") + off0
+    yield op(4) + nm(b"x" * 33) + op(4) + nm(b".hidden") + op(4) + nm(b"a/b") + op(4) + nm(b"~a")
 
 
 def dna_scripts(calls):
@@ -202,9 +380,11 @@ def main():
     for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
         head, hx = line.split(" : ")
         msg, d = head.split()[:2]
+        payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
+        if (msg, d) in MSGS_SEL:
+            add("gw_msgs", bytes([MSGS_SEL[(msg, d)]]) + payload)
         if msg in GW_RESULTS:
             continue
-        payload = bytes.fromhex(hx.strip()) if hx.strip() != "-" else b""
         code = GW_CODES[msg]
         if msg == "esc_fast" and d == "rsp":
             code = 0x5A  # the record-bearing response
@@ -224,6 +404,35 @@ def main():
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
     add("gw_handlers", upload_script())
+    for script_ in file_server_scripts():
+        add("gw_handlers", script_)
+    # file names and DroneCAN paths; the directory store
+    for n in (
+        b"fw.bin",
+        b"a",
+        b"A-Z_0.9",
+        b"x" * 32,
+        b"x" * 33,
+        b".",
+        b"..",
+        b".hidden",
+        b"/fw.bin",
+        b"//fw.bin",
+        b"/.x",
+        b"a/b",
+        b"../etc/passwd",
+        b"/etc/passwd",
+        b"~partial",
+        b"a\\b",
+        b"a\x00b",
+        b"fw bin",
+        b"\xc3\xa9.bin",
+        b"",
+        b"/",
+    ):
+        add("file_names", n)
+    for script_ in file_dir_scripts():
+        add("file_dir", script_)
     # the allocation server and the node table
     calls = [
         bytes.fromhex(line.split(" : ")[1].strip())
@@ -243,7 +452,7 @@ def main():
     for line in lines("dronecan.txt"):
         name = line.split()[0]
         if name not in DSDL_SEL:
-            continue  # the bus-management types: dronecan_rx and dna reach them
+            continue
         fr = can_frames(line.split(" : ")[1])
         payload = b"".join(d[:-1] for (_, _, d) in fr)
         if len(fr) > 1:
@@ -258,6 +467,19 @@ def main():
                 + f"{len(d)}".encode()
                 + d.hex().encode(),
             )
+    lines_ = [b"t1230", b"T1FFFFFFF81122334455667788", b"r7FF2", b"z", b"Z", b"\a", b"t12"]
+    add("slcan", b"\r".join(lines_) + b"\r")  # a stream of lines, an error (BEL), a short one
+    add("slcan", b"t" + b"1" * 40 + b"\rt1230\r")  # an overlong line, then a good one
+    add("slcan", b"t1230\n\rT0000000100ABCD\r\r")
+    for arg in (
+        b"123#DEADBEEF",
+        b"1F334455#R",
+        b"123#R8",
+        b"123#11.22.33",
+        b"7FF#",
+        b"12345678#00",
+    ):
+        add("slcan", arg)  # cansend arguments (dan_can_parse_cansend)
     for s in (
         b"t1230",
         b"t12381122334455667788",

@@ -6,6 +6,8 @@
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "dan/dan.h"
 #include "dan/can_gw/client.h"
@@ -14,13 +16,6 @@
 #include "can_backend.h"
 #include "file_store_ram.h"
 #include "targets.h"
-
-#define FUZZ_CHECK(cond) \
-    do {                 \
-        if (!(cond)) {   \
-            abort();     \
-        }                \
-    } while (0)
 
 /* ---- frame decoder ---------------------------------------------------- */
 
@@ -102,10 +97,13 @@ int dan_fuzz_frame(const uint8_t *data, size_t len)
 
 /* ---- common payloads -------------------------------------------------- */
 
+static void check_baud_mask(uint16_t mask);
+
 static void check_identity(const uint8_t *p, size_t n)
 {
     dan_identity_t a, b;
     uint8_t buf[DAN_MAX_PAYLOAD];
+    uint16_t mask = 0;
     int r;
     if (dan_identity_decode(&a, p, n) != DAN_OK) {
         return;
@@ -119,6 +117,25 @@ static void check_identity(const uint8_t *p, size_t n)
                a.capabilities == b.capabilities && !b.truncated);
     FUZZ_CHECK(!strcmp(a.manufacturer, b.manufacturer) && !strcmp(a.model, b.model) &&
                !strcmp(a.hw_version, b.hw_version) && !strcmp(a.sw_version, b.sw_version));
+    /* the master's quick look at the baud mask reads what the decoder did */
+    FUZZ_CHECK(dan_identity_baud_mask(p, n, &mask) == DAN_OK && mask == a.baud_mask);
+    check_baud_mask(a.baud_mask);
+}
+
+/* The v1 bauds of a mask: each bit names one baud and back; the highest
+ * is one of them (or the base baud). */
+static void check_baud_mask(uint16_t mask)
+{
+    uint32_t top = dan_baud_highest(mask);
+    unsigned i;
+    FUZZ_CHECK(dan_baud_is_v1(top));
+    FUZZ_CHECK(top == DAN_BAUD_BASE || (mask & dan_mask_bit_of_baud(top)) != 0u);
+    for (i = 0; i < 16u; i++) {
+        uint16_t bit = (uint16_t)(1u << i);
+        uint32_t baud = dan_baud_of_mask_bit(bit);
+        FUZZ_CHECK(baud == 0u || (dan_mask_bit_of_baud(baud) == bit && dan_baud_is_v1(baud)));
+        FUZZ_CHECK(baud == 0u || (mask & bit) == 0u || baud <= top);
+    }
 }
 
 static void check_configure(const uint8_t *p, size_t n)
@@ -151,6 +168,7 @@ static void check_ack(const uint8_t *p, size_t n)
 
 static void check_error(const uint8_t *p, size_t n)
 {
+    uint32_t code = 0;
     dan_error_msg_t a, b;
     uint8_t buf[DAN_MAX_PAYLOAD];
     int r;
@@ -162,6 +180,7 @@ static void check_error(const uint8_t *p, size_t n)
     FUZZ_CHECK(r > 0);
     FUZZ_CHECK(dan_error_decode(&b, buf, (size_t)r) == DAN_OK);
     FUZZ_CHECK(a.code == b.code && a.error == b.error && !strcmp(a.text, b.text));
+    FUZZ_CHECK(dan_error_code(p, n, &code) == DAN_OK && code == a.code);
 }
 
 /* data[0] % 4 picks identity, configure, ack, error; the rest is the payload. */
@@ -231,18 +250,6 @@ static void check_replies(fuzz_sink_t *s)
     s->len = 0;
 }
 
-static void drain_can(dan_gw_node_t *g)
-{
-    dan_can_frame_t f;
-    size_t guard = 0;
-    while (dan_gw_node_tx_peek(g, &f)) {
-        FUZZ_CHECK(f.dlc <= 8u && (f.flags & DAN_CAN_ERR) == 0u);
-        FUZZ_CHECK(f.id <= ((f.flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK));
-        dan_gw_node_tx_pop(g);
-        FUZZ_CHECK(++guard <= 2u * DAN_GW_NODE_TXQ);
-    }
-}
-
 static dan_gw_node_t fz_node; /* large: static storage */
 static ram_store_t fz_store;  /* the file store of gw_handlers' gateway */
 static dan_periph_t fz_periph;
@@ -267,6 +274,40 @@ static void fz_gateway_start(const dan_gw_node_config_t *cfg, uint64_t now)
     dan_gw_node_can_state(&fz_node, true);
 }
 
+#define FZ_PRIO 16u /* of the transfers the targets inject */
+
+static bool fz_accept_any(void *user, uint16_t dtid, uint8_t tt, uint8_t src, uint64_t *sig)
+{
+    (void)user;
+    (void)src;
+    return dan_dc_dsdl_signature(tt, dtid, sig);
+}
+
+/* A transfer from node src (0: anonymous) into the gateway. */
+static void fz_inject(uint8_t src, uint8_t tt, uint16_t dtid, uint8_t dst, uint8_t tid,
+                      const uint8_t *payload, int plen, uint64_t now)
+{
+    dan_dc_transfer_t t;
+    dan_can_frame_t f[40];
+    uint64_t sig = 0;
+    int n, i;
+    if (plen < 0) {
+        return;
+    }
+    (void)dan_dc_dsdl_signature(tt, dtid, &sig);
+    dan_dc_transfer_init(&t, dtid, sig, (dan_dc_transfer_type_t)tt, payload, (size_t)plen);
+    t.priority = FZ_PRIO;
+    t.source_node = src;
+    t.destination_node = dst;
+    t.transfer_id = tid;
+    n = dan_dc_tx_build(&t, f, sizeof f / sizeof f[0]);
+    for (i = 0; i < n; i++) {
+        dan_gw_node_rx_can(&fz_node, &f[i], now);
+    }
+}
+
+#define FZ_IDLE_US 2000u /* a master's pause between a reply and its next request */
+
 /* The code of a request op: 0x40..0x4F, then the second block 0x50..0x5F
  * (0x50 and 0x51 unused there: unknown codes). */
 static uint32_t fz_code(uint8_t op)
@@ -276,12 +317,15 @@ static uint32_t fz_code(uint8_t op)
 }
 
 /* One DAN request to the gateway, sealed as a client would seal it (so the
- * handlers behind the seal are reached) or as is (the seal check); the
- * line idles first, so any earlier reply has left. */
+ * handlers behind the seal are reached) or as is (the seal check). It
+ * comes FZ_IDLE_US after the earlier reply has left: as soon as a master
+ * could send it, so a script of requests is a burst of traffic and time
+ * passes (timers fire, broadcasts go out) where the script says so. */
 static void fz_request(uint32_t code, const uint8_t *payload, size_t plen, bool seal, uint64_t *now)
 {
     uint8_t frame[DAN_MAX_FRAME], body[DAN_MAX_PAYLOAD];
     int bl = (int)plen, n;
+    uint64_t end;
     memcpy(body, payload, plen);
     if (seal && dan_gw_sealed_code(code)) {
         bl = dan_gw_seal(code, DAN_GW_REQUEST, body, plen, sizeof body);
@@ -291,7 +335,8 @@ static void fz_request(uint32_t code, const uint8_t *payload, size_t plen, bool 
     }
     n = dan_frame_encode(code, body, (size_t)bl, frame, sizeof frame);
     FUZZ_CHECK(n > 0);
-    *now += 200000u;
+    end = dan_link_tx_end_us(&fz_periph.link);
+    *now = (end > *now ? end : *now) + FZ_IDLE_US;
     dan_periph_poll(&fz_periph, *now);
     dan_periph_rx(&fz_periph, frame, (size_t)n, *now);
     *now += 3000u; /* past the turnaround, inside the reply window */
@@ -345,19 +390,199 @@ static void check_upload(const dan_gw_node_upload_t *u, const ram_store_t *s)
     FUZZ_CHECK(dan_gw_crc32(0, s->partial.data, u->have) == u->crc);
 }
 
+/* ---- gw_handlers: the CAN side's file reader ---------------------------- */
+
+#define FZ_READER    100u /* the node whose file requests are checked */
+#define FZ_FILE_SIZE 600u /* the store's cap: uploads reach it in a few requests */
+
+/* A file request of FZ_READER in flight (by transfer ID). */
+typedef struct {
+    bool valid; /* one request of this ID, answer not seen yet */
+    uint16_t dtid;
+    uint32_t gen; /* fzh.gen when it was sent */
+    uint64_t offset;
+    bool named; /* the path is a name the store may hold */
+    char name[DAN_GW_FILE_NAME_MAX + 1u];
+} fz_file_req_t;
+
+static struct {
+    dan_dc_rx_t lis; /* FZ_READER: the gateway's answers, reassembled */
+    fz_file_req_t req[DAN_DC_TRANSFER_ID_MASK + 1u];
+    uint32_t gen; /* counts DAN requests that may change the committed files */
+} fzh;
+
+static bool fz_accept_file(void *user, uint16_t dtid, uint8_t tt, uint8_t src, uint64_t *sig)
+{
+    (void)user;
+    (void)src;
+    return tt == DAN_DC_TRANSFER_RESPONSE &&
+           (dtid == DAN_DC_FILE_READ_ID || dtid == DAN_DC_FILE_GETINFO_ID) &&
+           dan_dc_dsdl_signature(tt, dtid, sig);
+}
+
+/* Remembers a Read / GetInfo request FZ_READER sends (tid: its ID). */
+static void fz_note_file_req(uint16_t dtid, uint8_t tid, const uint8_t *p, size_t n)
+{
+    static dan_dc_file_req_t m;
+    fz_file_req_t *q = &fzh.req[tid & DAN_DC_TRANSFER_ID_MASK];
+    int r = dtid == DAN_DC_FILE_READ_ID ? dan_dc_file_read_req_decode(&m, p, n)
+                                        : dan_dc_file_getinfo_req_decode(&m, p, n);
+    if (q->valid || r != DAN_OK) {
+        q->valid = false; /* two in flight with one ID: answers not told apart */
+        return;
+    }
+    q->valid = true;
+    q->dtid = dtid;
+    q->gen = fzh.gen;
+    q->offset = m.offset;
+    q->named = dan_gw_file_path_name(m.path, m.path_len, q->name);
+}
+
+/* An answer to FZ_READER. Errors are always allowed (the store may fail);
+ * a success holds exactly the store's bytes at the offset (or its size),
+ * as long as no DAN request could have changed the files since. */
+static void fz_check_file_rsp(const dan_dc_transfer_t *t)
+{
+    static dan_dc_file_read_rsp_t rr;
+    dan_dc_file_getinfo_rsp_t ir;
+    fz_file_req_t *q = &fzh.req[t->transfer_id & DAN_DC_TRANSFER_ID_MASK];
+    const ram_file_t *f;
+    bool same;
+    if (t->data_type_id == DAN_DC_FILE_READ_ID) {
+        FUZZ_CHECK(dan_dc_file_read_rsp_decode(&rr, t->payload, t->payload_len) == DAN_OK);
+        FUZZ_CHECK(rr.data_len <= DAN_DC_FILE_READ_MAX && (rr.error == 0 || rr.data_len == 0u));
+    } else {
+        FUZZ_CHECK(dan_dc_file_getinfo_rsp_decode(&ir, t->payload, t->payload_len) == DAN_OK);
+    }
+    same = q->valid && q->dtid == t->data_type_id && q->gen == fzh.gen;
+    q->valid = false;
+    if (!same || (t->data_type_id == DAN_DC_FILE_READ_ID ? rr.error : ir.error) != 0) {
+        return;
+    }
+    FUZZ_CHECK(q->named); /* no path that is not a name is served */
+    f = ram_store_file(&fz_store, q->name);
+    FUZZ_CHECK(f != NULL);
+    if (t->data_type_id == DAN_DC_FILE_GETINFO_ID) {
+        FUZZ_CHECK(ir.size == f->len);
+        return;
+    }
+    if (q->offset >= f->len) {
+        FUZZ_CHECK(rr.data_len == 0u);
+        return;
+    }
+    FUZZ_CHECK(rr.data_len == (f->len - q->offset < DAN_DC_FILE_READ_MAX ? f->len - q->offset
+                                                                         : DAN_DC_FILE_READ_MAX));
+    FUZZ_CHECK(!memcmp(rr.data, f->data + q->offset, rr.data_len));
+}
+
+/* What the gateway sends on CAN: well-formed frames; the answers to
+ * FZ_READER checked. The bus takes them all. */
+static void fz_drain_checked(uint64_t now)
+{
+    dan_can_frame_t f;
+    dan_dc_transfer_t t;
+    size_t guard = 0;
+    while (dan_gw_node_tx_peek(&fz_node, &f)) {
+        FUZZ_CHECK(f.dlc <= 8u && (f.flags & DAN_CAN_ERR) == 0u);
+        FUZZ_CHECK(f.id <= ((f.flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK));
+        FUZZ_CHECK(++guard <= 2u * DAN_GW_NODE_TXQ);
+        dan_gw_node_tx_sent(&fz_node, now);
+        if (dan_dc_rx_frame(&fzh.lis, &f, now, &t) == 1 && t.source_node == fz_node.cfg.node_id) {
+            fz_check_file_rsp(&t);
+        }
+    }
+}
+
+/* The transfers of op 2 (k = op >> 2, 1..15; 0 is a raw frame). */
+static const struct {
+    uint16_t dtid;
+    uint8_t tt;
+} fz_transfers[16] = {
+    {0, 0},
+    {DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_REQUEST},
+    {DAN_DC_FILE_GETINFO_ID, DAN_DC_TRANSFER_REQUEST},
+    {DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_REQUEST},
+    {DAN_DC_NODE_STATUS_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_ESC_STATUS_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_TUNNEL_TARGETTED_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_TUNNEL_BROADCAST_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_ALLOCATION_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_TEMPERATURE_ID, DAN_DC_TRANSFER_BROADCAST},
+    {DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_RESPONSE},
+    {DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_RESPONSE},
+    {DAN_DC_PARAM_OPCODE_ID, DAN_DC_TRANSFER_RESPONSE},
+    {DAN_DC_RESTART_ID, DAN_DC_TRANSFER_RESPONSE},
+    {DAN_DC_FW_BEGIN_ID, DAN_DC_TRANSFER_RESPONSE},
+};
+
+/* Op 2: a raw CAN frame (k 0: 14 bytes, see fz_can_frame) or a whole
+ * transfer k (source node byte, transfer ID byte, length byte % 256,
+ * payload) built with the right CRC and toggles, so the services behind
+ * the transport are reached. */
+static void fz_can_op(uint8_t op, const uint8_t *data, size_t len, size_t *i, uint64_t *now)
+{
+    unsigned k = (unsigned)(op >> 2) % 16u;
+    uint8_t b[2] = {0, 0};
+    const uint8_t *p;
+    size_t n, plen;
+    if (k == 0u) {
+        dan_can_frame_t f;
+        fz_can_frame(data, len, i, &f);
+        *now += 100u;
+        dan_gw_node_rx_can(&fz_node, &f, *now);
+        return;
+    }
+    for (n = 0; n < 2u && *i < len; n++) {
+        b[n] = data[(*i)++];
+    }
+    plen = fz_take(data, len, i, 255u, &p);
+    b[0] %= 128u;
+    b[1] &= DAN_DC_TRANSFER_ID_MASK;
+    if (b[0] == FZ_READER && fz_transfers[k].tt == DAN_DC_TRANSFER_REQUEST &&
+        fz_transfers[k].dtid != DAN_DC_GET_NODE_INFO_ID) {
+        fz_note_file_req(fz_transfers[k].dtid, b[1], p, plen);
+    }
+    *now += 100u;
+    fz_inject(b[0], fz_transfers[k].tt, fz_transfers[k].dtid,
+              fz_transfers[k].tt == DAN_DC_TRANSFER_BROADCAST ? 0u : fz_node.cfg.node_id, b[1], p,
+              (int)plen, *now);
+}
+
+/* Op 3: time passes, (op >> 2) * 25 ms, and the bus takes what the gateway
+ * queued; op 3 itself (no time) makes the store fail from its next call
+ * on, or heals it. */
+static void fz_time_op(uint8_t op, uint64_t *now)
+{
+    if (op == 3u) {
+        fz_store.fail_from = fz_store.fail_from == 0u ? fz_store.calls + 1u : 0u;
+        return;
+    }
+    *now += (uint64_t)(op >> 2) * 25000u;
+    dan_periph_poll(&fz_periph, *now);
+    dan_gw_node_poll(&fz_node, *now);
+    fz_drain_checked(*now);
+}
+
 /* A script of operations, each starting with an op byte:
  *   op % 4 == 0, 1: a DAN request, code fz_code(op) (both blocks), then a
  *                   length byte (% 161) and that many payload bytes; op 1
  *                   sealed, op 0 as is
- *   op % 4 == 2:    a CAN frame: u32 id LE, flags, dlc, 8 data bytes
- *   op % 4 == 3:    time passes: (op >> 2) * 25 ms (timers fire)
- * The gateway has a RAM file store (tests/unit/file_store_ram.c). */
+ *   op % 4 == 2:    a CAN frame or transfer into the gateway (fz_can_op)
+ *   op % 4 == 3:    time passes, the bus sends (fz_time_op)
+ * The gateway has a RAM file store (tests/unit/file_store_ram.c, capped at
+ * FZ_FILE_SIZE). Checked after each: the replies on DAN, the upload, the
+ * next wake-up; what goes out on CAN when the bus sends. */
 int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
 {
     uint64_t now = 1000000u;
     size_t i = 0;
     dan_gw_node_config_t cfg;
     ram_store_init(&fz_store);
+    fz_store.fs.max_size = FZ_FILE_SIZE;
+    memset(fzh.req, 0, sizeof fzh.req);
+    fzh.gen = 0;
+    dan_dc_rx_init(&fzh.lis, FZ_READER, fz_accept_file, NULL);
     dan_gw_node_config_default(&cfg);
     cfg.files = &fz_store.fs;
     fz_gateway_start(&cfg, now);
@@ -367,25 +592,16 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
         case 0:
         case 1: {
             const uint8_t *p;
+            uint32_t code = fz_code(op);
             size_t plen = fz_take(data, len, &i, DAN_MAX_PAYLOAD, &p);
-            fz_request(fz_code(op), p, plen, op % 4u == 1u, &now);
+            fzh.gen += code >= DAN_GW_CODE_FILE_OPEN && code <= DAN_GW_CODE_FILE_REMOVE;
+            fz_request(code, p, plen, op % 4u == 1u, &now);
             break;
         }
-        case 2: {
-            dan_can_frame_t f;
-            fz_can_frame(data, len, &i, &f);
-            now += 100u;
-            dan_gw_node_rx_can(&fz_node, &f, now);
-            break;
-        }
-        default:
-            now += (uint64_t)(op >> 2) * 25000u;
-            dan_periph_poll(&fz_periph, now);
-            dan_gw_node_poll(&fz_node, now);
-            break;
+        case 2: fz_can_op(op, data, len, &i, &now); break;
+        default: fz_time_op(op, &now); break;
         }
         FUZZ_CHECK(dan_gw_node_next_us(&fz_node, now) > 0u);
-        drain_can(&fz_node);
         check_replies(&fz_sink);
         check_upload(&fz_node.upload, &fz_store);
     }
@@ -393,7 +609,7 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
     dan_periph_poll(&fz_periph, now);
     dan_gw_node_poll(&fz_node, now);
     dan_gw_node_failsafe(&fz_node, now);
-    drain_can(&fz_node);
+    fz_drain_checked(now);
     check_replies(&fz_sink);
     return 0;
 }
@@ -403,7 +619,6 @@ int dan_fuzz_gw_handlers(const uint8_t *data, size_t len)
 #define FZ_UIDS     6u  /* unique IDs of the allocatees and nodes */
 #define FZ_REQS     16u /* service requests of the gateway remembered */
 #define FZ_LISTENER 127u
-#define FZ_PRIO     16u
 
 typedef struct {
     uint8_t dst, tid, ttype;
@@ -455,36 +670,6 @@ static void fz_uid(unsigned k, uint8_t *uid)
     memset(uid, (int)(k / 2u + 1u), DAN_DC_ALLOCATION_UID_PER_REQUEST);
     memset(uid + DAN_DC_ALLOCATION_UID_PER_REQUEST, (int)(0x40u + k),
            DAN_DC_UNIQUE_ID_SIZE - DAN_DC_ALLOCATION_UID_PER_REQUEST);
-}
-
-static bool fz_accept_any(void *user, uint16_t dtid, uint8_t tt, uint8_t src, uint64_t *sig)
-{
-    (void)user;
-    (void)src;
-    return dan_dc_dsdl_signature(tt, dtid, sig);
-}
-
-/* A transfer from node src (0: anonymous) into the gateway. */
-static void fz_inject(uint8_t src, uint8_t tt, uint16_t dtid, uint8_t dst, uint8_t tid,
-                      const uint8_t *payload, int plen, uint64_t now)
-{
-    dan_dc_transfer_t t;
-    dan_can_frame_t f[40];
-    uint64_t sig = 0;
-    int n, i;
-    if (plen < 0) {
-        return;
-    }
-    (void)dan_dc_dsdl_signature(tt, dtid, &sig);
-    dan_dc_transfer_init(&t, dtid, sig, (dan_dc_transfer_type_t)tt, payload, (size_t)plen);
-    t.priority = FZ_PRIO;
-    t.source_node = src;
-    t.destination_node = dst;
-    t.transfer_id = tid;
-    n = dan_dc_tx_build(&t, f, sizeof f / sizeof f[0]);
-    for (i = 0; i < n; i++) {
-        dan_gw_node_rx_can(&fz_node, &f[i], now);
-    }
 }
 
 static uint8_t fz_next_tid(uint16_t dtid, uint8_t tt, uint8_t dst)
@@ -799,6 +984,60 @@ static void dsdl_file(uint16_t dtid, const uint8_t *p, size_t n, uint8_t *buf, s
     }
 }
 
+/* A DSDL type's codec pair: what decodes re-encodes to bytes that decode
+ * and encode again to the same bytes (a fixed point; no struct compare, so
+ * unions and padding do not matter). */
+#define DSDL_FIXED_POINT(T, name, p, n)                                             \
+    do {                                                                            \
+        static T a_, b_;                                                            \
+        static uint8_t e1_[512], e2_[512];                                          \
+        if (name##_decode(&a_, p, n) == DAN_OK) {                                   \
+            int r1_ = name##_encode(&a_, e1_, sizeof e1_), r2_;                     \
+            FUZZ_CHECK(r1_ >= 0 && name##_decode(&b_, e1_, (size_t)r1_) == DAN_OK); \
+            r2_ = name##_encode(&b_, e2_, sizeof e2_);                              \
+            FUZZ_CHECK(r2_ == r1_ && !memcmp(e1_, e2_, (size_t)r1_));               \
+        }                                                                           \
+    } while (0)
+
+/* The bus-management and firmware-update types (requests and responses). */
+static void dsdl_mgmt(uint16_t dtid, const uint8_t *p, size_t n)
+{
+    uint8_t buf[16];
+    uint64_t magic;
+    bool ok;
+    switch (dtid) {
+    case DAN_DC_ALLOCATION_ID:
+        DSDL_FIXED_POINT(dan_dc_allocation_t, dan_dc_allocation, p, n);
+        break;
+    case DAN_DC_PARAM_GETSET_ID:
+        DSDL_FIXED_POINT(dan_dc_param_getset_req_t, dan_dc_param_getset_req, p, n);
+        DSDL_FIXED_POINT(dan_dc_param_getset_rsp_t, dan_dc_param_getset_rsp, p, n);
+        break;
+    case DAN_DC_PARAM_OPCODE_ID:
+        DSDL_FIXED_POINT(dan_dc_param_opcode_t, dan_dc_param_opcode_req, p, n);
+        DSDL_FIXED_POINT(dan_dc_param_opcode_t, dan_dc_param_opcode_rsp, p, n);
+        break;
+    case DAN_DC_RESTART_ID:
+        if (dan_dc_restart_req_decode(&magic, p, n) == DAN_OK) {
+            uint64_t again = 0;
+            int r = dan_dc_restart_req_encode(magic, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_restart_req_decode(&again, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(again == magic);
+        }
+        if (dan_dc_restart_rsp_decode(&ok, p, n) == DAN_OK) {
+            bool again = !ok;
+            int r = dan_dc_restart_rsp_encode(ok, buf, sizeof buf);
+            FUZZ_CHECK(r > 0 && dan_dc_restart_rsp_decode(&again, buf, (size_t)r) == DAN_OK);
+            FUZZ_CHECK(again == ok);
+        }
+        break;
+    default:
+        DSDL_FIXED_POINT(dan_dc_fw_begin_req_t, dan_dc_fw_begin_req, p, n);
+        DSDL_FIXED_POINT(dan_dc_fw_begin_rsp_t, dan_dc_fw_begin_rsp, p, n);
+        break;
+    }
+}
+
 /* Decodes payload as data type dtid; what decodes must re-encode, and the
  * exact-integer types must come back identical. */
 static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
@@ -817,8 +1056,9 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
-    case DAN_DC_GET_NODE_INFO_ID: {
+    case DAN_DC_GET_NODE_INFO_ID: { /* also the Allocation's ID (a broadcast) */
         static dan_dc_get_node_info_rsp_t a, b;
+        dsdl_mgmt(DAN_DC_ALLOCATION_ID, p, n);
         (void)dan_dc_get_node_info_req_decode(p, n);
         if (dan_dc_get_node_info_rsp_decode(&a, p, n) == DAN_OK) {
             FUZZ_CHECK(a.name_len <= DAN_DC_GET_NODE_INFO_NAME_MAX && a.name[a.name_len] == '\0');
@@ -919,6 +1159,10 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     }
     case DAN_DC_FILE_READ_ID:
     case DAN_DC_FILE_GETINFO_ID: dsdl_file(dtid, p, n, buf, sizeof buf); break;
+    case DAN_DC_PARAM_GETSET_ID:
+    case DAN_DC_PARAM_OPCODE_ID:
+    case DAN_DC_RESTART_ID:
+    case DAN_DC_FW_BEGIN_ID: dsdl_mgmt(dtid, p, n); break;
     default: {
         static dan_dc_tunnel_targetted_t tt;
         static dan_dc_tunnel_broadcast_t tb;
@@ -933,10 +1177,10 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     }
 }
 
-/* data[0] % 16 picks the type; the rest is the serialized payload. */
+/* data[0] % 20 picks the type; the rest is the serialized payload. */
 int dan_fuzz_dsdl(const uint8_t *data, size_t len)
 {
-    static const uint16_t ids[16] = {DAN_DC_NODE_STATUS_ID,
+    static const uint16_t ids[20] = {DAN_DC_NODE_STATUS_ID,
                                      DAN_DC_GET_NODE_INFO_ID,
                                      DAN_DC_ESC_RAW_COMMAND_ID,
                                      DAN_DC_ESC_STATUS_ID,
@@ -951,11 +1195,15 @@ int dan_fuzz_dsdl(const uint8_t *data, size_t len)
                                      DAN_DC_TEMPERATURE_ID,
                                      DAN_DC_FILE_READ_ID,
                                      DAN_DC_FILE_GETINFO_ID,
-                                     0u};
+                                     0u,
+                                     DAN_DC_PARAM_GETSET_ID,
+                                     DAN_DC_PARAM_OPCODE_ID,
+                                     DAN_DC_RESTART_ID,
+                                     DAN_DC_FW_BEGIN_ID};
     if (len < 1u) {
         return 0;
     }
-    dsdl_any(ids[data[0] % 16u], data + 1, len - 1u);
+    dsdl_any(ids[data[0] % 20u], data + 1, len - 1u);
     return 0;
 }
 
@@ -1014,24 +1262,86 @@ int dan_fuzz_dronecan_rx(const uint8_t *data, size_t len)
     return 0;
 }
 
-/* ---- SLCAN line parser ------------------------------------------------ */
+/* ---- SLCAN: line parser, the backend's stream, cansend -------------- */
 
-int dan_fuzz_slcan(const uint8_t *data, size_t len)
+static void check_can_frame(const dan_can_frame_t *f)
 {
-    dan_can_frame_t f, g;
+    FUZZ_CHECK(f->dlc <= 8u && (f->flags & DAN_CAN_ERR) == 0u);
+    FUZZ_CHECK(f->id <= ((f->flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK));
+}
+
+/* A frame formats to a line that parses back to it. */
+static void check_slcan_round_trip(const dan_can_frame_t *f)
+{
+    dan_can_frame_t g;
     char line[64];
-    int r = dan_slcan_parse_line((const char *)data, len, &f);
-    FUZZ_CHECK(r == 0 || r == 1 || r == DAN_ERR_MALFORMED);
-    if (r != 1) {
-        return 0;
-    }
-    FUZZ_CHECK(f.dlc <= 8u && (f.flags & DAN_CAN_ERR) == 0u);
-    FUZZ_CHECK(f.id <= ((f.flags & DAN_CAN_EXT) ? DAN_CAN_EFF_MASK : DAN_CAN_SFF_MASK));
-    r = dan_slcan_format(&f, line, sizeof line);
+    int r = dan_slcan_format(f, line, sizeof line);
     FUZZ_CHECK(r > 1 && r <= DAN_SLCAN_FORMAT_MAX && line[r - 1] == '\r' && line[r] == '\0');
     FUZZ_CHECK(dan_slcan_parse_line(line, (size_t)r - 1u, &g) == 1);
-    FUZZ_CHECK(g.id == f.id && g.flags == f.flags && g.dlc == f.dlc);
-    FUZZ_CHECK((f.flags & DAN_CAN_RTR) || !memcmp(g.data, f.data, f.dlc));
+    FUZZ_CHECK(g.id == f->id && g.flags == f->flags && g.dlc == f->dlc);
+    FUZZ_CHECK((f->flags & DAN_CAN_RTR) || !memcmp(g.data, f->data, f->dlc));
+}
+
+static int fz_slcan_sock[2] = {-1, -1}; /* [0]: the backend's fd, [1]: the adapter */
+
+/* The whole input as bytes from an adapter, read by the SLCAN backend
+ * (dan_canif_slcan_recv: line assembly, BEL, overlong lines); each frame
+ * it returns is sent back (dan_canif_slcan_send) and must come out as the
+ * line that parses to it. */
+static void fz_slcan_stream(const uint8_t *data, size_t len)
+{
+    static dan_canif_t c;
+    char line[DAN_SLCAN_FORMAT_MAX + 1];
+    dan_can_frame_t f, g;
+    uint32_t frames = 0;
+    size_t guard = 0;
+    int r;
+    if (fz_slcan_sock[0] < 0) {
+        FUZZ_CHECK(
+            socketpair(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0, fz_slcan_sock) == 0);
+    }
+    memset(&c, 0, sizeof c);
+    c.kind = DAN_CANIF_SLCAN;
+    c.fd = fz_slcan_sock[0];
+    FUZZ_CHECK(len == 0u || write(fz_slcan_sock[1], data, len) == (ssize_t)len);
+    while ((r = dan_canif_slcan_recv(&c, &f)) == 1) {
+        ssize_t n;
+        check_can_frame(&f);
+        frames++;
+        FUZZ_CHECK(dan_canif_slcan_send(&c, &f) == 0);
+        n = read(fz_slcan_sock[1], line, sizeof line - 1u);
+        FUZZ_CHECK(n > 1 && line[n - 1] == '\r');
+        FUZZ_CHECK(dan_slcan_parse_line(line, (size_t)n - 1u, &g) == 1);
+        FUZZ_CHECK(g.id == f.id && g.flags == f.flags && g.dlc == f.dlc);
+        FUZZ_CHECK(++guard <= len);
+    }
+    FUZZ_CHECK(r == 0 && c.stats.rx == frames && c.stats.tx == frames);
+    FUZZ_CHECK(c.line_len <= DAN_SLCAN_LINE_MAX);
+}
+
+/* The input as one line (dan_slcan_parse_line), as a byte stream from the
+ * adapter (fz_slcan_stream) and as a cansend argument
+ * (dan_can_parse_cansend). */
+int dan_fuzz_slcan(const uint8_t *data, size_t len)
+{
+    dan_can_frame_t f;
+    char arg[257];
+    int r = dan_slcan_parse_line((const char *)data, len, &f);
+    FUZZ_CHECK(r == 0 || r == 1 || r == DAN_ERR_MALFORMED);
+    if (r == 1) {
+        check_can_frame(&f);
+        check_slcan_round_trip(&f);
+    }
+    fz_slcan_stream(data, len);
+    if (len < sizeof arg) {
+        memcpy(arg, data, len);
+        arg[len] = '\0';
+        r = dan_can_parse_cansend(arg, &f);
+        FUZZ_CHECK(r == 0 || r == DAN_ERR_MALFORMED);
+        if (r == 0) {
+            check_can_frame(&f);
+        }
+    }
     return 0;
 }
 
@@ -1177,5 +1487,8 @@ const dan_fuzz_target_t dan_fuzz_targets[] = {
     {"slcan", dan_fuzz_slcan},
     {"gw_client", dan_fuzz_gw_client},
     {"dna", dan_fuzz_dna},
+    {"file_names", dan_fuzz_file_names},
+    {"file_dir", dan_fuzz_file_dir},
+    {"gw_msgs", dan_fuzz_gw_msgs},
 };
 const size_t dan_fuzz_ntargets = sizeof dan_fuzz_targets / sizeof dan_fuzz_targets[0];

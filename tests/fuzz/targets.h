@@ -9,6 +9,18 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+/* An invariant: abort() when it breaks (libFuzzer and the replay see it),
+ * naming the check. */
+#define FUZZ_CHECK(cond)                                                                  \
+    do {                                                                                  \
+        if (!(cond)) {                                                                    \
+            fprintf(stderr, "%s:%d: fuzz check failed: %s\n", __FILE__, __LINE__, #cond); \
+            abort();                                                                      \
+        }                                                                                 \
+    } while (0)
 
 typedef int (*dan_fuzz_fn)(const uint8_t *data, size_t len);
 
@@ -25,6 +37,9 @@ int dan_fuzz_dsdl(const uint8_t *data, size_t len);        /* DSDL decoders */
 int dan_fuzz_slcan(const uint8_t *data, size_t len);       /* dan_slcan_parse_line */
 int dan_fuzz_gw_client(const uint8_t *data, size_t len);   /* client response decoders */
 int dan_fuzz_dna(const uint8_t *data, size_t len);         /* allocation server and node table */
+int dan_fuzz_file_names(const uint8_t *data, size_t len);  /* file name and DroneCAN path rule */
+int dan_fuzz_file_dir(const uint8_t *data, size_t len);    /* the Linux directory store */
+int dan_fuzz_gw_msgs(const uint8_t *data, size_t len);     /* gateway message codecs, both ways */
 
 extern const dan_fuzz_target_t dan_fuzz_targets[];
 extern const size_t dan_fuzz_ntargets;

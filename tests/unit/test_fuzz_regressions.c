@@ -1,7 +1,7 @@
 /* Replays every saved fuzz input (tests/fuzz/corpus/<target>/ and
  * tests/fuzz/regressions/<target>/) through the same entry functions the
- * libFuzzer binaries use (tests/fuzz/targets.c, included here so the
- * Makefile's unit-test rule links it). A broken invariant aborts; under the
+ * libFuzzer binaries use (tests/fuzz/targets*.c,
+ * included here so the Makefile's unit-test rule links them). A broken invariant aborts; under the
  * ASan build memory errors are reported. The directory is found from
  * $DAN_FUZZ_DIR, else next to $DAN_VECTORS (tests/vectors), else
  * tests/fuzz relative to the current directory. */
@@ -17,6 +17,8 @@
 #include <string.h>
 
 #include "../fuzz/targets.c"
+#include "../fuzz/targets_files.c"
+#include "../fuzz/targets_msgs.c"
 
 static void fuzz_dir(char *out, size_t cap)
 {
