@@ -491,24 +491,33 @@ static int build_from_vec(const vec_t *v, any_msg_t *m, dan_dc_transfer_t *t, ui
 static int decode_as(const char *name, any_msg_t *m, const uint8_t *p, size_t len)
 {
     memset(m, 0, sizeof *m);
-    if (strcmp(name, "node_status") == 0)
+    if (strcmp(name, "node_status") == 0) {
         return dan_dc_node_status_decode(&m->ns, p, len);
-    if (strcmp(name, "raw_command") == 0)
+    }
+    if (strcmp(name, "raw_command") == 0) {
         return dan_dc_esc_raw_command_decode(&m->rc, p, len);
-    if (strcmp(name, "esc_status") == 0)
+    }
+    if (strcmp(name, "esc_status") == 0) {
         return dan_dc_esc_status_decode(&m->es, p, len);
-    if (strcmp(name, "esc_status_extended") == 0)
+    }
+    if (strcmp(name, "esc_status_extended") == 0) {
         return dan_dc_esc_status_extended_decode(&m->ex, p, len);
-    if (strcmp(name, "arming_status") == 0)
+    }
+    if (strcmp(name, "arming_status") == 0) {
         return dan_dc_arming_status_decode(&m->as, p, len);
-    if (strcmp(name, "tunnel_targetted") == 0)
+    }
+    if (strcmp(name, "tunnel_targetted") == 0) {
         return dan_dc_tunnel_targetted_decode(&m->tt, p, len);
-    if (strcmp(name, "tunnel_broadcast") == 0)
+    }
+    if (strcmp(name, "tunnel_broadcast") == 0) {
         return dan_dc_tunnel_broadcast_decode(&m->tb, p, len);
-    if (strcmp(name, "get_node_info_req") == 0)
+    }
+    if (strcmp(name, "get_node_info_req") == 0) {
         return dan_dc_get_node_info_req_decode(p, len);
-    if (strcmp(name, "get_node_info_rsp") == 0)
+    }
+    if (strcmp(name, "get_node_info_rsp") == 0) {
         return dan_dc_get_node_info_rsp_decode(&m->ni, p, len);
+    }
     return decode_mgmt(name, m, p, len);
 }
 
@@ -593,26 +602,27 @@ static void check_rx(const vec_t *v)
     assert_memory_equal(&got, &want, sizeof got);
     /* Decode then encode is the identity on the payload. */
     relen = -1;
-    if (strcmp(v->name, "node_status") == 0)
+    if (strcmp(v->name, "node_status") == 0) {
         relen = dan_dc_node_status_encode(&got.ns, re, sizeof re);
-    else if (strcmp(v->name, "raw_command") == 0)
+    } else if (strcmp(v->name, "raw_command") == 0) {
         relen = dan_dc_esc_raw_command_encode(&got.rc, re, sizeof re);
-    else if (strcmp(v->name, "esc_status") == 0)
+    } else if (strcmp(v->name, "esc_status") == 0) {
         relen = dan_dc_esc_status_encode(&got.es, re, sizeof re);
-    else if (strcmp(v->name, "esc_status_extended") == 0)
+    } else if (strcmp(v->name, "esc_status_extended") == 0) {
         relen = dan_dc_esc_status_extended_encode(&got.ex, re, sizeof re);
-    else if (strcmp(v->name, "arming_status") == 0)
+    } else if (strcmp(v->name, "arming_status") == 0) {
         relen = dan_dc_arming_status_encode(&got.as, re, sizeof re);
-    else if (strcmp(v->name, "tunnel_targetted") == 0)
+    } else if (strcmp(v->name, "tunnel_targetted") == 0) {
         relen = dan_dc_tunnel_targetted_encode(&got.tt, re, sizeof re);
-    else if (strcmp(v->name, "tunnel_broadcast") == 0)
+    } else if (strcmp(v->name, "tunnel_broadcast") == 0) {
         relen = dan_dc_tunnel_broadcast_encode(&got.tb, re, sizeof re);
-    else if (strcmp(v->name, "get_node_info_req") == 0)
+    } else if (strcmp(v->name, "get_node_info_req") == 0) {
         relen = dan_dc_get_node_info_req_encode(re, sizeof re);
-    else if (strcmp(v->name, "get_node_info_rsp") == 0)
+    } else if (strcmp(v->name, "get_node_info_rsp") == 0) {
         relen = dan_dc_get_node_info_rsp_encode(&got.ni, re, sizeof re);
-    else
+    } else {
         relen = encode_mgmt(v->name, &got, re, sizeof re);
+    }
     assert_int_equal(relen, len);
     assert_memory_equal(re, payload, (size_t)len);
     /* Every strict prefix of a fixed-size payload is rejected; nothing
@@ -728,8 +738,9 @@ static void test_crc(void **state)
         uint8_t b[8 + 3] = {0};
         uint64_t sig = DAN_DC_ESC_STATUS_SIGNATURE;
         unsigned i;
-        for (i = 0; i < 8; i++)
+        for (i = 0; i < 8; i++) {
             b[i] = (uint8_t)(sig >> (8 * i));
+        }
         b[8] = 1;
         b[9] = 2;
         b[10] = 3;
