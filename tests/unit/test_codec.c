@@ -9,6 +9,7 @@
 
 #include "dan/dan.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* ---- helpers ---- */
 
@@ -733,26 +734,11 @@ static void test_baud_mask_helpers(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_crc8_check),
-        cmocka_unit_test(test_crc8_table_matches_bitwise),
-        cmocka_unit_test(test_crc8_vectors),
-        cmocka_unit_test(test_uvarint_edges),
-        cmocka_unit_test(test_uvarint_vectors),
-        cmocka_unit_test(test_writer_reader_roundtrip),
-        cmocka_unit_test(test_writer_overflow_sticky),
-        cmocka_unit_test(test_reader_bounds),
-        cmocka_unit_test(test_frame_anchor_vectors),
-        cmocka_unit_test(test_frame_encode_limits),
-        cmocka_unit_test(test_frame_vectors),
-        cmocka_unit_test(test_stream_vectors),
-        cmocka_unit_test(test_every_bit_flip_rejected),
-        cmocka_unit_test(test_decoder_counters),
-        cmocka_unit_test(test_random_roundtrip_and_resync),
-        cmocka_unit_test(test_noise_then_idle_resync),
-        cmocka_unit_test(test_payload_vectors),
-        cmocka_unit_test(test_identity_truncation),
-        cmocka_unit_test(test_baud_mask_helpers),
-    };
-    return cmocka_run_group_tests_name("codec", tests, NULL, NULL);
+    return UNIT_RUN("codec", NULL, NULL, test_crc8_check, test_crc8_table_matches_bitwise,
+                    test_crc8_vectors, test_uvarint_edges, test_uvarint_vectors,
+                    test_writer_reader_roundtrip, test_writer_overflow_sticky, test_reader_bounds,
+                    test_frame_anchor_vectors, test_frame_encode_limits, test_frame_vectors,
+                    test_stream_vectors, test_every_bit_flip_rejected, test_decoder_counters,
+                    test_random_roundtrip_and_resync, test_noise_then_idle_resync,
+                    test_payload_vectors, test_identity_truncation, test_baud_mask_helpers);
 }

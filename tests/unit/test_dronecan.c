@@ -21,6 +21,7 @@
 #include "dan/can_gw/dsdl_out.h"
 
 #include "vectors.h"
+#include "unit_run.h"
 
 #define MAX_FRAMES 64
 #define MAX_KV     32
@@ -1505,25 +1506,9 @@ static void test_codec_errors(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_brief_vectors),
-        cmocka_unit_test(test_vector_file_tx),
-        cmocka_unit_test(test_vector_file_rx),
-        cmocka_unit_test(test_crc),
-        cmocka_unit_test(test_scalar_bits),
-        cmocka_unit_test(test_float16),
-        cmocka_unit_test(test_ids),
-        cmocka_unit_test(test_tx_misc),
-        cmocka_unit_test(test_tid_table),
-        cmocka_unit_test(test_rx_interleaved),
-        cmocka_unit_test(test_rx_lost_and_toggle),
-        cmocka_unit_test(test_rx_crc),
-        cmocka_unit_test(test_rx_timeout),
-        cmocka_unit_test(test_rx_destination),
-        cmocka_unit_test(test_rx_overflow_and_slots),
-        cmocka_unit_test(test_fuzz),
-        cmocka_unit_test(test_decode_fuzz),
-        cmocka_unit_test(test_codec_errors),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("dronecan", NULL, NULL, test_brief_vectors, test_vector_file_tx,
+                    test_vector_file_rx, test_crc, test_scalar_bits, test_float16, test_ids,
+                    test_tx_misc, test_tid_table, test_rx_interleaved, test_rx_lost_and_toggle,
+                    test_rx_crc, test_rx_timeout, test_rx_destination, test_rx_overflow_and_slots,
+                    test_fuzz, test_decode_fuzz, test_codec_errors);
 }

@@ -11,6 +11,7 @@
 #include "dan/codes.h"
 #include "simbus.h"
 #include "handlers_test_a.h"
+#include "unit_run.h"
 
 #define STEP_US 10u
 
@@ -541,25 +542,12 @@ static void test_api_errors(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_discovery_identities),
-        cmocka_unit_test(test_configure_best_baud),
-        cmocka_unit_test(test_baud_switch_after_ack),
-        cmocka_unit_test(test_turnaround_gap),
-        cmocka_unit_test(test_unknown_malformed_silent),
-        cmocka_unit_test(test_master_restart_recovery),
-        cmocka_unit_test(test_configure_verify_failure_recovers),
-        cmocka_unit_test(test_configure_peer_vanishes),
-        cmocka_unit_test(test_collision_detected_and_retried),
-        cmocka_unit_test(test_listen_before_talk),
-        cmocka_unit_test(test_busy_line_times_out),
-        cmocka_unit_test(test_noise_no_wrong_data),
-        cmocka_unit_test(test_direction_pin),
-        cmocka_unit_test(test_discovery_configure_time),
-        cmocka_unit_test(test_late_echo_is_not_a_reply),
-        cmocka_unit_test(test_reply_in_same_read_as_echo),
-        cmocka_unit_test(test_peripheral_ignores_own_reply_after_collision),
-        cmocka_unit_test(test_api_errors),
-    };
-    return cmocka_run_group_tests_name("engines", tests, NULL, NULL);
+    return UNIT_RUN("engines", NULL, NULL, test_discovery_identities, test_configure_best_baud,
+                    test_baud_switch_after_ack, test_turnaround_gap, test_unknown_malformed_silent,
+                    test_master_restart_recovery, test_configure_verify_failure_recovers,
+                    test_configure_peer_vanishes, test_collision_detected_and_retried,
+                    test_listen_before_talk, test_busy_line_times_out, test_noise_no_wrong_data,
+                    test_direction_pin, test_discovery_configure_time,
+                    test_late_echo_is_not_a_reply, test_reply_in_same_read_as_echo,
+                    test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }

@@ -13,6 +13,7 @@
 #include "dan/codes.h"
 #include "simbus.h"
 #include "handlers_test_a.h"
+#include "unit_run.h"
 
 /* 1 us steps: a character is 5 us at 2 Mbit/s. */
 #define STEP_US 1u
@@ -402,19 +403,9 @@ static void test_fast_list_rules(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_negotiates_2m),
-        cmocka_unit_test(test_refusal_moves_back),
-        cmocka_unit_test(test_v1_peer_best_common),
-        cmocka_unit_test(test_ack_without_switch_recovered),
-        cmocka_unit_test(test_switched_then_silent_dropped),
-        cmocka_unit_test(test_named_baud_lie_recovered),
-        cmocka_unit_test(test_named_baud),
-        cmocka_unit_test(test_restart_finds_fast_bus),
-        cmocka_unit_test(test_timing_1m),
-        cmocka_unit_test(test_backoff_1m),
-        cmocka_unit_test(test_reply_tail_1m),
-        cmocka_unit_test(test_fast_list_rules),
-    };
-    return cmocka_run_group_tests_name("fast_baud", tests, NULL, NULL);
+    return UNIT_RUN("fast_baud", NULL, NULL, test_negotiates_2m, test_refusal_moves_back,
+                    test_v1_peer_best_common, test_ack_without_switch_recovered,
+                    test_switched_then_silent_dropped, test_named_baud_lie_recovered,
+                    test_named_baud, test_restart_finds_fast_bus, test_timing_1m, test_backoff_1m,
+                    test_reply_tail_1m, test_fast_list_rules);
 }

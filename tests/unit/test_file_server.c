@@ -23,6 +23,7 @@
 #include "dan/codes.h"
 #include "file_dir.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 #define IMG_SIZE 600u
 
@@ -450,20 +451,11 @@ static void test_info_after_update(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_read_chunks, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_read_errors, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_store_failure, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_read_chunks, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_read_errors, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_getinfo_dir, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_reads_in_flight, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_dir_symlink_out, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_read_nul_path, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_getinfo, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_reads_in_flight, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_no_store, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_info_after_update, setup_files, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = UNIT_RUN("file_server", setup_files, teardown, test_read_chunks, test_read_errors,
+                          test_store_failure, test_read_nul_path, test_getinfo,
+                          test_reads_in_flight, test_no_store, test_info_after_update);
+    failed +=
+        UNIT_RUN("file_server_dir", setup_dir, teardown_dir, test_read_chunks, test_read_errors,
+                 test_getinfo_dir, test_reads_in_flight, test_dir_symlink_out);
+    return failed;
 }

@@ -20,6 +20,7 @@
 #include "gw_rig.h"
 #include "simbus.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* ---- tests ---- */
 
@@ -1040,28 +1041,13 @@ static void test_node_table_full(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_discover_and_identity, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_esc_command_raw_command, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_bad_seal_dropped, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_stalled_can_latest_throttle_wins, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_full_pages_leave_room_for_the_seal, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_can_send_seq_reuse_after_reboot, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_arm_during_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_can_recv_follows_gateway_restart, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_bus_off_reported, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_node_table_full, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_arming, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_targetted_retries, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_broadcast_and_drops, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_raw_frames_and_filters, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_raw_send_exact, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_node_table, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_own_node_status_and_info, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_malformed, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN(
+        "tests", setup, teardown, test_discover_and_identity, test_esc_command_raw_command,
+        test_bad_seal_dropped, test_stalled_can_latest_throttle_wins,
+        test_full_pages_leave_room_for_the_seal, test_can_send_seq_reuse_after_reboot,
+        test_arm_during_failsafe, test_can_recv_follows_gateway_restart, test_bus_off_reported,
+        test_node_table_full, test_telemetry_round_robin, test_telemetry_paging, test_arming,
+        test_failsafe, test_tunnel_targetted_retries, test_tunnel_broadcast_and_drops,
+        test_raw_frames_and_filters, test_raw_send_exact, test_node_table,
+        test_own_node_status_and_info, test_malformed);
 }

@@ -17,6 +17,7 @@
 #include "dan/can_gw/f16.h"
 #include "dan/frame.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 /* The RawCommand captured from index *from on must be exactly v[0..n). */
 static void expect_raw(size_t *from, const int16_t *v, size_t n)
@@ -221,13 +222,9 @@ static void test_fast_codec_limits(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_fast_sizes_and_values, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_record_round_robin, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_age_saturates, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_feeds_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_malformed, setup, teardown),
-        cmocka_unit_test(test_fast_codec_limits),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = UNIT_RUN("gateway_fast", setup, teardown, test_fast_sizes_and_values,
+                          test_fast_record_round_robin, test_fast_age_saturates,
+                          test_fast_feeds_failsafe, test_fast_malformed);
+    failed += UNIT_RUN("gateway_fast_codec", NULL, NULL, test_fast_codec_limits);
+    return failed;
 }

@@ -15,6 +15,7 @@
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/msgs_file.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* FILE_OPEN / FILE_WRITE: the request and the (shared) response. */
 static int vec_open_write(const char *msg, bool req, const uint8_t *p, size_t len, char *txt,
@@ -299,9 +300,5 @@ static void test_file_codec_limits(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_file_vectors),
-        cmocka_unit_test(test_file_codec_limits),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_file_vectors", NULL, NULL, test_file_vectors, test_file_codec_limits);
 }

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "file_rig.h"
+#include "unit_run.h"
 
 static void test_upload_commit(void **state)
 {
@@ -262,16 +263,8 @@ static void test_store_failures(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_upload_commit, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_retried_writes, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_gap_and_too_large, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_resume_after_restart, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_crc_and_short, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_list_paging_and_remove, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_no_store, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_bad_names, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_store_failures, setup_files, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_files", setup_files, teardown, test_upload_commit, test_retried_writes,
+                    test_gap_and_too_large, test_resume_after_restart, test_crc_and_short,
+                    test_list_paging_and_remove, test_no_store, test_bad_names,
+                    test_store_failures);
 }

@@ -17,6 +17,7 @@
 
 #include "file_rig.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 #define NODE LISTEN_NODE /* the rig's listener reassembles what is sent to it */
 
@@ -276,13 +277,9 @@ static void test_fw_dsdl_vectors(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_fw_begin_and_follow, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_fw_begin_refused, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_fw_begin_not_a_file, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_fw_begin_timeout, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_crc_refused_not_served, setup_files, teardown),
-        cmocka_unit_test(test_fw_dsdl_vectors),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = UNIT_RUN("gateway_fw", setup_files, teardown, test_fw_begin_and_follow,
+                          test_fw_begin_refused, test_fw_begin_not_a_file, test_fw_begin_timeout,
+                          test_crc_refused_not_served);
+    failed += UNIT_RUN("gateway_fw_codec", NULL, NULL, test_fw_dsdl_vectors);
+    return failed;
 }

@@ -16,6 +16,7 @@
 
 #include "dan/codes.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 static const uint8_t UID_A[16] = {0xA1, 0xA2, 0xA3, 0xA4, 0xA5, 0xA6, 0xA7, 0xA8,
                                   0xA9, 0xAA, 0xAB, 0xAC, 0xAD, 0xAE, 0xAF, 0xA0};
@@ -724,27 +725,11 @@ static void test_own_frames_and_times(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_dna_ids, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_skips_ids_in_use, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_waits_for_discovery, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_stage_timeout_and_garbage, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_flood, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_off, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_foreign_allocator, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fc_frames_heard, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_storage, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_blob_reasons, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_table_id_taken, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_table_full, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_param_get_pipelined, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_param_set_retry_sent_once, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_call_timeout_and_busy, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_restart_magic, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_health_verdicts, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_own_id_claimed, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_health_esc_telemetry, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_own_frames_and_times, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_mgmt", setup, teardown, test_dna_ids, test_dna_skips_ids_in_use,
+                    test_dna_waits_for_discovery, test_dna_stage_timeout_and_garbage,
+                    test_dna_flood, test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard,
+                    test_dna_storage, test_dna_blob_reasons, test_dna_table_id_taken,
+                    test_dna_table_full, test_param_get_pipelined, test_param_set_retry_sent_once,
+                    test_call_timeout_and_busy, test_restart_magic, test_health_verdicts,
+                    test_own_id_claimed, test_health_esc_telemetry, test_own_frames_and_times);
 }

@@ -16,6 +16,7 @@
 
 #include "dan/can_gw/f16.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 /* The newest SafetyState captured since *from; -1 if none. */
 static int last_safety(size_t *from)
@@ -412,17 +413,9 @@ static void test_malformed_outputs(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_safety_state, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_arm_refuses_other_values, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_servos_and_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_servo_table_full, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_servo_failsafe_slots_freed, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_lights_and_beep, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_temperature_in_telemetry, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_default_serial, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_any_channel, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_malformed_outputs, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_out", setup, teardown, test_safety_state,
+                    test_arm_refuses_other_values, test_servos_and_failsafe, test_servo_table_full,
+                    test_servo_failsafe_slots_freed, test_lights_and_beep,
+                    test_temperature_in_telemetry, test_tunnel_default_serial,
+                    test_tunnel_any_channel, test_malformed_outputs);
 }

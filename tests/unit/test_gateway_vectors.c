@@ -16,6 +16,7 @@
 #include "dan/can_gw/f16.h"
 #include "dan/frame.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* ---- codec vectors ---- */
 
@@ -558,10 +559,6 @@ static void test_sealed_vectors(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_vectors),
-        cmocka_unit_test(test_codec_limits),
-        cmocka_unit_test(test_sealed_vectors),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_vectors", NULL, NULL, test_vectors, test_codec_limits,
+                    test_sealed_vectors);
 }
