@@ -66,10 +66,14 @@ def braceless(path):
 
 def main():
     top = Path(__file__).resolve().parents[2]
-    names = sys.argv[1:] or subprocess.run(
-        ["git", "ls-files", "*.c", "*.h"], cwd=top, capture_output=True, text=True, check=True
-    ).stdout.split()
-    bad, files = 0, [Path(n) if sys.argv[1:] else top / n for n in names]
+    if sys.argv[1:]:
+        files = [Path(n) for n in sys.argv[1:]]
+    else:
+        listed = subprocess.run(
+            ["git", "ls-files", "*.c", "*.h"], cwd=top, capture_output=True, text=True, check=True
+        )
+        files = [top / n for n in listed.stdout.split()]
+    bad = 0
     for f in files:
         for line in braceless(f):
             print(f"{f}:{line}: body without braces", file=sys.stderr)
