@@ -150,6 +150,14 @@ int dan_dc_encode_table(const void *m, const dan_dc_field_t *f, size_t n, uint8_
 int dan_dc_decode_table(void *m, size_t size, const dan_dc_field_t *f, size_t n, const uint8_t *buf,
                         size_t len);
 
+/* Declares NAME_encode and NAME_decode of TYPE, the pattern of every DSDL
+ * codec (dsdl.h):
+ *   int NAME_encode(const TYPE *m, uint8_t *buf, size_t cap);
+ *   int NAME_decode(TYPE *m, const uint8_t *buf, size_t len); */
+#define DAN_DC_CODEC(name, type)                                \
+    int name##_encode(const type *m, uint8_t *buf, size_t cap); \
+    int name##_decode(type *m, const uint8_t *buf, size_t len)
+
 /* Defines NAME_encode and NAME_decode of TYPE from TABLE. */
 #define DAN_DC_TABLE_CODEC(name, type, table)                                                \
     int name##_encode(const type *m, uint8_t *buf, size_t cap)                               \
