@@ -22,7 +22,7 @@ from danprobe.gateway_msgs import (
     SFF_MASK,
     check_range,
 )
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer
 
 
 @dataclass
@@ -155,21 +155,12 @@ class CanSendRequest:
 
 
 @dataclass
-class CanSendResponse:
+class CanSendResponse(Record):
     seq: int = 0
     accepted: int = 0
     queue_free: int = 0
 
-    def encode(self) -> bytes:
-        return Writer().u8(self.seq).u8(self.accepted).uvarint(self.queue_free).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "CanSendResponse":
-        r = Reader(payload)
-        return cls(r.u8("seq"), r.u8("accepted"), r.uvarint("queue_free"))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    LAYOUT = (("seq", "u8"), ("accepted", "u8"), ("queue_free", "uvarint"))
 
 
 RECV_TIMES = 0x01  # CAN_RECV opts: receive times in the response

@@ -18,7 +18,7 @@ from typing import Union
 
 from danprobe.gateway_file import file_name, get_name
 from danprobe.gateway_msgs import check_range
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer
 
 # ---- values (uavcan.protocol.param.Value on the DAN wire) ----
 # u8 tag, then INTEGER i64 (8 bytes LE), REAL f32 (IEEE bits, 4 bytes LE),
@@ -336,23 +336,14 @@ class CallState:
 
 
 @dataclass
-class CallResultRequest:
+class CallResultRequest(Record):
     """u16 call_id, uv offset, u8 max."""
 
     call_id: int = 0
     offset: int = 0
     max: int = RESULT_CHUNK_MAX
 
-    def encode(self) -> bytes:
-        return Writer().u16(self.call_id).uvarint(self.offset).u8(self.max).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "CallResultRequest":
-        r = Reader(payload)
-        return cls(r.u16("call_id"), r.uvarint("offset"), r.u8("max"))
-
-    def as_dict(self) -> dict:
-        return {"call_id": self.call_id, "offset": self.offset, "max": self.max}
+    LAYOUT = (("call_id", "u16"), ("offset", "uvarint"), ("max", "u8"))
 
 
 @dataclass

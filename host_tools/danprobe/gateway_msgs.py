@@ -24,7 +24,7 @@ from typing import Optional
 
 from danprobe.codec import MalformedError, crc_table, uvarint_encode
 from danprobe.gateway_file import FwFollow
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer
 
 # ---- codes (block 0x40..0x4F: 0x40 IDENTIFY, 0x41 CONFIGURE) ----
 CODE_ESC_CMD = 0x42
@@ -792,20 +792,11 @@ class TunOpen:
 
 
 @dataclass
-class TunOpenResult:
+class TunOpenResult(Record):
     port: int = 0
     result: int = 0  # 0 OK, 1 refused
 
-    def encode(self) -> bytes:
-        return Writer().u8(self.port).u8(self.result).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "TunOpenResult":
-        r = Reader(payload)
-        return cls(r.u8("port"), r.u8("result"))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    LAYOUT = (("port", "u8"), ("result", "u8"))
 
 
 # ---- TUN_XFER (0x4A) ----

@@ -241,22 +241,41 @@ def decode_ack(payload) -> int:
     return v
 
 
+class Record:
+    """A dataclass message that is a fixed list of fields: LAYOUT holds
+    (attribute, kind) or (attribute, kind, what) with kind a Writer/Reader
+    method (u8, u16, u24, u32, uvarint, array, string) and what the name a
+    decode error gives (default: the attribute). Encode and decode follow
+    the layout, so each layout is written once."""
+
+    LAYOUT: tuple = ()
+
+    def encode(self) -> bytes:
+        w = Writer()
+        for name, kind, *_ in self.LAYOUT:
+            getattr(w, kind)(getattr(self, name))
+        return w.bytes()
+
+    @classmethod
+    def decode(cls, payload):
+        r = Reader(payload)
+        return cls(**{f[0]: getattr(r, f[1])(f[-1]) for f in cls.LAYOUT})
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
 # ---- DAN-ERROR-MESSAGE-V1 (payload of code 0) ----
 
 
 @dataclass
-class ErrorMessage:
+class ErrorMessage(Record):
     code: int = 0  # the request code that caused the error
     error: int = 0  # reserved, 0 in v1
     text: str = ""
 
-    def encode(self) -> bytes:
-        return Writer().uvarint(self.code).uvarint(self.error).string(self.text).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "ErrorMessage":
-        r = Reader(payload)
-        return cls(r.uvarint("request_code"), r.uvarint("error_code"), r.string("description"))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    LAYOUT = (
+        ("code", "uvarint", "request_code"),
+        ("error", "uvarint", "error_code"),
+        ("text", "string", "description"),
+    )
