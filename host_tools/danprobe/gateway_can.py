@@ -22,7 +22,7 @@ from danprobe.gateway_msgs import (
     SFF_MASK,
     check_range,
 )
-from danprobe.payloads import PayloadError, Reader, Record, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer, attrs
 
 
 @dataclass
@@ -91,15 +91,8 @@ class CanFrame:
         return f"{ident}#{self.data.hex().upper()}"
 
     def as_dict(self) -> dict:
-        return {
-            "id": self.id,
-            "ext": self.ext,
-            "rtr": self.rtr,
-            "dlc": self.dlc,
-            "data": self.data.hex(),
-            "text": self.candump(),
-            "own": self.own,
-        }
+        d = attrs(self, "id", "ext", "rtr", "dlc")
+        return {**d, "data": self.data.hex(), "text": self.candump(), "own": self.own}
 
 
 _HEX = set("0123456789abcdefABCDEF")

@@ -241,6 +241,11 @@ def decode_ack(payload) -> int:
     return v
 
 
+def attrs(obj, *names) -> dict:
+    """{name: obj.name} for each name, in order (as_dict's common part)."""
+    return {n: getattr(obj, n) for n in names}
+
+
 class Record:
     """A dataclass message that is a fixed list of fields: LAYOUT holds
     (attribute, kind) or (attribute, kind, what) with kind a Writer/Reader
