@@ -240,39 +240,37 @@ static void test_crc_refused_not_served(void **state)
 
 /* The DSDL codec against pydronecan's bytes (tests/vectors/dronecan_fw.txt):
  * decoded to the fields, encoded back byte for byte. */
+static void fw_dsdl_row(vec_file_t *v, void *ctx)
+{
+    char *f[3];
+    uint8_t p[256], want[256], enc[256];
+    size_t len = vec_message(v, f, p, sizeof p),
+           wl = vec_hex(strchr(f[2], '=') + 1, want, sizeof want);
+    unsigned long num = strtoul(strchr(f[1], '=') + 1, NULL, 10);
+    (void)ctx;
+    if (!strcmp(f[0], "fw_begin_req")) {
+        dan_dc_fw_begin_req_t q;
+        assert_int_equal(dan_dc_fw_begin_req_decode(&q, p, len), DAN_OK);
+        assert_int_equal(q.source_node_id, num);
+        assert_int_equal(q.path_len, wl);
+        assert_memory_equal(q.path, want, wl);
+        assert_int_equal(dan_dc_fw_begin_req_encode(&q, enc, sizeof enc), (int)len);
+    } else {
+        dan_dc_fw_begin_rsp_t r;
+        assert_string_equal(f[0], "fw_begin_rsp");
+        assert_int_equal(dan_dc_fw_begin_rsp_decode(&r, p, len), DAN_OK);
+        assert_int_equal(r.error, num);
+        assert_int_equal(r.message_len, wl);
+        assert_memory_equal(r.message, want, wl);
+        assert_int_equal(dan_dc_fw_begin_rsp_encode(&r, enc, sizeof enc), (int)len);
+    }
+    assert_memory_equal(enc, p, len);
+}
+
 static void test_fw_dsdl_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "dronecan_fw.txt");
-    while (vec_next(&v)) {
-        char *f[3];
-        uint8_t p[256], want[256], enc[256];
-        size_t len = vec_message(&v, f, p, sizeof p),
-               wl = vec_hex(strchr(f[2], '=') + 1, want, sizeof want);
-        unsigned long num = strtoul(strchr(f[1], '=') + 1, NULL, 10);
-        if (!strcmp(f[0], "fw_begin_req")) {
-            dan_dc_fw_begin_req_t q;
-            assert_int_equal(dan_dc_fw_begin_req_decode(&q, p, len), DAN_OK);
-            assert_int_equal(q.source_node_id, num);
-            assert_int_equal(q.path_len, wl);
-            assert_memory_equal(q.path, want, wl);
-            assert_int_equal(dan_dc_fw_begin_req_encode(&q, enc, sizeof enc), (int)len);
-        } else {
-            dan_dc_fw_begin_rsp_t r;
-            assert_string_equal(f[0], "fw_begin_rsp");
-            assert_int_equal(dan_dc_fw_begin_rsp_decode(&r, p, len), DAN_OK);
-            assert_int_equal(r.error, num);
-            assert_int_equal(r.message_len, wl);
-            assert_memory_equal(r.message, want, wl);
-            assert_int_equal(dan_dc_fw_begin_rsp_encode(&r, enc, sizeof enc), (int)len);
-        }
-        assert_memory_equal(enc, p, len);
-        count++;
-    }
-    vec_close(&v);
-    assert_int_equal(count, 8);
+    assert_int_equal(vec_each("dronecan_fw.txt", fw_dsdl_row, NULL), 8);
 }
 
 int main(void)

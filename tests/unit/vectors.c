@@ -5,6 +5,7 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "dan/common.h"
 #include "vectors.h"
 
 void vec_open(vec_file_t *v, const char *name)
@@ -43,6 +44,32 @@ void vec_close(vec_file_t *v)
         fclose(v->f);
         v->f = NULL;
     }
+}
+
+size_t vec_each(const char *name, void (*row)(vec_file_t *v, void *ctx), void *ctx)
+{
+    static vec_file_t v; /* 8 KiB line buffer: not on the stack */
+    size_t count = 0;
+    vec_open(&v, name);
+    while (vec_next(&v)) {
+        row(&v, ctx);
+        count++;
+    }
+    vec_close(&v);
+    return count;
+}
+
+void vec_check_message(const vec_file_t *v, char *f[3], const uint8_t *p, size_t len,
+                       vec_codec_fn codec)
+{
+    char txt[2048];
+    uint8_t enc[DAN_MAX_PAYLOAD];
+    int n = codec(f[0], f[1], p, len, txt, sizeof txt, enc, sizeof enc);
+    if (strcmp(txt, f[2]) != 0) {
+        fail_msg("line %d: decoded\n  %s\nexpected\n  %s", v->lineno, txt, f[2]);
+    }
+    assert_int_equal(n, (int)len);
+    assert_memory_equal(enc, p, len);
 }
 
 int vec_split(char *s, char sep, char **fields, int max)
