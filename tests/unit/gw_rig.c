@@ -75,6 +75,12 @@ int finish(void)
     return dan_gw_complete(&R->gw, R->bus.now);
 }
 
+void call_ok(int started)
+{
+    assert_int_equal(started, DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+}
+
 uint32_t remote_code(void)
 {
     dan_error_msg_t e;
@@ -115,6 +121,13 @@ cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from)
         }
     }
     return NULL;
+}
+
+cap_t *expect_cap(uint16_t dtid, uint8_t tt, size_t *from)
+{
+    cap_t *c = find_cap(dtid, tt, from);
+    assert_non_null(c);
+    return c;
 }
 
 /* Sends a transfer from fake node src into the gateway. */

@@ -45,6 +45,8 @@ void drain(void);
 int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 /* Completes the client's transaction in flight. */
 int finish(void);
+/* A client call that starts (started == DAN_OK) and completes with DAN_OK. */
+void call_ok(int started);
 /* The request code of the error frame that refused the last transaction
  * (fails the test if there is none). */
 uint32_t remote_code(void);
@@ -56,6 +58,8 @@ size_t last_req(uint8_t *out);
 void lose_response(void);
 /* The next captured transfer of a type from index *from on. */
 cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from);
+/* The same, which must be there. */
+cap_t *expect_cap(uint16_t dtid, uint8_t tt, size_t *from);
 /* A transfer from fake node src into the gateway. */
 void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
             const uint8_t *payload, int len);

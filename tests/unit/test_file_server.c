@@ -120,8 +120,7 @@ static void read_at(uint64_t offset, const char *path, dan_dc_file_read_rsp_t *r
     cap_t *c;
     send_read(LISTEN_NODE, offset, path);
     drain();
-    c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(c->src, 10);
     assert_int_equal(c->dst, LISTEN_NODE);
     assert_int_equal(dan_dc_file_read_rsp_decode(r, c->payload, c->len), DAN_OK);
@@ -270,8 +269,7 @@ static void test_read_nul_path(void **state)
         inject(LISTEN_NODE, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE,
                DAN_DC_TRANSFER_REQUEST, 10, req, (int)sizeof req);
         drain();
-        c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-        assert_non_null(c);
+        c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
         assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
         assert_int_equal(r.error, DAN_DC_FILE_INVALID_VALUE);
     }
@@ -289,8 +287,7 @@ static void get_info(const char *path, dan_dc_file_getinfo_rsp_t *r)
     inject(LISTEN_NODE, DAN_DC_FILE_GETINFO_ID, DAN_DC_FILE_GETINFO_SIGNATURE,
            DAN_DC_TRANSFER_REQUEST, 10, buf, dan_dc_file_getinfo_req_encode(&q, buf, sizeof buf));
     drain();
-    c = find_cap(DAN_DC_FILE_GETINFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_FILE_GETINFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(dan_dc_file_getinfo_rsp_decode(r, c->payload, c->len), DAN_OK);
 }
 
@@ -345,8 +342,7 @@ static void test_reads_in_flight(void **state)
     advance(1000);
     assert_int_equal(R->g.file_nwait, 0);
     for (i = 0; i < 5; i++) {
-        c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-        assert_non_null(c);
+        c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
         if (i == 0) {
             tid0 = c->tid;
         }

@@ -51,16 +51,14 @@ static void answer(const cap_t *c, uint8_t error, const char *msg)
 /* FW_BEGIN through the client, completed: the call state. */
 static uint8_t fw_begin(uint16_t id, const char *name)
 {
-    assert_int_equal(dan_gw_fw_begin(&R->gw, id, NODE, name, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_fw_begin(&R->gw, id, NODE, name, R->bus.now));
     return R->gw.call.state;
 }
 
 static void fw_result(uint16_t id, dan_gw_fw_result_t *r)
 {
     dan_gw_result_t res;
-    assert_int_equal(dan_gw_call_result(&R->gw, id, 0, 128, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_call_result(&R->gw, id, 0, 128, R->bus.now));
     assert_int_equal(dan_gw_call_result_get(&R->gw, &res), DAN_OK);
     assert_int_equal(res.state, DAN_GW_CALL_DONE);
     assert_int_equal(res.len, res.result_len);
@@ -69,8 +67,7 @@ static void fw_result(uint16_t id, dan_gw_fw_result_t *r)
 
 static void node_info(dan_gw_node_info_t *i)
 {
-    assert_int_equal(dan_gw_node_info(&R->gw, NODE, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_node_info(&R->gw, NODE, R->bus.now));
     assert_int_equal(dan_gw_node_info_get(&R->gw, i), DAN_OK);
     assert_true(i->follow);
 }
@@ -97,8 +94,7 @@ static cap_t *begin_sent(uint16_t id, size_t *from)
     upload("fw.bin", IMG_SIZE);
     node_status_from(NODE, 10, DAN_DC_HEALTH_OK, DAN_DC_MODE_OPERATIONAL);
     assert_int_equal(fw_begin(id, "fw.bin"), DAN_GW_CALL_PENDING);
-    c = find_cap(DAN_DC_FW_BEGIN_ID, DAN_DC_TRANSFER_REQUEST, from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_FW_BEGIN_ID, DAN_DC_TRANSFER_REQUEST, from);
     return c;
 }
 
@@ -141,8 +137,7 @@ static void test_fw_begin_and_follow(void **state)
     assert_int_equal(i.file_size, IMG_SIZE);
     assert_true(i.since_read_ms < 20u);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FW_BEGINS], 0); /* not read yet */
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FW_BEGINS], 1);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FILE_COMMITS], 1);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_UPLOAD_BYTES], IMG_SIZE);
