@@ -63,6 +63,12 @@ cap_t *expect_cap(uint16_t dtid, uint8_t tt, size_t *from);
 /* A transfer from fake node src into the gateway. */
 void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
             const uint8_t *payload, int len);
+/* The answer (a response of priority prio) of the node a captured request c
+ * went to, with c's transfer ID. */
+void answer_cap(const cap_t *c, uint16_t dtid, uint64_t sig, uint8_t prio, const uint8_t *payload,
+                int len);
+/* A file.Read request from fake node src to the gateway. */
+void file_read_from(uint8_t src, uint64_t offset, const char *path);
 /* A NodeStatus from fake node src. */
 void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode);
 /* CONFIG esc_timeout_ms through the client, completed. */

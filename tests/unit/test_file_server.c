@@ -101,24 +101,12 @@ static int teardown_dir(void **state)
     return teardown(state);
 }
 
-static void send_read(uint8_t src, uint64_t offset, const char *path)
-{
-    dan_dc_file_req_t q;
-    uint8_t buf[DAN_DC_FILE_READ_REQ_MAX_SIZE];
-    memset(&q, 0, sizeof q);
-    q.offset = offset;
-    q.path_len = (uint8_t)strlen(path);
-    memcpy(q.path, path, q.path_len);
-    inject(src, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE, DAN_DC_TRANSFER_REQUEST, 10, buf,
-           dan_dc_file_read_req_encode(&q, buf, sizeof buf));
-}
-
 /* Reads offset of path as node 42 (the listener): the response, decoded. */
 static void read_at(uint64_t offset, const char *path, dan_dc_file_read_rsp_t *r)
 {
     size_t from = R->ncap;
     cap_t *c;
-    send_read(LISTEN_NODE, offset, path);
+    file_read_from(LISTEN_NODE, offset, path);
     drain();
     c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(c->src, 10);
@@ -332,7 +320,7 @@ static void test_reads_in_flight(void **state)
     advance(10000); /* our own timers in the future */
     from = R->ncap;
     for (i = 0; i < 5; i++) {
-        send_read(LISTEN_NODE, (uint64_t)(i % 2) * 256u, "fw.bin"); /* 256 bytes each */
+        file_read_from(LISTEN_NODE, (uint64_t)(i % 2) * 256u, "fw.bin"); /* 256 bytes each */
     }
     assert_int_equal(R->g.file_nwait, 2);
     assert_int_equal(R->g.stats.can_tx_dropped, 0);
@@ -355,7 +343,7 @@ static void test_reads_in_flight(void **state)
     assert_int_equal(R->g.stats.can_tx_dropped, 0);
     /* 3 answered, 8 wait, 1 dropped; then the 8 go stale */
     for (i = 0; i < 12; i++) {
-        send_read((uint8_t)(60 + i), 0, "fw.bin");
+        file_read_from((uint8_t)(60 + i), 0, "fw.bin");
     }
     assert_int_equal(R->g.file_nwait, DAN_GW_NODE_FILE_WAIT);
     assert_int_equal(R->g.stats.file_dropped, 1);
@@ -371,7 +359,7 @@ static void test_no_store(void **state)
     size_t from = R->ncap;
     (void)state;
     R->g.cfg.files = NULL;
-    send_read(LISTEN_NODE, 0, "fw.bin");
+    file_read_from(LISTEN_NODE, 0, "fw.bin");
     drain();
     assert_null(find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from));
     assert_int_equal(calls, 0);

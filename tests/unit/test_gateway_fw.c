@@ -26,26 +26,12 @@ static void answer(const cap_t *c, uint8_t error, const char *msg)
 {
     dan_dc_fw_begin_rsp_t m;
     uint8_t buf[1u + DAN_DC_FW_BEGIN_MESSAGE_MAX];
-    dan_dc_transfer_t t;
-    dan_can_frame_t f[32];
-    int n, i;
     memset(&m, 0, sizeof m);
     m.error = error;
     m.message_len = (uint8_t)strlen(msg);
     memcpy(m.message, msg, m.message_len);
-    n = dan_dc_fw_begin_rsp_encode(&m, buf, sizeof buf);
-    assert_true(n > 0);
-    dan_dc_transfer_init(&t, DAN_DC_FW_BEGIN_ID, DAN_DC_FW_BEGIN_SIGNATURE,
-                         DAN_DC_TRANSFER_RESPONSE, buf, (size_t)n);
-    t.priority = 16;
-    t.source_node = c->dst;
-    t.destination_node = R->g.cfg.node_id;
-    t.transfer_id = c->tid;
-    n = dan_dc_tx_build(&t, f, 32);
-    assert_true(n > 0);
-    for (i = 0; i < n; i++) {
-        dan_gw_node_rx_can(&R->g, &f[i], R->bus.now);
-    }
+    answer_cap(c, DAN_DC_FW_BEGIN_ID, DAN_DC_FW_BEGIN_SIGNATURE, 16, buf,
+               dan_dc_fw_begin_rsp_encode(&m, buf, sizeof buf));
 }
 
 /* FW_BEGIN through the client, completed: the call state. */
@@ -70,20 +56,6 @@ static void node_info(dan_gw_node_info_t *i)
     call_ok(dan_gw_node_info(&R->gw, NODE, R->bus.now));
     assert_int_equal(dan_gw_node_info_get(&R->gw, i), DAN_OK);
     assert_true(i->follow);
-}
-
-/* NODE reads len bytes of path at offset (wt14a's file server answers). */
-static void node_reads(uint32_t offset, const char *path)
-{
-    dan_dc_file_req_t q;
-    uint8_t buf[DAN_DC_FILE_READ_REQ_MAX_SIZE];
-    memset(&q, 0, sizeof q);
-    q.offset = offset;
-    q.path_len = (uint8_t)strlen(path);
-    memcpy(q.path, path, q.path_len);
-    inject(NODE, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE, DAN_DC_TRANSFER_REQUEST,
-           R->g.cfg.node_id, buf, dan_dc_file_read_req_encode(&q, buf, sizeof buf));
-    drain();
 }
 
 /* fw.bin committed, NODE operational, FW_BEGIN id started: the
@@ -128,8 +100,10 @@ static void test_fw_begin_and_follow(void **state)
     assert_true(i.since_read_ms >= 20u && i.since_read_ms < 1000u);
     /* the node goes into its bootloader and reads */
     node_status_from(NODE, 11, DAN_DC_HEALTH_OK, DAN_DC_MODE_SOFTWARE_UPDATE);
-    node_reads(0, "fw.bin");
-    node_reads(256, "/fw.bin");
+    file_read_from(NODE, 0, "fw.bin");
+    drain();
+    file_read_from(NODE, 256, "/fw.bin");
+    drain();
     node_info(&i);
     assert_int_equal(i.status, DAN_DC_MODE_SOFTWARE_UPDATE << 2);
     assert_int_equal(i.file_flags, DAN_GW_FW_BEGUN | DAN_GW_FW_READING);
@@ -222,13 +196,15 @@ static void test_crc_refused_not_served(void **state)
     assert_int_equal(open_file("fw.bin", IMG_SIZE, false, NULL), DAN_GW_FILE_OK);
     upload_range(0, IMG_SIZE);
     assert_int_equal(commit(crc ^ 0x80u, NULL), DAN_GW_FILE_CRC);
-    node_reads(0, "fw.bin");
+    file_read_from(NODE, 0, "fw.bin");
+    drain();
     assert_int_equal(read_error(&from, &len), DAN_DC_FILE_NOT_FOUND);
     assert_int_equal(len, 0);
     assert_int_equal(dan_gw_fw_begin(&R->gw, 9, NODE, "fw.bin", R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_ERR_REMOTE);
     assert_int_equal(commit(crc, NULL), DAN_GW_FILE_OK);
-    node_reads(0, "fw.bin");
+    file_read_from(NODE, 0, "fw.bin");
+    drain();
     assert_int_equal(read_error(&from, &len), DAN_DC_FILE_OK);
     assert_int_equal(len, 256);
 }

@@ -437,9 +437,6 @@ static void answer_getset(const cap_t *c, const char *name, int64_t value)
 {
     dan_dc_param_getset_rsp_t rsp;
     uint8_t buf[DAN_DC_PARAM_GETSET_RSP_MAX_SIZE];
-    dan_dc_transfer_t t;
-    dan_can_frame_t f[64];
-    int n, i;
     memset(&rsp, 0, sizeof rsp);
     rsp.value.tag = DAN_DC_PARAM_INTEGER;
     rsp.value.integer = value;
@@ -449,18 +446,8 @@ static void answer_getset(const cap_t *c, const char *name, int64_t value)
     rsp.max_value.integer = 100;
     rsp.name_len = (uint8_t)strlen(name);
     memcpy(rsp.name, name, rsp.name_len);
-    n = dan_dc_param_getset_rsp_encode(&rsp, buf, sizeof buf);
-    assert_true(n > 0);
-    dan_dc_transfer_init(&t, DAN_DC_PARAM_GETSET_ID, DAN_DC_PARAM_GETSET_SIGNATURE,
-                         DAN_DC_TRANSFER_RESPONSE, buf, (size_t)n);
-    t.priority = 24;
-    t.source_node = c->dst;
-    t.destination_node = 10;
-    t.transfer_id = c->tid;
-    n = dan_dc_tx_build(&t, f, 64);
-    for (i = 0; i < n; i++) {
-        dan_gw_node_rx_can(&R->g, &f[i], R->bus.now);
-    }
+    answer_cap(c, DAN_DC_PARAM_GETSET_ID, DAN_DC_PARAM_GETSET_SIGNATURE, 24, buf,
+               dan_dc_param_getset_rsp_encode(&rsp, buf, sizeof buf));
 }
 
 static void read_param(uint16_t call_id, dan_gw_param_t *p)

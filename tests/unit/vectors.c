@@ -1,3 +1,4 @@
+#include <ctype.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -87,20 +88,6 @@ int vec_split(char *s, char sep, char **fields, int max)
     return n;
 }
 
-static int hexval(char c)
-{
-    if (c >= '0' && c <= '9') {
-        return c - '0';
-    }
-    if (c >= 'a' && c <= 'f') {
-        return c - 'a' + 10;
-    }
-    if (c >= 'A' && c <= 'F') {
-        return c - 'A' + 10;
-    }
-    return -1;
-}
-
 size_t vec_hex(const char *hex, uint8_t *out, size_t cap)
 {
     size_t n = 0;
@@ -108,12 +95,11 @@ size_t vec_hex(const char *hex, uint8_t *out, size_t cap)
         return 0;
     }
     while (hex[0] != '\0') {
-        int hi = hexval(hex[0]);
-        int lo = (hi < 0) ? -1 : hexval(hex[1]);
-        if (lo < 0 || n >= cap) {
+        char pair[3] = {hex[0], hex[1], '\0'};
+        if (!isxdigit((unsigned char)pair[0]) || !isxdigit((unsigned char)pair[1]) || n >= cap) {
             fail_msg("bad hex or too long: %s", hex);
         }
-        out[n++] = (uint8_t)(hi * 16 + lo);
+        out[n++] = (uint8_t)strtoul(pair, NULL, 16);
         hex += 2;
     }
     return n;
