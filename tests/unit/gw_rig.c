@@ -205,14 +205,16 @@ int teardown(void **state)
     return 0;
 }
 
-void config_timeout(uint32_t ms)
+void config_set(uint8_t mask, uint32_t value)
 {
     dan_gw_config_t set;
     memset(&set, 0, sizeof set);
-    set.set_mask = DAN_GW_CFG_ESC_TIMEOUT;
-    set.esc_timeout_ms = ms;
-    assert_int_equal(dan_gw_config(&R->gw, &set, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    set.set_mask = mask;
+    set.esc_timeout_ms = (mask & DAN_GW_CFG_ESC_TIMEOUT) ? value : 0u;
+    set.arming_rate_hz = (mask & DAN_GW_CFG_ARMING_RATE) ? value : 0u;
+    set.telem_timeout_ms = (mask & DAN_GW_CFG_TELEM_TIMEOUT) ? value : 0u;
+    set.dna = (mask & DAN_GW_CFG_DNA) ? (uint8_t)value : 0u;
+    call_ok(dan_gw_config(&R->gw, &set, R->bus.now));
 }
 
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm)

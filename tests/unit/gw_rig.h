@@ -71,8 +71,9 @@ void answer_cap(const cap_t *c, uint16_t dtid, uint64_t sig, uint8_t prio, const
 void file_read_from(uint8_t src, uint64_t offset, const char *path);
 /* A NodeStatus from fake node src. */
 void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode);
-/* CONFIG esc_timeout_ms through the client, completed. */
-void config_timeout(uint32_t ms);
+/* CONFIG of one setting (mask: one DAN_GW_CFG_* bit) to value through the
+ * client, completed. */
+void config_set(uint8_t mask, uint32_t value);
 /* An esc.Status from fake node src. */
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm);
 int setup(void **state);

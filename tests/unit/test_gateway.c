@@ -197,16 +197,12 @@ static void test_arming(void **state)
 static void test_failsafe(void **state)
 {
     const int16_t v[6] = {1000, 2000, 3000, 4000, 5000, 6000};
-    dan_gw_config_t set;
     dan_dc_esc_raw_command_t rc;
     size_t from;
     cap_t *c;
     uint64_t t_last;
     (void)state;
-    memset(&set, 0, sizeof set);
-    set.set_mask = DAN_GW_CFG_ESC_TIMEOUT;
-    set.esc_timeout_ms = 200;
-    call_ok(dan_gw_config(&R->gw, &set, R->bus.now));
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
     assert_int_equal(R->gw.config.esc_timeout_ms, 200);
     assert_int_equal(R->gw.config.node_id, 10);
     call_ok(dan_gw_arm(&R->gw, true, R->bus.now));

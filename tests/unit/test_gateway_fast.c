@@ -120,7 +120,7 @@ static void test_fast_age_saturates(void **state)
 {
     const int16_t v[1] = {0};
     (void)state;
-    config_timeout(60000);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 60000);
     esc_status(20, 2, 12.0f, 1.0f, 300.0f, 7);
     advance(1010000);
     call_ok(dan_gw_esc_fast(&R->gw, v, 1, true, R->bus.now));
@@ -139,7 +139,7 @@ static void test_fast_feeds_failsafe(void **state)
     const int16_t zeros[4] = {0};
     size_t i, from;
     (void)state;
-    config_timeout(100);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 100);
     for (i = 0; i < 40; i++) { /* 400 ms of commands every 10 ms */
         call_ok(dan_gw_esc_fast(&R->gw, v, 4, i % 4u == 0u, R->bus.now));
         advance(10000);

@@ -14,6 +14,7 @@
 
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/msgs_file.h"
+#include "gw_vectors.h"
 #include "vectors.h"
 #include "unit_run.h"
 
@@ -82,12 +83,7 @@ static int vec_fw(const char *msg, const uint8_t *p, size_t len, char *txt, size
         dan_gw_node_info_t ni;
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
         assert_true(ni.follow);
-        vec_cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
-                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
-                ni.hw_major, ni.hw_minor);
-        vec_cat_hex(txt, cap, ni.unique_id, 16);
-        vec_cat(txt, cap, " name=");
-        vec_cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
+        vec_cat_node_info(txt, cap, &ni);
         vec_cat(txt, cap, " status=%u fflags=%u read=%lu size=%lu since=%lu", ni.status,
                 ni.file_flags, (unsigned long)ni.bytes_read, (unsigned long)ni.file_size,
                 (unsigned long)ni.since_read_ms);

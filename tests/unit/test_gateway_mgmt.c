@@ -193,12 +193,8 @@ static void test_dna_off(void **state)
 {
     size_t from;
     dan_dc_allocation_t m;
-    dan_gw_config_t c;
     (void)state;
-    memset(&c, 0, sizeof c);
-    c.set_mask = DAN_GW_CFG_DNA;
-    c.dna = 0;
-    call_ok(dan_gw_config(&R->gw, &c, R->bus.now));
+    config_set(DAN_GW_CFG_DNA, 0);
     assert_int_equal(R->gw.config.dna, 0);
     from = R->ncap;
     alloc_stage(UID_A, 0, 6, 0, true);

@@ -42,7 +42,7 @@ static void test_safety_state(void **state)
     advance(1200000);
     assert_int_equal(last_safety(&from), DAN_DC_SAFETY_ON); /* from the start: ON */
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_SAFETY_OFF);
-    config_timeout(200);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
     assert_int_equal(dan_gw_safety(&R->gw, true, R->bus.now), DAN_OK);
     t0 = R->bus.now;
     assert_int_equal(finish(), DAN_OK);
@@ -119,7 +119,7 @@ static void test_servos_and_failsafe(void **state)
     dan_dc_actuator_cmd_t got[64];
     size_t from, n, msgs, i;
     (void)state;
-    config_timeout(200);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
     for (i = 0; i < 20; i++) {
         s[i] = dan_gw_servo_make((uint8_t)i, DAN_DC_ACTUATOR_UNITLESS, (float)i / 32.0f);
     }

@@ -15,6 +15,7 @@
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/f16.h"
 #include "dan/frame.h"
+#include "gw_vectors.h"
 #include "vectors.h"
 #include "unit_run.h"
 
@@ -358,12 +359,7 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
             return dan_writer_finish(&w);
         }
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
-        vec_cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
-                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
-                ni.hw_major, ni.hw_minor);
-        vec_cat_hex(txt, cap, ni.unique_id, 16);
-        vec_cat(txt, cap, " name=");
-        vec_cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
+        vec_cat_node_info(txt, cap, &ni);
         return dan_gw_msg_node_info_encode(&ni, enc, ecap);
     }
     if (!strcmp(msg, "tun_open")) {
