@@ -6,6 +6,7 @@ a process behind whatever happens.
 """
 
 import os
+import select
 import signal
 import sys
 import time
@@ -33,6 +34,23 @@ import pydronecan_nodes  # noqa: E402
 pydronecan_nodes.use_spawn()
 BIN = ROOT / "build" / "bin"
 VECTORS = ROOT / "tests" / "vectors"
+
+
+def read_line(fd, timeout, what="the pipe", on_eof=lambda: "closed"):
+    """One line from fd (a pipe) within timeout seconds. AssertionError at
+    the deadline or at end of file (its text from on_eof())."""
+    end = time.monotonic() + timeout
+    buf = b""
+    while not buf.endswith(b"\n"):
+        left = end - time.monotonic()
+        if left <= 0:
+            raise AssertionError(f"no line from {what} within {timeout}s (got {buf!r})")
+        if select.select([fd], [], [], left)[0]:
+            c = os.read(fd, 1)
+            if not c:
+                raise AssertionError(f"{what}: {on_eof()}, got {buf!r}")
+            buf += c
+    return buf.decode()
 
 
 def wait_for(pred, timeout=10.0, interval=0.02, what="condition"):
@@ -69,11 +87,7 @@ class Procs:
         return procgroup.stop(p, sig, timeout)
 
     def close(self):
-        for p in reversed(self.procs):
-            self.stop(p)
-            if p.stdout:
-                p.stdout.close()
-            p.log_file.close()
+        procgroup.close_all(self.procs)
 
 
 def closing_factory(make):
