@@ -326,6 +326,24 @@ def master_operation(
         return m, failure, (now() - t0) * 1000
 
 
+def add_bus_options(p: argparse.ArgumentParser, baud_help: str):
+    """The common and the bus options of a command on the whole bus
+    (discover, configure)."""
+    add_common_options(p, baud_help=baud_help)
+    add_master_options(p)
+
+
+def peers_report(ctx: Context, m: Master, failure, ms: float, fields, failure_text, headline):
+    """report() of a command that ends with the peers found: the human text
+    is headline and the peers table."""
+
+    def human():
+        print(headline)
+        print(peers_table(m.present()))
+
+    return report(ctx, m, failure, ms, fields, failure_text, human)
+
+
 def report(
     ctx: Context,
     m: Master,
@@ -455,6 +473,19 @@ def gateway_operation(ctx: Context, op: Callable[[Master, gateway_client.Gateway
         op(m, gateway_client.GatewayClient(m))
 
     return master_operation(ctx, a.baud or DEFAULT_BAUD, run)
+
+
+def gateway_reads(ctx: Context, **reads: Callable):
+    """gateway_operation() of calls that only read: each keyword's function
+    of the client gives one result. Returns (master, failure, ms, results:
+    a dict by keyword, of the calls that returned)."""
+    got = {}
+
+    def op(m, gw):
+        for name, read in reads.items():
+            got[name] = read(gw)
+
+    return (*gateway_operation(ctx, op), got)
 
 
 def gateway_report(
