@@ -6,7 +6,6 @@ dan-gatewayd on the other, esc_sim's four ESCs behind the SLCAN hub.
 Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
 
-
 import pytest
 
 from bus_util import danprobe, read_capture
