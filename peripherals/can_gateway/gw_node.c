@@ -239,8 +239,8 @@ static void on_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t 
 {
     switch (t->data_type_id) {
     case DAN_DC_NODE_STATUS_ID: dan_gwn_on_node_status(g, t, now_us); break;
-    case DAN_DC_ESC_STATUS_ID:
-    case DAN_DC_ESC_STATUS_EXTENDED_ID: dan_gwn_on_esc(g, t, now_us); break;
+    case DAN_DC_ESC_STATUS_ID: dan_gwn_on_esc_status(g, t, now_us); break;
+    case DAN_DC_ESC_STATUS_EXTENDED_ID: dan_gwn_on_esc_ext(g, t, now_us); break;
     case DAN_DC_TUNNEL_TARGETTED_ID: dan_gwn_on_targetted(g, t); break;
     case DAN_DC_TUNNEL_BROADCAST_ID: dan_gwn_on_tun_broadcast(g, t); break;
     case DAN_DC_ALLOCATION_ID: dan_gwn_on_allocation(g, t, now_us); break;

@@ -123,44 +123,32 @@ uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g)
     return n;
 }
 
-/* esc.Status and esc.StatusExtended: each fills its part of the slot of
- * the ESC index it names (the sender is the slot's node from then on). */
-void dan_gwn_on_esc(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
+/* The slot of ESC index, now reported by node with the part flag. */
+static dan_gw_node_esc_t *esc_slot(dan_gw_node_t *g, uint8_t index, uint8_t node, uint8_t flag)
 {
-    union {
-        dan_dc_esc_status_t s;
-        dan_dc_esc_status_extended_t x;
-    } m;
-    bool status = t->data_type_id == DAN_DC_ESC_STATUS_ID;
+    dan_gw_node_esc_t *e = &g->esc.slot[index % DAN_GW_NODE_ESC_SLOTS];
+    e->t.esc_index = index;
+    e->t.node_id = node;
+    e->t.flags |= flag;
+    return e;
+}
+
+void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
+{
+    dan_dc_esc_status_t s;
     dan_gw_node_esc_t *e;
-    uint8_t index;
-    if ((status ? dan_dc_esc_status_decode(&m.s, t->payload, t->payload_len)
-                : dan_dc_esc_status_extended_decode(&m.x, t->payload, t->payload_len)) != DAN_OK) {
+    if (dan_dc_esc_status_decode(&s, t->payload, t->payload_len) != DAN_OK) {
         return;
     }
-    index = status ? m.s.esc_index : m.x.esc_index;
-    e = &g->esc.slot[index % DAN_GW_NODE_ESC_SLOTS];
-    e->t.esc_index = index;
-    e->t.node_id = t->source_node;
-    if (status) {
-        e->t.flags |= DAN_GW_TELEM_STATUS;
-        e->t.voltage_f16 = m.s.voltage_f16;
-        e->t.current_f16 = m.s.current_f16;
-        e->t.temperature_f16 = m.s.temperature_f16;
-        e->t.rpm = m.s.rpm;
-        e->t.power_pct = m.s.power_rating_pct;
-        e->t.error_count = m.s.error_count;
-        e->status_us = now_us;
-        e->fresh = true;
-    } else {
-        e->t.flags |= DAN_GW_TELEM_EXT;
-        e->t.input_pct = m.x.input_pct;
-        e->t.output_pct = m.x.output_pct;
-        e->t.motor_temp_c = m.x.motor_temperature_degC;
-        e->t.motor_angle = m.x.motor_angle;
-        e->t.status_flags = m.x.status_flags;
-        e->ext_us = now_us;
-    }
+    e = esc_slot(g, s.esc_index, t->source_node, DAN_GW_TELEM_STATUS);
+    e->t.voltage_f16 = s.voltage_f16;
+    e->t.current_f16 = s.current_f16;
+    e->t.temperature_f16 = s.temperature_f16;
+    e->t.rpm = s.rpm;
+    e->t.power_pct = s.power_rating_pct;
+    e->t.error_count = s.error_count;
+    e->status_us = now_us;
+    e->fresh = true;
 }
 
 /* device.Temperature joins the telemetry of every ESC index the same node
@@ -181,4 +169,20 @@ void dan_gwn_on_temperature(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64
             e->dev_us = now_us;
         }
     }
+}
+
+void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
+{
+    dan_dc_esc_status_extended_t s;
+    dan_gw_node_esc_t *e;
+    if (dan_dc_esc_status_extended_decode(&s, t->payload, t->payload_len) != DAN_OK) {
+        return;
+    }
+    e = esc_slot(g, s.esc_index, t->source_node, DAN_GW_TELEM_EXT);
+    e->t.input_pct = s.input_pct;
+    e->t.output_pct = s.output_pct;
+    e->t.motor_temp_c = s.motor_temperature_degC;
+    e->t.motor_angle = s.motor_angle;
+    e->t.status_flags = s.status_flags;
+    e->ext_us = now_us;
 }

@@ -41,8 +41,8 @@ uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g);
 /* The next ESC with esc.Status as a compact record (ESC_FAST_T), marked
  * not fresh; false if no ESC sent esc.Status. */
 bool dan_gwn_esc_next_fast(dan_gw_node_t *g, dan_gw_fast_rec_t *rec, uint64_t now_us);
-/* esc.Status and esc.StatusExtended */
-void dan_gwn_on_esc(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
+void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_on_temperature(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 void dan_gwn_esc_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_esc_next_us(const dan_gw_node_t *g, uint64_t t);
