@@ -17,8 +17,6 @@
 
 /* ---- test peripherals ---- */
 
-static const dan_identity_t ident_a = {1,       "DAN Project",         "test A", "rev 1",
-                                       "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
 static const dan_identity_t ident_b = {
     1,       "DAN Project", "test B",
     "rev 2", "2.0.0",       DAN_BAUD_MASK_19200 | DAN_BAUD_MASK_57600 | DAN_BAUD_MASK_115200,
@@ -48,11 +46,7 @@ static void rig_setup(bool echo)
 {
     dan_master_config_t cfg;
     memset(&rig, 0, sizeof rig);
-    types_dev1[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST,
-                                  .identity = &ident_a,
-                                  .handlers = test_a_handlers,
-                                  .nhandlers = TEST_A_NHANDLERS,
-                                  .user = &silent_calls};
+    types_dev1[0] = test_a_type(&silent_calls);
     types_dev1[1] = (dan_ptype_t){.first = DAN_TYPE_TEST_B_FIRST, .identity = &ident_b};
     types_dev2[0] = (dan_ptype_t){.first = DAN_TYPE_CAN_GW_FIRST, .identity = &ident_gw};
     sim_init(&rig.bus, STEP_US);

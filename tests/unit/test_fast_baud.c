@@ -18,8 +18,6 @@
 /* 1 us steps: a character is 5 us at 2 Mbit/s. */
 #define STEP_US 1u
 
-static const dan_identity_t ident_a = {1,       "DAN Project",         "test A", "rev 1",
-                                       "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
 static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1", DAN_BAUD_MASK_DEFINED,
                                         0, false};
 static const dan_identity_t ident_b = {1, "Old Co", "v1 only", "1", "0.9", DAN_BAUD_MASK_DEFINED,
@@ -67,11 +65,7 @@ static void master_init(uint32_t fast_max, uint32_t seed)
 static void rig_setup(const uint32_t *gw_fast, size_t gw_fast_n, bool with_v1)
 {
     memset(&rig, 0, sizeof rig);
-    type_a[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST,
-                              .identity = &ident_a,
-                              .handlers = test_a_handlers,
-                              .nhandlers = TEST_A_NHANDLERS,
-                              .user = &silent_calls};
+    type_a[0] = test_a_type(&silent_calls);
     type_gw[0] = (dan_ptype_t){.first = DAN_TYPE_CAN_GW_FIRST, .identity = &ident_gw};
     type_b[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_B_FIRST, .identity = &ident_b};
     sim_init(&rig.bus, STEP_US);
