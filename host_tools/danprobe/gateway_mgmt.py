@@ -347,7 +347,7 @@ class CallResultRequest(Record):
 
 
 @dataclass
-class CallResultResponse:
+class CallResultResponse(Record):
     """u16 call_id, u8 state, uv result_len, uv offset, array data (<= 128;
     empty until DONE)."""
 
@@ -357,24 +357,22 @@ class CallResultResponse:
     offset: int = 0
     data: bytes = b""
 
+    LAYOUT = (
+        ("call_id", "u16"),
+        ("state", "u8"),
+        ("result_len", "uvarint"),
+        ("offset", "uvarint"),
+        ("data", "array"),
+    )
+
     def encode(self) -> bytes:
         if len(self.data) > RESULT_CHUNK_MAX:
             raise ValueError(f"CALL_RESULT: at most {RESULT_CHUNK_MAX} data bytes")
-        return (
-            Writer()
-            .u16(self.call_id)
-            .u8(self.state)
-            .uvarint(self.result_len)
-            .uvarint(self.offset)
-            .array(self.data)
-            .bytes()
-        )
+        return super().encode()
 
     @classmethod
     def decode(cls, payload) -> "CallResultResponse":
-        r = Reader(payload)
-        q = cls(r.u16("call_id"), r.u8("state"), r.uvarint("result_len"), r.uvarint("offset"))
-        q.data = r.array("data")
+        q = super().decode(payload)
         if q.state > CALL_BUSY or len(q.data) > RESULT_CHUNK_MAX:
             raise PayloadError(f"CALL_RESULT: state {q.state}, {len(q.data)} data bytes")
         return q
