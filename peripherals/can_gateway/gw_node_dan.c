@@ -64,14 +64,22 @@ static DAN_GWN_HANDLER(h_esc_telem)
     return DAN_OK;
 }
 
-static DAN_GWN_HANDLER(h_arm)
+/* ARM and SAFETY: one byte, its two values (DISARMED or FULLY_ARMED,
+ * SAFETY_ON or SAFETY_OFF); the response is the gateway flags. */
+static DAN_GWN_HANDLER(h_arm_safety)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
-    (void)code;
-    if (!dan_gwn_byte_of(req, len, DAN_GW_ARM_DISARMED, DAN_GW_ARM_FULLY_ARMED)) {
-        return dan_gwn_refuse(err, "ARM takes 0 or 255 only");
+    bool arm = code == DAN_GW_CODE_ARM;
+    uint8_t off = arm ? DAN_GW_ARM_DISARMED : DAN_GW_SAFETY_ON;
+    uint8_t on = arm ? DAN_GW_ARM_FULLY_ARMED : DAN_GW_SAFETY_OFF;
+    if (!dan_gwn_byte_of(req, len, off, on)) {
+        return dan_gwn_refuse(err, arm ? "ARM takes 0 or 255 only" : "SAFETY takes 0 or 255 only");
     }
-    dan_gwn_arming_set(g, req[0], now_us);
+    if (arm) {
+        dan_gwn_arming_set(g, req[0], now_us);
+    } else {
+        dan_gwn_safety_set(g, req[0], now_us);
+    }
     dan_put_u8(resp, dan_gw_node_flags(g));
     return DAN_OK;
 }
@@ -315,7 +323,7 @@ static DAN_GWN_HANDLER(h_can_filter)
 const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_ESC_CMD, h_esc_cmd},
     {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
-    {DAN_GW_CODE_ARM, h_arm},
+    {DAN_GW_CODE_ARM, h_arm_safety},
     {DAN_GW_CODE_CONFIG, h_config},
     {DAN_GW_CODE_STATS, h_stats},
     {DAN_GW_CODE_NODES, h_nodes},
@@ -329,7 +337,7 @@ const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_CALL_RESULT, dan_gwn_h_call_result},
     {DAN_GW_CODE_HEALTH, dan_gwn_h_health},
     {DAN_GW_CODE_DNA, dan_gwn_h_dna},
-    {DAN_GW_CODE_SAFETY, dan_gwn_h_safety},
+    {DAN_GW_CODE_SAFETY, h_arm_safety},
     {DAN_GW_CODE_SERVO, dan_gwn_h_servo},
     {DAN_GW_CODE_SERVO_FAILSAFE, dan_gwn_h_servo_failsafe},
     {DAN_GW_CODE_LIGHTS, dan_gwn_h_lights},

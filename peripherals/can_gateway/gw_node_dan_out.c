@@ -1,18 +1,7 @@
-/* Gateway node: the DAN handlers of the outputs besides ESCs (SAFETY,
- * SERVO, SERVO_FAILSAFE, LIGHTS, BEEP); the table is in gw_node_dan.c. */
+/* Gateway node: the DAN handlers of the outputs besides ESCs (SERVO,
+ * SERVO_FAILSAFE, LIGHTS, BEEP; SAFETY shares ARM's); the table is in
+ * gw_node_dan.c. */
 #include "gw_node_internal.h"
-
-DAN_GWN_HANDLER(dan_gwn_h_safety)
-{
-    dan_gw_node_t *g = dan_gwn_touch(user, now_us);
-    (void)code;
-    if (!dan_gwn_byte_of(req, len, DAN_GW_SAFETY_ON, DAN_GW_SAFETY_OFF)) {
-        return dan_gwn_refuse(err, "SAFETY takes 0 or 255 only");
-    }
-    dan_gwn_safety_set(g, req[0], now_us);
-    dan_put_u8(resp, dan_gw_node_flags(g));
-    return DAN_OK;
-}
 
 DAN_GWN_HANDLER(dan_gwn_h_servo)
 {

@@ -185,7 +185,6 @@ DAN_GWN_HANDLER(dan_gwn_h_node_call);
 DAN_GWN_HANDLER(dan_gwn_h_call_result);
 DAN_GWN_HANDLER(dan_gwn_h_health);
 DAN_GWN_HANDLER(dan_gwn_h_dna);
-DAN_GWN_HANDLER(dan_gwn_h_safety);
 DAN_GWN_HANDLER(dan_gwn_h_servo);
 DAN_GWN_HANDLER(dan_gwn_h_servo_failsafe);
 DAN_GWN_HANDLER(dan_gwn_h_lights);
