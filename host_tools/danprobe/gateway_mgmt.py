@@ -18,7 +18,7 @@ from typing import Union
 
 from danprobe.gateway_file import file_name, get_name
 from danprobe.gateway_msgs import check_range
-from danprobe.payloads import PayloadError, Reader, Record, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer, attrs
 
 # ---- values (uavcan.protocol.param.Value on the DAN wire) ----
 # u8 tag, then INTEGER i64 (8 bytes LE), REAL f32 (IEEE bits, 4 bytes LE),
@@ -378,13 +378,8 @@ class CallResultResponse(Record):
         return q
 
     def as_dict(self) -> dict:
-        return {
-            "call_id": self.call_id,
-            "state": CALL_STATE_NAMES[self.state],
-            "result_len": self.result_len,
-            "offset": self.offset,
-            "data": self.data.hex(),
-        }
+        d = CallState.as_dict(self)  # call_id, state by name, result_len
+        return {**d, "offset": self.offset, "data": self.data.hex()}
 
 
 # ---- call results (the bytes CALL_RESULT reads) ----
@@ -532,9 +527,7 @@ class Health:
             "ok": self.ok,
             "reason": reason_name(self.reason),
             "reason_code": self.reason,
-            "subject": self.subject,
-            "detail": self.detail,
-            "problems": self.problems,
+            **attrs(self, "subject", "detail", "problems"),
         }
 
 
