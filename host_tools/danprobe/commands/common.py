@@ -388,9 +388,11 @@ def add_gateway_options(
     long_running: bool = False,
     timeout_default: float = 30.0,
     timeout_help: Optional[str] = None,
+    own: Optional[str] = None,
 ):
     """The options of every gateway command: the common and bus options
-    (--types defaults to can-gw alone), --bus-baud and --configure."""
+    (--types defaults to can-gw alone), --bus-baud and --configure. With own
+    (the command's name), returns the group "<own> options" for its own."""
     add_common_options(
         p,
         baud_help="the baud the bus is at, if known: the gateway is tried there first "
@@ -415,6 +417,7 @@ def add_gateway_options(
         help="first move the bus to the best baud of every peripheral found "
         "(--types; 115200 for the gateway alone, or up to --max-baud)",
     )
+    return p.add_argument_group(f"{own} options") if own else None
 
 
 def gateway_actions(p: argparse.ArgumentParser, command: str, helps: dict, description: str):
@@ -425,8 +428,7 @@ def gateway_actions(p: argparse.ArgumentParser, command: str, helps: dict, descr
     sub.required = True
     for name, text in helps.items():
         s = sub.add_parser(name, help=text, description=description)
-        add_gateway_options(s)
-        yield name, s.add_argument_group(f"{command} {name} options")
+        yield name, add_gateway_options(s, own=f"{command} {name}")
 
 
 def find_gateway(ctx: Context, m: Master):
