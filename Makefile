@@ -253,6 +253,7 @@ style: venv
 	@$(VENV)/bin/ruff format --check --quiet $(STYLE_PY) && $(VENV)/bin/ruff check --quiet $(STYLE_PY) \
 	  && echo "style: Python ok ($(words $(STYLE_PY)) files)"
 	@$(VENV)/bin/python tests/style/check_functions.py
+	@$(VENV)/bin/python tests/style/check_braces.py
 format: venv
 	clang-format -i $(STYLE_C)
 	$(VENV)/bin/ruff format --quiet $(STYLE_PY)

@@ -158,40 +158,32 @@ def start_escs_and_gateway(stack, tmp):
 
 
 def drive(port, ramp_seconds, plot):
-    """What a technician does with danprobe, step by step."""
-    step("Discover the DAN bus at 9600 baud")
-    danprobe("discover", *port)
-    step("Configure the bus to 115200 baud")
-    danprobe("configure", *port, "--baud", "115200")
-    step("Safety off: SafetyState 255, the outputs may move (AP_Periph ESCs wait for it)")
-    danprobe("safety", "off", *port, "--bus-baud", "115200")
-    step("Arm")
-    danprobe("arm", *port, "--bus-baud", "115200")
-    step(f"Throttle ramp on four ESCs with live telemetry ({ramp_seconds:g} s)")
-    danprobe(
-        "esc",
-        *port,
-        "--bus-baud",
-        "115200",
-        "--count",
-        "4",
-        "--ramp",
-        "0:3000",
-        "--rate",
-        "50",
-        "--duration",
-        ramp_seconds,
-        "--plot",
-        plot,
+    """What a technician does with danprobe, step by step: (what the step
+    says, the danprobe command, its options after the port)."""
+    bus = ("--bus-baud", "115200")
+    ramp = ("--count", "4", "--ramp", "0:3000", "--rate", "50", "--duration", ramp_seconds)
+    steps = (
+        ("Discover the DAN bus at 9600 baud", ("discover",), ()),
+        ("Configure the bus to 115200 baud", ("configure",), ("--baud", "115200")),
+        (
+            "Safety off: SafetyState 255, the outputs may move (AP_Periph ESCs wait for it)",
+            ("safety", "off"),
+            bus,
+        ),
+        ("Arm", ("arm",), bus),
+        (
+            f"Throttle ramp on four ESCs with live telemetry ({ramp_seconds:g} s)",
+            ("esc",),
+            (*bus, *ramp, "--plot", plot),
+        ),
+        ("The gateway's DroneCAN node table", ("nodes",), bus),
+        ("Disarm", ("disarm",), bus),
+        ("Safety on: SafetyState 0, the outputs locked", ("safety", "on"), bus),
+        ("Gateway counters", ("stats",), bus),
     )
-    step("The gateway's DroneCAN node table")
-    danprobe("nodes", *port, "--bus-baud", "115200")
-    step("Disarm")
-    danprobe("disarm", *port, "--bus-baud", "115200")
-    step("Safety on: SafetyState 0, the outputs locked")
-    danprobe("safety", "on", *port, "--bus-baud", "115200")
-    step("Gateway counters")
-    danprobe("stats", *port, "--bus-baud", "115200")
+    for text, command, options in steps:
+        step(text)
+        danprobe(*command, *port, *options)
 
 
 def esc_events(tmp, event):

@@ -45,3 +45,13 @@ def stop(p: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 10.0) 
         signal_group(p, sig)
         wait_or_kill(p, timeout)
     return p.returncode
+
+
+def close_all(procs):
+    """Stops procs, the last started first, and closes their stdout pipes
+    and their log files (p.log_file)."""
+    for p in reversed(procs):
+        stop(p)
+        if p.stdout:
+            p.stdout.close()
+        p.log_file.close()

@@ -28,6 +28,7 @@ from danprobe.master import (
     Malformed,
     OperationTimeout,
 )
+from danprobe.payloads import attrs
 from danprobe.port import now
 
 FAILURES_MAX = 5  # failed transactions in a row (after the master's retries)
@@ -304,12 +305,5 @@ class Follow:
             )
 
     def as_dict(self) -> dict:
-        return {
-            "node": self.node_id,
-            "state": self.state,
-            "why": self.why,
-            "before": self.before,
-            "after": self.after,
-            "bytes_read": self.bytes_read,
-            "file_size": self.file_size,
-        }
+        names = ("state", "why", "before", "after", "bytes_read", "file_size")
+        return {"node": self.node_id, **attrs(self, *names)}

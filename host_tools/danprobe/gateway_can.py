@@ -22,7 +22,7 @@ from danprobe.gateway_msgs import (
     SFF_MASK,
     check_range,
 )
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer, attrs
 
 
 @dataclass
@@ -91,15 +91,8 @@ class CanFrame:
         return f"{ident}#{self.data.hex().upper()}"
 
     def as_dict(self) -> dict:
-        return {
-            "id": self.id,
-            "ext": self.ext,
-            "rtr": self.rtr,
-            "dlc": self.dlc,
-            "data": self.data.hex(),
-            "text": self.candump(),
-            "own": self.own,
-        }
+        d = attrs(self, "id", "ext", "rtr", "dlc")
+        return {**d, "data": self.data.hex(), "text": self.candump(), "own": self.own}
 
 
 _HEX = set("0123456789abcdefABCDEF")
@@ -155,21 +148,12 @@ class CanSendRequest:
 
 
 @dataclass
-class CanSendResponse:
+class CanSendResponse(Record):
     seq: int = 0
     accepted: int = 0
     queue_free: int = 0
 
-    def encode(self) -> bytes:
-        return Writer().u8(self.seq).u8(self.accepted).uvarint(self.queue_free).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "CanSendResponse":
-        r = Reader(payload)
-        return cls(r.u8("seq"), r.u8("accepted"), r.uvarint("queue_free"))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    LAYOUT = (("seq", "u8"), ("accepted", "u8"), ("queue_free", "uvarint"))
 
 
 RECV_TIMES = 0x01  # CAN_RECV opts: receive times in the response

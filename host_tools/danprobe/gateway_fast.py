@@ -23,7 +23,7 @@ from danprobe.gateway_msgs import (
     encode_esc_cmd,
     flags_dict,
 )
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Writer, attrs
 
 CODE_ESC_FAST = 0x59
 CODE_ESC_FAST_T = 0x5A
@@ -90,15 +90,8 @@ class FastRecord(EscStatusFloats):
         return self.age_4ms * AGE_UNIT_MS
 
     def as_dict(self) -> dict:
-        return {
-            "index": self.esc_index,
-            "fresh": self.fresh,
-            "age_ms": self.age_ms,
-            "voltage": self.voltage,
-            "current": self.current,
-            "temperature": self.temperature,
-            "rpm": self.rpm,
-        }
+        names = ("fresh", "age_ms", "voltage", "current", "temperature", "rpm")
+        return {"index": self.esc_index, **attrs(self, *names)}
 
 
 @dataclass

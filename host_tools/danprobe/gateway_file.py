@@ -15,7 +15,7 @@ import zlib
 from dataclasses import dataclass, field
 from typing import Optional, Union
 
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer
 
 CODE_FILE_OPEN = 0x5B
 CODE_FILE_WRITE = 0x5C
@@ -156,20 +156,14 @@ class FileOpen:
 
 
 @dataclass
-class FileState:
+class FileState(Record):
     """FILE_OPEN and FILE_WRITE response: u8 result, uv have (the bytes the
     upload holds, contiguous from 0: where to go on)."""
 
     result: int = FILE_OK
     have: int = 0
 
-    def encode(self) -> bytes:
-        return Writer().u8(self.result).uvarint(self.have).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "FileState":
-        r = Reader(payload)
-        return cls(r.u8("result"), r.uvarint("have"))
+    LAYOUT = (("result", "u8"), ("have", "uvarint"))
 
     def as_dict(self) -> dict:
         return {"result": result_name(self.result), "have": self.have}

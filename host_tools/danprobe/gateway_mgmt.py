@@ -18,7 +18,7 @@ from typing import Union
 
 from danprobe.gateway_file import file_name, get_name
 from danprobe.gateway_msgs import check_range
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer, attrs
 
 # ---- values (uavcan.protocol.param.Value on the DAN wire) ----
 # u8 tag, then INTEGER i64 (8 bytes LE), REAL f32 (IEEE bits, 4 bytes LE),
@@ -336,27 +336,18 @@ class CallState:
 
 
 @dataclass
-class CallResultRequest:
+class CallResultRequest(Record):
     """u16 call_id, uv offset, u8 max."""
 
     call_id: int = 0
     offset: int = 0
     max: int = RESULT_CHUNK_MAX
 
-    def encode(self) -> bytes:
-        return Writer().u16(self.call_id).uvarint(self.offset).u8(self.max).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "CallResultRequest":
-        r = Reader(payload)
-        return cls(r.u16("call_id"), r.uvarint("offset"), r.u8("max"))
-
-    def as_dict(self) -> dict:
-        return {"call_id": self.call_id, "offset": self.offset, "max": self.max}
+    LAYOUT = (("call_id", "u16"), ("offset", "uvarint"), ("max", "u8"))
 
 
 @dataclass
-class CallResultResponse:
+class CallResultResponse(Record):
     """u16 call_id, u8 state, uv result_len, uv offset, array data (<= 128;
     empty until DONE)."""
 
@@ -366,36 +357,29 @@ class CallResultResponse:
     offset: int = 0
     data: bytes = b""
 
+    LAYOUT = (
+        ("call_id", "u16"),
+        ("state", "u8"),
+        ("result_len", "uvarint"),
+        ("offset", "uvarint"),
+        ("data", "array"),
+    )
+
     def encode(self) -> bytes:
         if len(self.data) > RESULT_CHUNK_MAX:
             raise ValueError(f"CALL_RESULT: at most {RESULT_CHUNK_MAX} data bytes")
-        return (
-            Writer()
-            .u16(self.call_id)
-            .u8(self.state)
-            .uvarint(self.result_len)
-            .uvarint(self.offset)
-            .array(self.data)
-            .bytes()
-        )
+        return super().encode()
 
     @classmethod
     def decode(cls, payload) -> "CallResultResponse":
-        r = Reader(payload)
-        q = cls(r.u16("call_id"), r.u8("state"), r.uvarint("result_len"), r.uvarint("offset"))
-        q.data = r.array("data")
+        q = super().decode(payload)
         if q.state > CALL_BUSY or len(q.data) > RESULT_CHUNK_MAX:
             raise PayloadError(f"CALL_RESULT: state {q.state}, {len(q.data)} data bytes")
         return q
 
     def as_dict(self) -> dict:
-        return {
-            "call_id": self.call_id,
-            "state": CALL_STATE_NAMES[self.state],
-            "result_len": self.result_len,
-            "offset": self.offset,
-            "data": self.data.hex(),
-        }
+        d = CallState.as_dict(self)  # call_id, state by name, result_len
+        return {**d, "offset": self.offset, "data": self.data.hex()}
 
 
 # ---- call results (the bytes CALL_RESULT reads) ----
@@ -543,9 +527,7 @@ class Health:
             "ok": self.ok,
             "reason": reason_name(self.reason),
             "reason_code": self.reason,
-            "subject": self.subject,
-            "detail": self.detail,
-            "problems": self.problems,
+            **attrs(self, "subject", "detail", "problems"),
         }
 
 

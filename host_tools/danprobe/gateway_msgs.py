@@ -24,7 +24,7 @@ from typing import Optional
 
 from danprobe.codec import MalformedError, crc_table, uvarint_encode
 from danprobe.gateway_file import FwFollow
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Record, Writer, attrs
 
 # ---- codes (block 0x40..0x4F: 0x40 IDENTIFY, 0x41 CONFIGURE) ----
 CODE_ESC_CMD = 0x42
@@ -78,6 +78,18 @@ TELEM_DEVICE = 0x04  # device.Temperature of the ESC's node
 TELEM_FLAGS = TELEM_STATUS | TELEM_EXT | TELEM_DEVICE
 # device.Temperature error_flags
 DEV_OVERHEATING, DEV_OVERCOOLING = 0x01, 0x02
+# a record's as_dict keys by the part it holds (TELEM_DEVICE adds two flags)
+TELEM_KEYS = (
+    (
+        TELEM_STATUS,
+        ("age_ms", "voltage", "current", "temperature", "rpm", "power_pct", "error_count"),
+    ),
+    (
+        TELEM_EXT,
+        ("ext_age_ms", "input_pct", "output_pct", "motor_temp_c", "motor_angle", "status_flags"),
+    ),
+    (TELEM_DEVICE, ("dev_age_ms", "dev_temperature", "dev_flags")),
+)
 
 # CONFIG set mask
 CFG_ESC_TIMEOUT = 0x01
@@ -395,30 +407,11 @@ class TelemRecord(EscStatusFloats):
             "extended": bool(self.flags & TELEM_EXT),
             "device": bool(self.flags & TELEM_DEVICE),
         }
-        if self.flags & TELEM_STATUS:
-            d.update(
-                age_ms=self.age_ms,
-                voltage=self.voltage,
-                current=self.current,
-                temperature=self.temperature,
-                rpm=self.rpm,
-                power_pct=self.power_pct,
-                error_count=self.error_count,
-            )
-        if self.flags & TELEM_EXT:
-            d.update(
-                ext_age_ms=self.ext_age_ms,
-                input_pct=self.input_pct,
-                output_pct=self.output_pct,
-                motor_temp_c=self.motor_temp_c,
-                motor_angle=self.motor_angle,
-                status_flags=self.status_flags,
-            )
+        for flag, names in TELEM_KEYS:
+            if self.flags & flag:
+                d.update(attrs(self, *names))
         if self.flags & TELEM_DEVICE:
             d.update(
-                dev_age_ms=self.dev_age_ms,
-                dev_temperature=self.dev_temperature,
-                dev_flags=self.dev_flags,
                 overheating=bool(self.dev_flags & DEV_OVERHEATING),
                 overcooling=bool(self.dev_flags & DEV_OVERCOOLING),
             )
@@ -570,14 +563,8 @@ class ConfigResponse:
         return c
 
     def as_dict(self) -> dict:
-        return {
-            "node_id": self.node_id,
-            "esc_timeout_ms": self.esc_timeout_ms,
-            "arming_rate_hz": self.arming_rate_hz,
-            "telem_timeout_ms": self.telem_timeout_ms,
-            "dna": self.dna,
-            **flags_dict(self.flags),
-        }
+        names = ("node_id", "esc_timeout_ms", "arming_rate_hz", "telem_timeout_ms", "dna")
+        return {**attrs(self, *names), **flags_dict(self.flags)}
 
 
 # ---- STATS (0x46): u8 n, n x uvarint ----
@@ -792,20 +779,11 @@ class TunOpen:
 
 
 @dataclass
-class TunOpenResult:
+class TunOpenResult(Record):
     port: int = 0
     result: int = 0  # 0 OK, 1 refused
 
-    def encode(self) -> bytes:
-        return Writer().u8(self.port).u8(self.result).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "TunOpenResult":
-        r = Reader(payload)
-        return cls(r.u8("port"), r.u8("result"))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    LAYOUT = (("port", "u8"), ("result", "u8"))
 
 
 # ---- TUN_XFER (0x4A) ----

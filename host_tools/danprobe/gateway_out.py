@@ -18,7 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from danprobe.gateway_msgs import check_range, f16_to_float
-from danprobe.payloads import PayloadError, Reader, Writer
+from danprobe.payloads import PayloadError, Reader, Writer, attrs
 
 CODE_SAFETY = 0x54
 CODE_SERVO = 0x55
@@ -173,13 +173,8 @@ class ServoCommand:
         return f"{self.actuator_id}={self.value:g} {type_name(self.command_type)}"
 
     def as_dict(self) -> dict:
-        return {
-            "actuator_id": self.actuator_id,
-            "command_type": self.command_type,
-            "type": type_name(self.command_type),
-            "value": self.value,
-            "value_f16": self.value_f16,
-        }
+        d = attrs(self, "actuator_id", "command_type")
+        return {**d, "type": type_name(self.command_type), **attrs(self, "value", "value_f16")}
 
 
 @dataclass

@@ -151,8 +151,37 @@ class Writer:
 # ---- DAN-PERIPHERAL-IDENTITY-PAYLOAD-V1 ----
 
 
+def attrs(obj, *names) -> dict:
+    """{name: obj.name} for each name, in order (as_dict's common part)."""
+    return {n: getattr(obj, n) for n in names}
+
+
+class Record:
+    """A dataclass message that is a fixed list of fields: LAYOUT holds
+    (attribute, kind) or (attribute, kind, what) with kind a Writer/Reader
+    method (u8, u16, u24, u32, uvarint, array, string) and what the name a
+    decode error gives (default: the attribute). Encode and decode follow
+    the layout, so each layout is written once."""
+
+    LAYOUT: tuple = ()
+
+    def encode(self) -> bytes:
+        w = Writer()
+        for name, kind, *_ in self.LAYOUT:
+            getattr(w, kind)(getattr(self, name))
+        return w.bytes()
+
+    @classmethod
+    def decode(cls, payload):
+        r = Reader(payload)
+        return cls(**{f[0]: getattr(r, f[1])(f[-1]) for f in cls.LAYOUT})
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
 @dataclass
-class Identity:
+class Identity(Record):
     dan_version: int = VERSION
     manufacturer: str = ""
     model: str = ""
@@ -161,31 +190,15 @@ class Identity:
     baud_mask: int = 0  # raw, as on the wire
     capabilities: int = 0  # raw, as on the wire
 
-    def encode(self) -> bytes:
-        return (
-            Writer()
-            .u8(self.dan_version)
-            .string(self.manufacturer)
-            .string(self.model)
-            .string(self.hw_version)
-            .string(self.sw_version)
-            .u16(self.baud_mask)
-            .u16(self.capabilities)
-            .bytes()
-        )
-
-    @classmethod
-    def decode(cls, payload) -> "Identity":
-        r = Reader(payload)
-        return cls(
-            r.u8("dan_version"),
-            r.string("manufacturer"),
-            r.string("model"),
-            r.string("hw_version"),
-            r.string("sw_version"),
-            r.u16("baud_mask"),
-            r.u16("capabilities"),
-        )
+    LAYOUT = (
+        ("dan_version", "u8"),
+        ("manufacturer", "string"),
+        ("model", "string"),
+        ("hw_version", "string"),
+        ("sw_version", "string"),
+        ("baud_mask", "u16"),
+        ("capabilities", "u16"),
+    )
 
     @property
     def bauds(self) -> list[int]:
@@ -245,18 +258,13 @@ def decode_ack(payload) -> int:
 
 
 @dataclass
-class ErrorMessage:
+class ErrorMessage(Record):
     code: int = 0  # the request code that caused the error
     error: int = 0  # reserved, 0 in v1
     text: str = ""
 
-    def encode(self) -> bytes:
-        return Writer().uvarint(self.code).uvarint(self.error).string(self.text).bytes()
-
-    @classmethod
-    def decode(cls, payload) -> "ErrorMessage":
-        r = Reader(payload)
-        return cls(r.uvarint("request_code"), r.uvarint("error_code"), r.string("description"))
-
-    def as_dict(self) -> dict:
-        return asdict(self)
+    LAYOUT = (
+        ("code", "uvarint", "request_code"),
+        ("error", "uvarint", "error_code"),
+        ("text", "string", "description"),
+    )

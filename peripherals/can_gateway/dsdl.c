@@ -1,22 +1,10 @@
 /* DSDL message codecs. See dsdl.h; bit rules in dronecan.h. */
-#include <string.h>
 
 #include "dan/can_gw/dsdl.h"
 #include "dan/can_gw/dsdl_file.h"
 #include "dan/can_gw/dsdl_fw.h"
 #include "dan/can_gw/dsdl_mgmt.h"
 #include "dan/can_gw/dsdl_out.h"
-
-/* Finishes an encode: DAN_ERR_OVERFLOW if the writer ran out of room. */
-static int enc_finish(const dan_dc_bw_t *w)
-{
-    return dan_dc_bw_finish(w);
-}
-
-static int dec_finish(const dan_dc_br_t *r)
-{
-    return dan_dc_br_finish(r);
-}
 
 /* ---- NodeStatus ---- */
 
@@ -75,7 +63,7 @@ int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m, uint8_t
     if (!dan_dc_put_fields(&w, m, NODE_INFO_NAME, 1u)) {
         return DAN_ERR_ARG;
     }
-    return enc_finish(&w);
+    return dan_dc_bw_finish(&w);
 }
 
 int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t *buf, size_t len)
@@ -83,12 +71,10 @@ int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t
     dan_dc_br_t r;
     dan_dc_hardware_version_t *hw;
     size_t n;
-    if (m == NULL || (buf == NULL && len > 0u)) {
+    if (!dan_dc_dec_begin(&r, m, sizeof *m, buf, len)) {
         return DAN_ERR_ARG;
     }
-    memset(m, 0, sizeof *m);
     hw = &m->hardware_version;
-    dan_dc_br_init(&r, buf, len);
     (void)dan_dc_get_fields(&r, m, NODE_INFO_HEAD, DAN_DC_NFIELDS(NODE_INFO_HEAD));
     dan_dc_get_bytes(&r, hw->unique_id, sizeof hw->unique_id);
     n = dan_dc_get_array_len(&r, DAN_DC_COA_MAX);
@@ -97,44 +83,23 @@ int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t
     if (!dan_dc_get_fields(&r, m, NODE_INFO_NAME, 1u)) {
         return DAN_ERR_MALFORMED;
     }
-    return dec_finish(&r);
+    return dan_dc_br_finish(&r);
 }
 
 /* ---- esc.RawCommand ---- */
 
-int dan_dc_esc_raw_command_encode(const dan_dc_esc_raw_command_t *m, uint8_t *buf, size_t cap)
+static void put_raw_cmd(dan_dc_bw_t *w, const void *m, size_t i)
 {
-    dan_dc_bw_t w;
-    size_t i;
-    if (m == NULL || m->count > DAN_DC_ESC_RAW_COMMAND_MAX_CMDS) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    for (i = 0; i < m->count; i++) {
-        dan_dc_put_int(&w, 14, m->cmd[i]); /* TAO: no length prefix */
-    }
-    return enc_finish(&w);
+    dan_dc_put_int(w, 14, ((const dan_dc_esc_raw_command_t *)m)->cmd[i]);
 }
 
-int dan_dc_esc_raw_command_decode(dan_dc_esc_raw_command_t *m, const uint8_t *buf, size_t len)
+static void get_raw_cmd(dan_dc_br_t *r, void *m, size_t i)
 {
-    dan_dc_br_t r;
-    size_t i, n;
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
-    n = dan_dc_tao_count(&r, 14);
-    if (n > DAN_DC_ESC_RAW_COMMAND_MAX_CMDS) {
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = 0; i < n; i++) {
-        m->cmd[i] = (int16_t)dan_dc_get_int(&r, 14);
-    }
-    m->count = (uint8_t)n;
-    return dec_finish(&r);
+    ((dan_dc_esc_raw_command_t *)m)->cmd[i] = (int16_t)dan_dc_get_int(r, 14);
 }
+
+DAN_DC_TAO_ARRAY_CODEC(dan_dc_esc_raw_command, dan_dc_esc_raw_command_t,
+                       DAN_DC_ESC_RAW_COMMAND_MAX_CMDS, 14u, put_raw_cmd, get_raw_cmd)
 
 /* ---- esc.Status, esc.StatusExtended, safety.ArmingStatus, tunnels ---- */
 

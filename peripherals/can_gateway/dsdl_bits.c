@@ -408,17 +408,64 @@ int dan_dc_encode_table(const void *m, const dan_dc_field_t *f, size_t n, uint8_
     return dan_dc_bw_finish(&w);
 }
 
+bool dan_dc_dec_begin(dan_dc_br_t *r, void *m, size_t size, const uint8_t *buf, size_t len)
+{
+    if (m == NULL || (buf == NULL && len > 0u)) {
+        return false;
+    }
+    memset(m, 0, size);
+    dan_dc_br_init(r, buf, len);
+    return true;
+}
+
 int dan_dc_decode_table(void *m, size_t size, const dan_dc_field_t *f, size_t n, const uint8_t *buf,
                         size_t len)
 {
     dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
+    if (!dan_dc_dec_begin(&r, m, size, buf, len)) {
         return DAN_ERR_ARG;
     }
-    memset(m, 0, size);
-    dan_dc_br_init(&r, buf, len);
     if (!dan_dc_get_fields(&r, m, f, n)) {
         return DAN_ERR_MALFORMED;
     }
+    return dan_dc_br_finish(&r);
+}
+
+int dan_dc_encode_tao_array(const void *m, size_t count_offset, size_t max, dan_dc_put_elem_t put,
+                            uint8_t *buf, size_t cap)
+{
+    dan_dc_bw_t w;
+    size_t i, n;
+    if (m == NULL) {
+        return DAN_ERR_ARG;
+    }
+    n = ((const uint8_t *)m)[count_offset];
+    if (n > max) {
+        return DAN_ERR_ARG;
+    }
+    dan_dc_bw_init(&w, buf, cap);
+    for (i = 0; i < n; i++) { /* TAO: no length prefix */
+        put(&w, m, i);
+    }
+    return dan_dc_bw_finish(&w);
+}
+
+int dan_dc_decode_tao_array(void *m, size_t size, size_t count_offset, size_t max,
+                            unsigned elem_bits, dan_dc_get_elem_t get, const uint8_t *buf,
+                            size_t len)
+{
+    dan_dc_br_t r;
+    size_t i, n;
+    if (!dan_dc_dec_begin(&r, m, size, buf, len)) {
+        return DAN_ERR_ARG;
+    }
+    n = dan_dc_tao_count(&r, elem_bits);
+    if (n > max) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = 0; i < n; i++) {
+        get(&r, m, i);
+    }
+    ((uint8_t *)m)[count_offset] = (uint8_t)n;
     return dan_dc_br_finish(&r);
 }

@@ -1,6 +1,4 @@
 /* DSDL codecs of the file services (see dan/can_gw/dsdl_file.h). */
-#include <string.h>
-
 #include "dan/can_gw/dsdl_file.h"
 
 /* ---- file.GetInfo ---- */
@@ -42,11 +40,9 @@ int dan_dc_file_read_rsp_decode(dan_dc_file_read_rsp_t *m, const uint8_t *buf, s
 {
     dan_dc_br_t r;
     size_t n;
-    if (m == NULL || (buf == NULL && len > 0u)) {
+    if (!dan_dc_dec_begin(&r, m, sizeof *m, buf, len)) {
         return DAN_ERR_ARG;
     }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
     m->error = (int16_t)dan_dc_get_int(&r, 16);
     n = dan_dc_tao_count(&r, 8);
     if (n > DAN_DC_FILE_READ_MAX) {

@@ -106,11 +106,9 @@ int dan_dc_param_getset_req_encode(const dan_dc_param_getset_req_t *m, uint8_t *
 int dan_dc_param_getset_req_decode(dan_dc_param_getset_req_t *m, const uint8_t *buf, size_t len)
 {
     dan_dc_br_t r;
-    if (m == NULL || (buf == NULL && len > 0u)) {
+    if (!dan_dc_dec_begin(&r, m, sizeof *m, buf, len)) {
         return DAN_ERR_ARG;
     }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
     m->index = (uint16_t)dan_dc_get_uint(&r, 13);
     if (!get_value(&r, &m->value, false) || !get_name(&r, m->name, &m->name_len)) {
         return DAN_ERR_MALFORMED;
@@ -143,11 +141,9 @@ int dan_dc_param_getset_rsp_decode(dan_dc_param_getset_rsp_t *m, const uint8_t *
 {
     dan_dc_br_t r;
     bool ok;
-    if (m == NULL || (buf == NULL && len > 0u)) {
+    if (!dan_dc_dec_begin(&r, m, sizeof *m, buf, len)) {
         return DAN_ERR_ARG;
     }
-    memset(m, 0, sizeof *m);
-    dan_dc_br_init(&r, buf, len);
     (void)dan_dc_get_uint(&r, 5);
     ok = get_value(&r, &m->value, false);
     (void)dan_dc_get_uint(&r, 5);
@@ -177,43 +173,29 @@ DAN_DC_TABLE_CODEC(dan_dc_param_opcode_rsp, dan_dc_param_opcode_t, OPCODE_RSP)
 
 /* ---- RestartNode ---- */
 
+/* One value each way: tables over the value itself. */
+static const dan_dc_field_t RESTART_REQ[] = {{0u, sizeof(uint64_t), 40u, DAN_DC_F_UINT}};
+static const dan_dc_field_t RESTART_RSP[] = {{0u, sizeof(bool), 1u, DAN_DC_F_UINT}};
+
 int dan_dc_restart_req_encode(uint64_t magic, uint8_t *buf, size_t cap)
 {
-    dan_dc_bw_t w;
     if (magic > DAN_DC_RESTART_MAGIC_MAX) {
         return DAN_ERR_ARG;
     }
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 40, magic);
-    return dan_dc_bw_finish(&w);
+    return dan_dc_encode_table(&magic, RESTART_REQ, 1u, buf, cap);
 }
 
 int dan_dc_restart_req_decode(uint64_t *magic, const uint8_t *buf, size_t len)
 {
-    dan_dc_br_t r;
-    if (magic == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_br_init(&r, buf, len);
-    *magic = dan_dc_get_uint(&r, 40);
-    return dan_dc_br_finish(&r);
+    return dan_dc_decode_table(magic, sizeof *magic, RESTART_REQ, 1u, buf, len);
 }
 
 int dan_dc_restart_rsp_encode(bool ok, uint8_t *buf, size_t cap)
 {
-    dan_dc_bw_t w;
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_bool(&w, ok);
-    return dan_dc_bw_finish(&w);
+    return dan_dc_encode_table(&ok, RESTART_RSP, 1u, buf, cap);
 }
 
 int dan_dc_restart_rsp_decode(bool *ok, const uint8_t *buf, size_t len)
 {
-    dan_dc_br_t r;
-    if (ok == NULL || (buf == NULL && len > 0u)) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_br_init(&r, buf, len);
-    *ok = dan_dc_get_bool(&r);
-    return dan_dc_br_finish(&r);
+    return dan_dc_decode_table(ok, sizeof *ok, RESTART_RSP, 1u, buf, len);
 }

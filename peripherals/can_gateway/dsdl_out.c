@@ -1,94 +1,53 @@
 /* DSDL codecs of outputs and indications (see dan/can_gw/dsdl_out.h). */
-#include <string.h>
-
 #include "dan/can_gw/dsdl_out.h"
 
-/* Decoding starts with a zeroed struct and a reader, as everywhere. */
-static bool dec_begin(dan_dc_br_t *r, void *m, size_t size, const uint8_t *buf, size_t len)
+/* ---- ArrayCommand: Command[<=15] (TAO), each uint8 actuator_id, uint8
+ * command_type, float16 command_value ---- */
+
+static void put_actuator(dan_dc_bw_t *w, const void *m, size_t i)
 {
-    if (m == NULL || (buf == NULL && len > 0u)) {
-        return false;
-    }
-    memset(m, 0, size);
-    dan_dc_br_init(r, buf, len);
-    return true;
+    const dan_dc_actuator_cmd_t *c = &((const dan_dc_array_command_t *)m)->cmd[i];
+    dan_dc_put_uint(w, 8, c->actuator_id);
+    dan_dc_put_uint(w, 8, c->command_type);
+    dan_dc_put_uint(w, 16, c->value_f16);
 }
 
-int dan_dc_array_command_encode(const dan_dc_array_command_t *m, uint8_t *buf, size_t cap)
+static void get_actuator(dan_dc_br_t *r, void *m, size_t i)
 {
-    dan_dc_bw_t w;
-    size_t i;
-    if (m == NULL || m->count > DAN_DC_ARRAY_COMMAND_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    for (i = 0; i < m->count; i++) { /* TAO: no length prefix */
-        dan_dc_put_uint(&w, 8, m->cmd[i].actuator_id);
-        dan_dc_put_uint(&w, 8, m->cmd[i].command_type);
-        dan_dc_put_uint(&w, 16, m->cmd[i].value_f16);
-    }
-    return dan_dc_bw_finish(&w);
+    dan_dc_actuator_cmd_t *c = &((dan_dc_array_command_t *)m)->cmd[i];
+    c->actuator_id = (uint8_t)dan_dc_get_uint(r, 8);
+    c->command_type = (uint8_t)dan_dc_get_uint(r, 8);
+    c->value_f16 = (uint16_t)dan_dc_get_uint(r, 16);
 }
 
-int dan_dc_array_command_decode(dan_dc_array_command_t *m, const uint8_t *buf, size_t len)
+DAN_DC_TAO_ARRAY_CODEC(dan_dc_array_command, dan_dc_array_command_t, DAN_DC_ARRAY_COMMAND_MAX, 32u,
+                       put_actuator, get_actuator)
+
+/* ---- LightsCommand: SingleLightCommand[<=20] (TAO), each uint8 light_id
+ * and RGB565 as uint5 red, uint6 green, uint5 blue ---- */
+
+static void put_light(dan_dc_bw_t *w, const void *m, size_t i)
 {
-    dan_dc_br_t r;
-    size_t i, n;
-    if (!dec_begin(&r, m, sizeof *m, buf, len)) {
-        return DAN_ERR_ARG;
-    }
-    n = dan_dc_tao_count(&r, 32);
-    if (n > DAN_DC_ARRAY_COMMAND_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = 0; i < n; i++) {
-        m->cmd[i].actuator_id = (uint8_t)dan_dc_get_uint(&r, 8);
-        m->cmd[i].command_type = (uint8_t)dan_dc_get_uint(&r, 8);
-        m->cmd[i].value_f16 = (uint16_t)dan_dc_get_uint(&r, 16);
-    }
-    m->count = (uint8_t)n;
-    return dan_dc_br_finish(&r);
+    const dan_dc_light_t *l = &((const dan_dc_lights_command_t *)m)->light[i];
+    dan_dc_put_uint(w, 8, l->light_id);
+    dan_dc_put_uint(w, 5, (uint64_t)(l->rgb565 >> 11));
+    dan_dc_put_uint(w, 6, (uint64_t)((l->rgb565 >> 5) & 0x3Fu));
+    dan_dc_put_uint(w, 5, (uint64_t)(l->rgb565 & 0x1Fu));
 }
 
-int dan_dc_lights_command_encode(const dan_dc_lights_command_t *m, uint8_t *buf, size_t cap)
+static void get_light(dan_dc_br_t *r, void *m, size_t i)
 {
-    dan_dc_bw_t w;
-    size_t i;
-    if (m == NULL || m->count > DAN_DC_LIGHTS_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_dc_bw_init(&w, buf, cap);
-    for (i = 0; i < m->count; i++) { /* TAO */
-        dan_dc_put_uint(&w, 8, m->light[i].light_id);
-        dan_dc_put_uint(&w, 5, (uint64_t)(m->light[i].rgb565 >> 11));
-        dan_dc_put_uint(&w, 6, (uint64_t)((m->light[i].rgb565 >> 5) & 0x3Fu));
-        dan_dc_put_uint(&w, 5, (uint64_t)(m->light[i].rgb565 & 0x1Fu));
-    }
-    return dan_dc_bw_finish(&w);
+    dan_dc_light_t *l = &((dan_dc_lights_command_t *)m)->light[i];
+    unsigned red, green, blue;
+    l->light_id = (uint8_t)dan_dc_get_uint(r, 8);
+    red = (unsigned)dan_dc_get_uint(r, 5);
+    green = (unsigned)dan_dc_get_uint(r, 6);
+    blue = (unsigned)dan_dc_get_uint(r, 5);
+    l->rgb565 = (uint16_t)(red << 11 | green << 5 | blue);
 }
 
-int dan_dc_lights_command_decode(dan_dc_lights_command_t *m, const uint8_t *buf, size_t len)
-{
-    dan_dc_br_t r;
-    size_t i, n;
-    if (!dec_begin(&r, m, sizeof *m, buf, len)) {
-        return DAN_ERR_ARG;
-    }
-    n = dan_dc_tao_count(&r, 24);
-    if (n > DAN_DC_LIGHTS_MAX) {
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = 0; i < n; i++) {
-        unsigned red, green, blue;
-        m->light[i].light_id = (uint8_t)dan_dc_get_uint(&r, 8);
-        red = (unsigned)dan_dc_get_uint(&r, 5);
-        green = (unsigned)dan_dc_get_uint(&r, 6);
-        blue = (unsigned)dan_dc_get_uint(&r, 5);
-        m->light[i].rgb565 = (uint16_t)(red << 11 | green << 5 | blue);
-    }
-    m->count = (uint8_t)n;
-    return dan_dc_br_finish(&r);
-}
+DAN_DC_TAO_ARRAY_CODEC(dan_dc_lights_command, dan_dc_lights_command_t, DAN_DC_LIGHTS_MAX, 24u,
+                       put_light, get_light)
 
 static const dan_dc_field_t BEEP_COMMAND[] = {
     DAN_DC_U(dan_dc_beep_command_t, frequency_f16, 16),
@@ -96,22 +55,17 @@ static const dan_dc_field_t BEEP_COMMAND[] = {
 };
 DAN_DC_TABLE_CODEC(dan_dc_beep_command, dan_dc_beep_command_t, BEEP_COMMAND)
 
+/* One uint8 value: a table over the value itself. */
+static const dan_dc_field_t SAFETY_STATE[] = {{0u, 1u, 8u, DAN_DC_F_UINT}};
+
 int dan_dc_safety_state_encode(uint8_t status, uint8_t *buf, size_t cap)
 {
-    dan_dc_bw_t w;
-    dan_dc_bw_init(&w, buf, cap);
-    dan_dc_put_uint(&w, 8, status);
-    return dan_dc_bw_finish(&w);
+    return dan_dc_encode_table(&status, SAFETY_STATE, 1u, buf, cap);
 }
 
 int dan_dc_safety_state_decode(uint8_t *status, const uint8_t *buf, size_t len)
 {
-    dan_dc_br_t r;
-    if (!dec_begin(&r, status, sizeof *status, buf, len)) {
-        return DAN_ERR_ARG;
-    }
-    *status = (uint8_t)dan_dc_get_uint(&r, 8);
-    return dan_dc_br_finish(&r);
+    return dan_dc_decode_table(status, sizeof *status, SAFETY_STATE, 1u, buf, len);
 }
 
 static const dan_dc_field_t TEMPERATURE[] = {

@@ -224,6 +224,17 @@ static bool tid_of_call(const dan_gw_node_call_t *k, uint8_t tid)
     return false;
 }
 
+/* Keeps an encoded result of n bytes (already in k->result), or passes an
+ * encoder's error on. */
+static int keep_result(dan_gw_node_call_t *k, int n)
+{
+    if (n < 0) {
+        return n;
+    }
+    k->result_len = (uint16_t)n;
+    return DAN_OK;
+}
+
 /* The GetSet answer as the DAN result: present, value, default, max, min,
  * name (dan/can_gw/msgs_mgmt.h). */
 static int param_result(dan_gw_node_t *g, dan_gw_node_call_t *k, const uint8_t *p, size_t len)
@@ -234,7 +245,6 @@ static int param_result(dan_gw_node_t *g, dan_gw_node_call_t *k, const uint8_t *
     dan_writer_t w;
     uint8_t present = 0;
     size_t i;
-    int n;
     if (dan_dc_param_getset_rsp_decode(r, p, len) != DAN_OK) {
         return DAN_ERR_MALFORMED;
     }
@@ -255,30 +265,19 @@ static int param_result(dan_gw_node_t *g, dan_gw_node_call_t *k, const uint8_t *
         }
     }
     dan_put_array(&w, r->name, r->name_len);
-    n = dan_writer_finish(&w);
-    if (n < 0) {
-        return n;
-    }
-    k->result_len = (uint16_t)n;
-    return DAN_OK;
+    return keep_result(k, dan_writer_finish(&w));
 }
 
 static int opcode_result(dan_gw_node_call_t *k, const uint8_t *p, size_t len)
 {
     dan_dc_param_opcode_t m;
     dan_gw_opcode_result_t r;
-    int n;
     if (dan_dc_param_opcode_rsp_decode(&m, p, len) != DAN_OK) {
         return DAN_ERR_MALFORMED;
     }
     r.ok = m.ok ? 1u : 0u;
     r.argument = m.argument;
-    n = dan_gw_msg_opcode_result_encode(&r, k->result, sizeof k->result);
-    if (n < 0) {
-        return n;
-    }
-    k->result_len = (uint16_t)n;
-    return DAN_OK;
+    return keep_result(k, dan_gw_msg_opcode_result_encode(&r, k->result, sizeof k->result));
 }
 
 static int restart_result(dan_gw_node_call_t *k, const uint8_t *p, size_t len)
@@ -300,18 +299,17 @@ static int fw_begin_result(dan_gw_node_t *g, dan_gw_node_call_t *k, const uint8_
     dan_dc_fw_begin_rsp_t m;
     dan_gw_fw_result_t r;
     dan_gw_node_slot_t *n;
-    int len_out;
+    int rc;
     if (dan_dc_fw_begin_rsp_decode(&m, p, len) != DAN_OK) {
         return DAN_ERR_MALFORMED;
     }
     r.error = m.error;
     r.message_len = m.message_len;
     memcpy(r.message, m.message, m.message_len);
-    len_out = dan_gw_msg_fw_result_encode(&r, k->result, sizeof k->result);
-    if (len_out < 0) {
-        return len_out;
+    rc = keep_result(k, dan_gw_msg_fw_result_encode(&r, k->result, sizeof k->result));
+    if (rc != DAN_OK) {
+        return rc;
     }
-    k->result_len = (uint16_t)len_out;
     n = dan_gwn_find_node(g, k->node_id);
     if (m.error == DAN_DC_FW_BEGIN_OK && n != NULL) {
         n->fw.flags = DAN_GW_FW_BEGUN;

@@ -6,8 +6,7 @@
 
 #include "gw_node_internal.h"
 
-static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_esc_cmd)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     int16_t v[DAN_GW_ESC_MAX];
@@ -16,8 +15,7 @@ static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len, 
     const dan_gw_telem_t *t;
     (void)code;
     if (dan_gw_msg_esc_cmd_decode(req, len, v, &n) != DAN_OK) {
-        *err = "bad ESC command";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad ESC command");
     }
     dan_gwn_esc_command(g, v, n, now_us);
     t = dan_gwn_esc_next_telem(g, now_us);
@@ -31,16 +29,14 @@ static int h_esc_cmd(void *user, uint32_t code, const uint8_t *req, size_t len, 
     return DAN_OK;
 }
 
-static int h_esc_telem(void *user, uint32_t code, const uint8_t *req, size_t len,
-                       dan_writer_t *resp, const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_esc_telem)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_telem_hdr_t h;
     size_t i, room;
     (void)code;
     if (len < 1u) {
-        *err = "missing first index";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "missing first index");
     }
     h.gw_flags = dan_gw_node_flags(g);
     h.aux = DAN_GW_NONE;
@@ -68,29 +64,33 @@ static int h_esc_telem(void *user, uint32_t code, const uint8_t *req, size_t len
     return DAN_OK;
 }
 
-static int h_arm(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                 const char **err, uint64_t now_us)
+/* ARM and SAFETY: one byte, its two values (DISARMED or FULLY_ARMED,
+ * SAFETY_ON or SAFETY_OFF); the response is the gateway flags. */
+static DAN_GWN_HANDLER(h_arm_safety)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
-    (void)code;
-    if (len < 1u || (req[0] != DAN_GW_ARM_DISARMED && req[0] != DAN_GW_ARM_FULLY_ARMED)) {
-        *err = "ARM takes 0 or 255 only";
-        return DAN_ERR_MALFORMED;
+    bool arm = code == DAN_GW_CODE_ARM;
+    uint8_t off = arm ? DAN_GW_ARM_DISARMED : DAN_GW_SAFETY_ON;
+    uint8_t on = arm ? DAN_GW_ARM_FULLY_ARMED : DAN_GW_SAFETY_OFF;
+    if (!dan_gwn_byte_of(req, len, off, on)) {
+        return dan_gwn_refuse(err, arm ? "ARM takes 0 or 255 only" : "SAFETY takes 0 or 255 only");
     }
-    dan_gwn_arming_set(g, req[0], now_us);
+    if (arm) {
+        dan_gwn_arming_set(g, req[0], now_us);
+    } else {
+        dan_gwn_safety_set(g, req[0], now_us);
+    }
     dan_put_u8(resp, dan_gw_node_flags(g));
     return DAN_OK;
 }
 
-static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                    const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_config)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_config_t c;
     (void)code;
     if (dan_gw_msg_config_req_decode(&c, req, len) != DAN_OK) {
-        *err = "bad CONFIG or value range";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad CONFIG or value range");
     }
     if (c.set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
         (void)dan_gw_node_set_esc_timeout(g, c.esc_timeout_ms);
@@ -114,8 +114,7 @@ static int h_config(void *user, uint32_t code, const uint8_t *req, size_t len, d
     return DAN_OK;
 }
 
-static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                   const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_stats)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     uint32_t v[DAN_GW_STAT_COUNT];
@@ -130,8 +129,7 @@ static int h_stats(void *user, uint32_t code, const uint8_t *req, size_t len, da
     return DAN_OK;
 }
 
-static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                   const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_nodes)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_nodes_hdr_t h;
@@ -139,8 +137,7 @@ static int h_nodes(void *user, uint32_t code, const uint8_t *req, size_t len, da
     unsigned id, first, last = 0;
     (void)code;
     if (len < 1u) {
-        *err = "missing first node id";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "missing first node id");
     }
     first = req[0] ? req[0] : 1u;
     h.next = 0;
@@ -191,16 +188,14 @@ static void node_follow(const dan_gw_node_slot_t *n, dan_gw_node_info_t *i, uint
                                                  : DAN_GW_NEVER_MS - 1u;
 }
 
-static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len,
-                       dan_writer_t *resp, const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_node_info)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_node_slot_t *n;
     dan_gw_node_info_t tmp;
     (void)code;
     if (len < 1u) {
-        *err = "missing node id";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "missing node id");
     }
     n = req[0] != 0u ? dan_gwn_find_node(g, req[0]) : NULL;
     if (n == NULL) {
@@ -219,16 +214,14 @@ static int h_node_info(void *user, uint32_t code, const uint8_t *req, size_t len
     return DAN_OK;
 }
 
-static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                      const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_tun_open)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_tun_open_t o;
     bool ok;
     (void)code;
     if (dan_gw_msg_tun_open_decode(&o, req, len) != DAN_OK) {
-        *err = "bad tunnel open";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad tunnel open");
     }
     ok = dan_gwn_tunnel_open(g, &o, now_us);
     dan_put_u8(resp, o.port);
@@ -236,8 +229,7 @@ static int h_tun_open(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                      const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_tun_xfer)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_tun_xfer_t x, r;
@@ -245,8 +237,7 @@ static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len,
     int rc;
     (void)code;
     if (dan_gw_msg_tun_xfer_req_decode(&x, req, len) != DAN_OK) {
-        *err = "bad tunnel transfer";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad tunnel transfer");
     }
     rc = dan_gwn_tunnel_xfer(g, &x, &r, out);
     if (rc == DAN_ERR_NOTFOUND) {
@@ -261,8 +252,7 @@ static int h_tun_xfer(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                      const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_can_send)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_reader_t r;
@@ -271,13 +261,11 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
     size_t i;
     dan_reader_init(&r, req, len);
     if (dan_gw_msg_can_send_req_get(&r, &s) != DAN_OK) {
-        *err = "bad CAN send";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad CAN send");
     }
     for (i = 0; i < s.count; i++) {
         if (dan_gw_msg_can_frame_get(&r, &f[i]) != DAN_OK || (f[i].flags & DAN_CAN_OWN) != 0u) {
-            *err = "bad CAN frame";
-            return DAN_ERR_MALFORMED;
+            return dan_gwn_refuse(err, "bad CAN frame");
         }
     }
     dan_gwn_raw_send(g, &s, f, dan_gw_check(code, DAN_GW_REQUEST, req, len));
@@ -285,16 +273,14 @@ static int h_can_send(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                      const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_can_recv)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_can_recv_t q, a;
     size_t i;
     (void)code;
     if (dan_gw_msg_can_recv_req_decode(&q, req, len) != DAN_OK) {
-        *err = "bad CAN receive";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad CAN receive");
     }
     dan_gwn_raw_recv(g, &q, &a, resp->cap);
     a.t0_us = a.count > 0u ? dan_gwn_raw_time(g, 0) : 0u;
@@ -309,8 +295,7 @@ static int h_can_recv(void *user, uint32_t code, const uint8_t *req, size_t len,
     return DAN_OK;
 }
 
-static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us)
+static DAN_GWN_HANDLER(h_can_filter)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_reader_t r;
@@ -320,13 +305,11 @@ static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t le
     (void)code;
     dan_reader_init(&r, req, len);
     if (dan_gw_msg_filter_hdr_get(&r, &op, &count) != DAN_OK || op > DAN_GW_FILTER_READ) {
-        *err = "bad filter request";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad filter request");
     }
     for (i = 0; i < count; i++) {
         if (dan_gw_msg_filter_get(&r, &f[i]) != DAN_OK) {
-            *err = "bad filter entry";
-            return DAN_ERR_MALFORMED;
+            return dan_gwn_refuse(err, "bad filter entry");
         }
     }
     result = dan_gwn_raw_filter(g, op, f, count);
@@ -340,7 +323,7 @@ static int h_can_filter(void *user, uint32_t code, const uint8_t *req, size_t le
 const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_ESC_CMD, h_esc_cmd},
     {DAN_GW_CODE_ESC_TELEM, h_esc_telem},
-    {DAN_GW_CODE_ARM, h_arm},
+    {DAN_GW_CODE_ARM, h_arm_safety},
     {DAN_GW_CODE_CONFIG, h_config},
     {DAN_GW_CODE_STATS, h_stats},
     {DAN_GW_CODE_NODES, h_nodes},
@@ -354,7 +337,7 @@ const dan_handler_t dan_gwn_handlers[] = {
     {DAN_GW_CODE_CALL_RESULT, dan_gwn_h_call_result},
     {DAN_GW_CODE_HEALTH, dan_gwn_h_health},
     {DAN_GW_CODE_DNA, dan_gwn_h_dna},
-    {DAN_GW_CODE_SAFETY, dan_gwn_h_safety},
+    {DAN_GW_CODE_SAFETY, h_arm_safety},
     {DAN_GW_CODE_SERVO, dan_gwn_h_servo},
     {DAN_GW_CODE_SERVO_FAILSAFE, dan_gwn_h_servo_failsafe},
     {DAN_GW_CODE_LIGHTS, dan_gwn_h_lights},

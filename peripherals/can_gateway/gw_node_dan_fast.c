@@ -5,16 +5,14 @@
  * carries a telemetry record. */
 #include "gw_node_internal.h"
 
-int dan_gwn_h_esc_fast(void *user, uint32_t code, const uint8_t *req, size_t len,
-                       dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_esc_fast)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     int16_t v[DAN_GW_ESC_MAX];
     dan_gw_fast_rec_t rec;
     size_t n;
     if (dan_gw_msg_esc_fast_decode(req, len, v, &n) != DAN_OK) {
-        *err = "bad fast ESC command (length or padding)";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad fast ESC command (length or padding)");
     }
     dan_gwn_esc_command(g, v, n, now_us);
     dan_put_u8(resp, dan_gw_node_flags(g));

@@ -172,8 +172,7 @@ static void upload_commit(dan_gw_node_t *g, uint32_t crc, dan_gw_file_commit_t *
     c->result = DAN_GW_FILE_OK;
 }
 
-int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_file_open)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_file_open_t o;
@@ -182,8 +181,7 @@ int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t le
     (void)code;
     if (dan_gw_msg_file_open_decode(&o, req, len) != DAN_OK ||
         !take_name(o.name, o.name_len, name)) {
-        *err = "bad FILE_OPEN or file name";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad FILE_OPEN or file name");
     }
     if (g->cfg.files != NULL) {
         upload_open(g, &o, name, &h);
@@ -192,16 +190,14 @@ int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t le
     return DAN_OK;
 }
 
-int dan_gwn_h_file_write(void *user, uint32_t code, const uint8_t *req, size_t len,
-                         dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_file_write)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_file_write_t w;
     dan_gw_file_have_t h = {DAN_GW_FILE_NO_STORE, 0u};
     (void)code;
     if (dan_gw_msg_file_write_decode(&w, req, len) != DAN_OK) {
-        *err = "bad FILE_WRITE (1..150 bytes)";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad FILE_WRITE (1..150 bytes)");
     }
     if (g->cfg.files != NULL) {
         upload_write(g, &w, &h);
@@ -210,15 +206,13 @@ int dan_gwn_h_file_write(void *user, uint32_t code, const uint8_t *req, size_t l
     return DAN_OK;
 }
 
-int dan_gwn_h_file_commit(void *user, uint32_t code, const uint8_t *req, size_t len,
-                          dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_file_commit)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_file_commit_t q, c = {DAN_GW_FILE_NO_STORE, 0u};
     (void)code;
     if (dan_gw_msg_file_commit_req_decode(&q, req, len) != DAN_OK) {
-        *err = "bad FILE_COMMIT";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad FILE_COMMIT");
     }
     if (g->cfg.files != NULL) {
         upload_commit(g, q.crc32, &c);
@@ -245,8 +239,7 @@ static bool list_entry(const dan_gw_file_store_t *fs, uint32_t index, dan_gw_fil
 
 /* FILE_LIST: entries from index first while they fit; the header is
  * written first and completed at the end. No store: an empty list. */
-int dan_gwn_h_file_list(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_file_list)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     const dan_gw_file_store_t *fs = g->cfg.files;
@@ -257,8 +250,7 @@ int dan_gwn_h_file_list(void *user, uint32_t code, const uint8_t *req, size_t le
     int32_t rc = DAN_OK;
     (void)code;
     if (len < 1u) {
-        *err = "missing first index";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "missing first index");
     }
     dan_gw_msg_file_list_hdr_put(resp, &h);
     room = resp->cap - resp->len;
@@ -285,8 +277,7 @@ int dan_gwn_h_file_list(void *user, uint32_t code, const uint8_t *req, size_t le
     return DAN_OK;
 }
 
-int dan_gwn_h_file_remove(void *user, uint32_t code, const uint8_t *req, size_t len,
-                          dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_file_remove)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     const dan_gw_file_store_t *fs = g->cfg.files;
@@ -295,8 +286,7 @@ int dan_gwn_h_file_remove(void *user, uint32_t code, const uint8_t *req, size_t 
     char name[DAN_GW_FILE_NAME_MAX + 1u];
     (void)code;
     if (dan_gw_msg_file_name_decode(&raw, &n, req, len) != DAN_OK || !take_name(raw, n, name)) {
-        *err = "bad file name";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad file name");
     }
     if (fs != NULL) {
         int32_t rc = fs->remove(fs->ctx, name);

@@ -4,16 +4,14 @@
 
 #include "gw_node_internal.h"
 
-int dan_gwn_h_node_call(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_node_call)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_call_t c;
     dan_gw_call_state_t st;
     int rc;
     if (dan_gw_msg_call_decode(&c, req, len) != DAN_OK) {
-        *err = "bad node call";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad node call");
     }
     /* the digest tells a retry (same content) from a new call reusing an id */
     rc = dan_gwn_call_start(g, &c, dan_gw_check(code, DAN_GW_REQUEST, req, len), &st, now_us);
@@ -33,8 +31,7 @@ int dan_gwn_h_node_call(void *user, uint32_t code, const uint8_t *req, size_t le
     return DAN_OK;
 }
 
-int dan_gwn_h_call_result(void *user, uint32_t code, const uint8_t *req, size_t len,
-                          dan_writer_t *resp, const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_call_result)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_result_t q;
@@ -42,8 +39,7 @@ int dan_gwn_h_call_result(void *user, uint32_t code, const uint8_t *req, size_t 
     size_t n = 0;
     (void)code;
     if (dan_gw_msg_result_req_decode(&q, req, len) != DAN_OK) {
-        *err = "bad call result request";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "bad call result request");
     }
     k = dan_gwn_call_find(g, q.call_id);
     if (k == NULL) {
@@ -63,8 +59,7 @@ int dan_gwn_h_call_result(void *user, uint32_t code, const uint8_t *req, size_t 
     return DAN_OK;
 }
 
-int dan_gwn_h_health(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_health)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_health_t h;
@@ -77,16 +72,14 @@ int dan_gwn_h_health(void *user, uint32_t code, const uint8_t *req, size_t len, 
     return DAN_OK;
 }
 
-int dan_gwn_h_dna(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                  const char **err, uint64_t now_us)
+DAN_GWN_HANDLER(dan_gwn_h_dna)
 {
     dan_gw_node_t *g = dan_gwn_touch(user, now_us);
     dan_gw_dna_hdr_t h;
     size_t i;
     (void)code;
     if (len < 1u) {
-        *err = "missing first entry";
-        return DAN_ERR_MALFORMED;
+        return dan_gwn_refuse(err, "missing first entry");
     }
     dan_gwn_dna_page(g, req[0], resp->cap, &h);
     dan_gw_msg_dna_hdr_put(resp, &h);

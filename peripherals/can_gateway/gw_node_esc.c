@@ -123,6 +123,16 @@ uint8_t dan_gwn_esc_seen(const dan_gw_node_t *g)
     return n;
 }
 
+/* The slot of ESC index, now reported by node with the part flag. */
+static dan_gw_node_esc_t *esc_slot(dan_gw_node_t *g, uint8_t index, uint8_t node, uint8_t flag)
+{
+    dan_gw_node_esc_t *e = &g->esc.slot[index % DAN_GW_NODE_ESC_SLOTS];
+    e->t.esc_index = index;
+    e->t.node_id = node;
+    e->t.flags |= flag;
+    return e;
+}
+
 void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us)
 {
     dan_dc_esc_status_t s;
@@ -130,10 +140,7 @@ void dan_gwn_on_esc_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_
     if (dan_dc_esc_status_decode(&s, t->payload, t->payload_len) != DAN_OK) {
         return;
     }
-    e = &g->esc.slot[s.esc_index % DAN_GW_NODE_ESC_SLOTS];
-    e->t.esc_index = s.esc_index;
-    e->t.node_id = t->source_node;
-    e->t.flags |= DAN_GW_TELEM_STATUS;
+    e = esc_slot(g, s.esc_index, t->source_node, DAN_GW_TELEM_STATUS);
     e->t.voltage_f16 = s.voltage_f16;
     e->t.current_f16 = s.current_f16;
     e->t.temperature_f16 = s.temperature_f16;
@@ -171,10 +178,7 @@ void dan_gwn_on_esc_ext(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t n
     if (dan_dc_esc_status_extended_decode(&s, t->payload, t->payload_len) != DAN_OK) {
         return;
     }
-    e = &g->esc.slot[s.esc_index % DAN_GW_NODE_ESC_SLOTS];
-    e->t.esc_index = s.esc_index;
-    e->t.node_id = t->source_node;
-    e->t.flags |= DAN_GW_TELEM_EXT;
+    e = esc_slot(g, s.esc_index, t->source_node, DAN_GW_TELEM_EXT);
     e->t.input_pct = s.input_pct;
     e->t.output_pct = s.output_pct;
     e->t.motor_temp_c = s.motor_temperature_degC;

@@ -152,6 +152,25 @@ static inline dan_gw_node_t *dan_gwn_touch(void *user, uint64_t now_us)
     return g;
 }
 
+/* A DAN handler of the node (dan_handler_fn of dan/peripheral.h): the one
+ * signature every handler and its prototype spell. */
+#define DAN_GWN_HANDLER(name)                                                               \
+    int name(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp, \
+             const char **err, uint64_t now_us)
+
+/* Refuses a request with DAN_ERR_MALFORMED; why is the error frame's text. */
+static inline int dan_gwn_refuse(const char **err, const char *why)
+{
+    *err = why;
+    return DAN_ERR_MALFORMED;
+}
+
+/* True when the request is one byte of either value (ARM, SAFETY). */
+static inline bool dan_gwn_byte_of(const uint8_t *req, size_t len, uint8_t a, uint8_t b)
+{
+    return len >= 1u && (req[0] == a || req[0] == b);
+}
+
 /* Encodes in place into the response with one of the codec's
  * dan_gw_msg_*_encode(x, out, cap) functions. */
 #define PUT_ENCODED(resp, fn, x)                          \
@@ -162,36 +181,20 @@ static inline dan_gw_node_t *dan_gwn_touch(void *user, uint64_t now_us)
     } while (0)
 
 /* The handlers the table of gw_node_dan.c takes from the other files. */
-int dan_gwn_h_node_call(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_call_result(void *user, uint32_t code, const uint8_t *req, size_t len,
-                          dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_health(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now_us);
-int dan_gwn_h_dna(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                  const char **err, uint64_t now_us);
-int dan_gwn_h_safety(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now_us);
-int dan_gwn_h_servo(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                    const char **err, uint64_t now_us);
-int dan_gwn_h_servo_failsafe(void *user, uint32_t code, const uint8_t *req, size_t len,
-                             dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_lights(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                     const char **err, uint64_t now_us);
-int dan_gwn_h_esc_fast(void *user, uint32_t code, const uint8_t *req, size_t len,
-                       dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_beep(void *user, uint32_t code, const uint8_t *req, size_t len, dan_writer_t *resp,
-                   const char **err, uint64_t now_us);
-int dan_gwn_h_file_open(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_file_write(void *user, uint32_t code, const uint8_t *req, size_t len,
-                         dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_file_commit(void *user, uint32_t code, const uint8_t *req, size_t len,
-                          dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_file_list(void *user, uint32_t code, const uint8_t *req, size_t len,
-                        dan_writer_t *resp, const char **err, uint64_t now_us);
-int dan_gwn_h_file_remove(void *user, uint32_t code, const uint8_t *req, size_t len,
-                          dan_writer_t *resp, const char **err, uint64_t now_us);
+DAN_GWN_HANDLER(dan_gwn_h_node_call);
+DAN_GWN_HANDLER(dan_gwn_h_call_result);
+DAN_GWN_HANDLER(dan_gwn_h_health);
+DAN_GWN_HANDLER(dan_gwn_h_dna);
+DAN_GWN_HANDLER(dan_gwn_h_servo);
+DAN_GWN_HANDLER(dan_gwn_h_servo_failsafe);
+DAN_GWN_HANDLER(dan_gwn_h_lights);
+DAN_GWN_HANDLER(dan_gwn_h_esc_fast);
+DAN_GWN_HANDLER(dan_gwn_h_beep);
+DAN_GWN_HANDLER(dan_gwn_h_file_open);
+DAN_GWN_HANDLER(dan_gwn_h_file_write);
+DAN_GWN_HANDLER(dan_gwn_h_file_commit);
+DAN_GWN_HANDLER(dan_gwn_h_file_list);
+DAN_GWN_HANDLER(dan_gwn_h_file_remove);
 extern const dan_handler_t dan_gwn_handlers[];
 extern const size_t dan_gwn_nhandlers;
 extern const dan_envelope_t dan_gwn_seal;

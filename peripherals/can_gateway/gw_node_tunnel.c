@@ -130,19 +130,32 @@ int dan_gwn_tunnel_xfer(dan_gw_node_t *g, const dan_gw_tun_xfer_t *x, dan_gw_tun
     return DAN_OK;
 }
 
-/* Copies the next n bytes waiting to go out of a port. */
-static void tun_peek(const dan_gw_node_tun_t *p, uint8_t *dst, size_t n)
+/* Copies the next n bytes waiting to go out of a port; returns n (at most
+ * a tunnel buffer, 120). */
+static uint8_t tun_peek(const dan_gw_node_tun_t *p, uint8_t *dst, size_t n)
 {
     uint32_t start = p->wr_next - p->tx_len;
     size_t i;
     for (i = 0; i < n; i++) {
         dst[i] = p->tx[(start + i) % DAN_GW_NODE_TUN_TX_BUF];
     }
+    return (uint8_t)n;
 }
 
 static size_t min_size(size_t a, size_t b)
 {
     return a < b ? a : b;
+}
+
+/* Queues a tunnel message (len encoded bytes in buf, n of them data) on
+ * the bulk queue: n, or -1 if it was not queued. */
+static int chunk_sent(dan_gw_node_t *g, uint16_t dtid, uint64_t sig, const uint8_t *buf, int len,
+                      size_t n)
+{
+    if (dan_gwn_broadcast(g, &g->q_bulk, dtid, sig, DAN_DC_PRIORITY_MEDIUM, buf, len) != DAN_OK) {
+        return -1;
+    }
+    return (int)n;
 }
 
 /* One Targetted chunk, or an empty keepalive when the port was idle for
@@ -161,14 +174,9 @@ static int targetted_out(dan_gw_node_t *g, dan_gw_node_tun_t *p, uint64_t now_us
     m->serial_id = p->cfg.serial_id;
     m->options = p->cfg.options;
     m->baudrate = p->cfg.baud;
-    m->buffer_len = (uint8_t)n;
-    tun_peek(p, m->buffer, n);
-    if (dan_gwn_broadcast(g, &g->q_bulk, DAN_DC_TUNNEL_TARGETTED_ID,
-                          DAN_DC_TUNNEL_TARGETTED_SIGNATURE, DAN_DC_PRIORITY_MEDIUM, buf,
-                          dan_dc_tunnel_targetted_encode(m, buf, sizeof buf)) != DAN_OK) {
-        return -1;
-    }
-    return (int)n;
+    m->buffer_len = tun_peek(p, m->buffer, n);
+    return chunk_sent(g, DAN_DC_TUNNEL_TARGETTED_ID, DAN_DC_TUNNEL_TARGETTED_SIGNATURE, buf,
+                      dan_dc_tunnel_targetted_encode(m, buf, sizeof buf), n);
 }
 
 /* One Broadcast chunk; -1 if nothing was sent. */
@@ -182,14 +190,9 @@ static int broadcast_out(dan_gw_node_t *g, dan_gw_node_tun_t *p)
     }
     m->protocol = p->cfg.protocol;
     m->channel_id = p->cfg.target;
-    m->buffer_len = (uint8_t)n;
-    tun_peek(p, m->buffer, n);
-    if (dan_gwn_broadcast(g, &g->q_bulk, DAN_DC_TUNNEL_BROADCAST_ID,
-                          DAN_DC_TUNNEL_BROADCAST_SIGNATURE, DAN_DC_PRIORITY_MEDIUM, buf,
-                          dan_dc_tunnel_broadcast_encode(m, buf, sizeof buf)) != DAN_OK) {
-        return -1;
-    }
-    return (int)n;
+    m->buffer_len = tun_peek(p, m->buffer, n);
+    return chunk_sent(g, DAN_DC_TUNNEL_BROADCAST_ID, DAN_DC_TUNNEL_BROADCAST_SIGNATURE, buf,
+                      dan_dc_tunnel_broadcast_encode(m, buf, sizeof buf), n);
 }
 
 /* Sends one chunk (or a Targetted keepalive). Returns true if data went. */

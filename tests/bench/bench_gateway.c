@@ -163,13 +163,16 @@ int main(int argc, char **argv)
             next = fcside_next();
             {
                 uint64_t b = gwside_next(g_now);
-                if (b < next)
+                if (b < next) {
                     next = b;
+                }
             }
-            if (to_gw.len > 0u && to_gw.busy_until < next)
+            if (to_gw.len > 0u && to_gw.busy_until < next) {
                 next = to_gw.busy_until;
-            if (to_fc.len > 0u && to_fc.busy_until < next)
+            }
+            if (to_fc.len > 0u && to_fc.busy_until < next) {
                 next = to_fc.busy_until;
+            }
             g_now = next > g_now ? next : g_now + 1u;
             if (++guard > 100000u) {
                 fprintf(stderr, "bench_gateway: stuck\n");

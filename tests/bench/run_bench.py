@@ -100,7 +100,7 @@ class Stack:
     def start(self, args, name, stdout=subprocess.PIPE):
         log = open(self.tmp / f"{name}.log", "wb")
         p = procgroup.start(args, log, stdout)
-        p.name, p.logf = name, log
+        p.name, p.log_file = name, log
         self.procs.append(p)
         return p
 
@@ -117,11 +117,7 @@ class Stack:
         return procgroup.stop(p, sig)
 
     def close(self):
-        for p in reversed(self.procs):
-            self.stop(p)
-            if p.stdout:
-                p.stdout.close()
-            p.logf.close()
+        procgroup.close_all(self.procs)
 
 
 def read_capture(path):

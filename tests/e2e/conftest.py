@@ -6,6 +6,7 @@ a process behind whatever happens.
 """
 
 import os
+import select
 import signal
 import sys
 import time
@@ -27,12 +28,51 @@ os.environ["PYTHONPATH"] = os.pathsep.join(
 os.environ.setdefault("DANPROBE_LATENCY_MS", "200")
 import procgroup  # noqa: E402
 import pydronecan_nodes  # noqa: E402
+from danprobe import gateway_msgs  # noqa: E402
 
 # Before any pydronecan node exists: their I/O children start with spawn,
 # never forked from this multi-threaded test process (issue 16).
 pydronecan_nodes.use_spawn()
 BIN = ROOT / "build" / "bin"
 VECTORS = ROOT / "tests" / "vectors"
+
+
+def read_line(fd, timeout, what="the pipe", on_eof=lambda: "closed"):
+    """One line from fd (a pipe) within timeout seconds. AssertionError at
+    the deadline or at end of file (its text from on_eof())."""
+    end = time.monotonic() + timeout
+    buf = b""
+    while not buf.endswith(b"\n"):
+        left = end - time.monotonic()
+        if left <= 0:
+            raise AssertionError(f"no line from {what} within {timeout}s (got {buf!r})")
+        if select.select([fd], [], [], left)[0]:
+            c = os.read(fd, 1)
+            if not c:
+                raise AssertionError(f"{what}: {on_eof()}, got {buf!r}")
+            buf += c
+    return buf.decode()
+
+
+class FakeMaster:
+    """A master whose gateway a test models, for GatewayClient: request()
+    records (code, unsealed payload) in .sent, raises .fail's next exception
+    if any, else answers with serve(code, payload) (the response payload),
+    sealed as a gateway seals it."""
+
+    def __init__(self):
+        self.sent, self.fail = [], []
+        self.reply_check = None
+
+    def request(self, code, payload=b"", attempts=None):
+        inner = gateway_msgs.unseal(code, gateway_msgs.REQUEST, payload)
+        self.sent.append((code, inner))
+        if self.fail:
+            raise self.fail.pop(0)
+        return gateway_msgs.seal(code, gateway_msgs.RESPONSE, self.serve(code, inner))
+
+    def serve(self, code, inner) -> bytes:
+        raise NotImplementedError
 
 
 def wait_for(pred, timeout=10.0, interval=0.02, what="condition"):
@@ -69,11 +109,7 @@ class Procs:
         return procgroup.stop(p, sig, timeout)
 
     def close(self):
-        for p in reversed(self.procs):
-            self.stop(p)
-            if p.stdout:
-                p.stdout.close()
-            p.log_file.close()
+        procgroup.close_all(self.procs)
 
 
 def closing_factory(make):

@@ -220,6 +220,14 @@ def danprobe_json(*args):
     return json.loads(out.splitlines()[-1])
 
 
+def esc_run(out):
+    """The JSON lines of a danprobe esc --json run: (its exchange events, the
+    summary, which must be the last line)."""
+    lines = [json.loads(x) for x in out.splitlines()]
+    assert lines[-1]["event"] == "summary"
+    return [line for line in lines if line.get("event") == "exchange"], lines[-1]
+
+
 def hub_stats(ctl):
     return json.loads(control(ctl, "stats"))
 

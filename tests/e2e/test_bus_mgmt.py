@@ -25,7 +25,7 @@ import pytest
 
 from allocatee import Allocatee
 from bus_util import danprobe, ready
-from conftest import BIN, ROOT, closing_factory, wait_for
+from conftest import BIN, ROOT, FakeMaster, closing_factory, wait_for
 from danprobe import gateway_calls as C
 from danprobe import gateway_can as GC
 from danprobe import gateway_mgmt as M
@@ -49,7 +49,7 @@ LAPTOP_NODE = 100
 # ---- the call pipeline against a scripted gateway ----
 
 
-class FakeGateway:
+class FakeGateway(FakeMaster):
     """A master whose gateway holds calls as libdan's does: a NODE_CALL with
     a held call's id and content is a retry (its state), a new one is
     PENDING (or BUSY while .busy > 0) and DONE after .delay polls with the
@@ -59,25 +59,20 @@ class FakeGateway:
     def __init__(self, params=(), delay=2):
         self.params = list(params)
         self.delay = delay
+        super().__init__()
         self.calls = {}  # call_id -> dict(req, state, polls, result)
-        self.busy, self.silent, self.fail = 0, set(), []
-        self.sent = []  # (code, inner payload)
+        self.busy, self.silent = 0, set()
         self.max_pending = 0
         self.stats = SimpleNamespace(retries=0)
-        self.reply_check = None
 
-    def request(self, code, payload=b"", attempts=None):
-        inner = G.unseal(code, G.REQUEST, payload)
-        self.sent.append((code, inner))
-        if self.fail:
-            raise self.fail.pop(0)
+    def serve(self, code, inner):
         if code == G.CODE_NODE_CALL:
             out = self._node_call(inner)
         else:
             out = self._result(M.CallResultRequest.decode(inner))
         pending = sum(1 for k in self.calls.values() if k["state"] == M.CALL_PENDING)
         self.max_pending = max(self.max_pending, pending)
-        return G.seal(code, G.RESPONSE, out.encode())
+        return out.encode()
 
     def _node_call(self, inner):
         c = M.NodeCall.decode(inner)

@@ -7,7 +7,7 @@ and the follower's verdicts. The real stack: test_fw_update.py."""
 
 import pytest
 
-from conftest import VECTORS
+from conftest import VECTORS, FakeMaster
 from danprobe import file_update as U
 from danprobe import gateway_file as F
 from danprobe import gateway_mgmt as M
@@ -145,33 +145,28 @@ def test_sniff_names_the_file_codes():
 # ---- the upload against a model of the gateway's store ----
 
 
-class FakeStore:
+class FakeStore(FakeMaster):
     """A master whose gateway keeps one upload (name, size, bytes held) and
     committed files, as PROTOCOL.md says; .fail holds exceptions for the
     next transactions, .lose makes the next FILE_WRITE forget the upload (a
     gateway restart without the partial file)."""
 
     def __init__(self, cap=1 << 20):
+        super().__init__()
         self.cap = cap
         self.up = None  # [name, size, bytearray]
         self.files = {}
-        self.fail, self.lose = [], False
-        self.sent = []
-        self.reply_check = None
+        self.lose = False
         self.stats = None
 
-    def request(self, code, payload=b"", attempts=None):
-        inner = G.unseal(code, G.REQUEST, payload)
-        self.sent.append((code, inner))
-        if self.fail:
-            raise self.fail.pop(0)
+    def serve(self, code, inner):
+        """A malformed request is refused as the gateway does (an ERROR)."""
         try:
-            out = self.serve(code, inner)
+            return self.answer(code, inner)
         except PayloadError as e:
             raise RemoteError(ErrorMessage(code, 0, str(e))) from None
-        return G.seal(code, G.RESPONSE, out)
 
-    def serve(self, code, inner):
+    def answer(self, code, inner):
         if code == F.CODE_FILE_OPEN:
             o = F.FileOpen.decode(inner)
             if o.size > self.cap:

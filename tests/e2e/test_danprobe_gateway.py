@@ -26,7 +26,16 @@ from danprobe.codec import encode_frame
 from danprobe.gateway_client import GatewayClient
 from danprobe.master import DanTimeout, Malformed, Nack, RemoteError
 from danprobe.payloads import ErrorMessage, PayloadError
-from gw_rig import GW_NODE, Stack, TunnelFarEnd, danprobe_json, hub_stats, pty_open, pump_pty
+from gw_rig import (
+    GW_NODE,
+    Stack,
+    TunnelFarEnd,
+    danprobe_json,
+    esc_run,
+    hub_stats,
+    pty_open,
+    pump_pty,
+)
 
 CANDUMP = re.compile(r"^\((\d+\.\d{6})\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
 
@@ -616,10 +625,8 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
         "-q",
     )
     assert rc == 0, err
-    lines = [json.loads(x) for x in out.splitlines()]
-    ex = [line for line in lines if line.get("event") == "exchange"]
-    end = lines[-1]
-    assert end["event"] == "summary" and end["plot"] == str(png)
+    ex, end = esc_run(out)
+    assert end["plot"] == str(png)
     # one event per exchange, failed ones too (a loaded host may lose one)
     assert end["exchanges"] == sum(1 for line in ex if line["ok"])
     assert end["exchanges"] + end["failed"] == len(ex)

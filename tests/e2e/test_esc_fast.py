@@ -6,14 +6,12 @@ dan-gatewayd on the other, esc_sim's four ESCs behind the SLCAN hub.
 Deadlines are generous and catch hangs; nothing here asserts a speed.
 """
 
-import json
-
 import pytest
 
 from bus_util import danprobe, read_capture
 from conftest import BIN, closing_factory, wait_for
 from danprobe import gateway_fast as F
-from gw_rig import GW_NODE, Stack
+from gw_rig import GW_NODE, Stack, esc_run
 
 
 @pytest.fixture
@@ -131,10 +129,8 @@ def test_danprobe_esc_fast(stack):
         "2",
     )
     assert rc == 0, err
-    lines = [json.loads(x) for x in out.splitlines()]
-    ex = [line for line in lines if line.get("event") == "exchange"]
-    end = lines[-1]
-    assert end["event"] == "summary" and end["exchanges"] == len(ex) > 10
+    ex, end = esc_run(out)
+    assert end["exchanges"] == len(ex) > 10
     # a record only on the exchanges that asked (every 2nd), once ESCs reported
     assert all(line["telemetry"] is None for line in ex[1::2])
     assert sum(1 for line in ex[0::2] if line["telemetry"]) >= len(ex[0::2]) - 2

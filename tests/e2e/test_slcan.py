@@ -19,29 +19,11 @@ import pytest
 
 import pydronecan_nodes
 from bus_util import control
-from conftest import BIN, ROOT, wait_for
+from conftest import BIN, ROOT, read_line, wait_for
 
 HUB = ROOT / "host_tools" / "slcan_hub.py"
 CANTOOL = BIN / "dan-cantool"
 LOGLINE = re.compile(r"^\((\d+\.\d{6})\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*|R\d?)$")
-
-
-def read_line(stream, timeout):
-    """Reads one line from a pipe with a deadline."""
-    end = time.monotonic() + timeout
-    buf = b""
-    fd = stream.fileno()
-    while not buf.endswith(b"\n"):
-        left = end - time.monotonic()
-        if left <= 0:
-            raise AssertionError(f"no line within {timeout}s (got {buf!r})")
-        r, _, _ = select.select([fd], [], [], left)
-        if r:
-            b = os.read(fd, 1)
-            if not b:
-                raise AssertionError(f"EOF (got {buf!r})")
-            buf += b
-    return buf.decode()
 
 
 class Hub:
@@ -64,7 +46,7 @@ class Hub:
             ],
             name="slcan_hub",
         )
-        line = read_line(self.proc.stdout, 15)
+        line = read_line(self.proc.stdout.fileno(), 15)
         assert line.startswith("READY "), line
         self.ptys = line.split()[1:]
         assert len(self.ptys) == n

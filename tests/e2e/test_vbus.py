@@ -8,7 +8,6 @@ generous. DAN_VBUS=path runs the tests against another build (e.g. ASan).
 import json
 import os
 import re
-import select
 import signal
 import socket
 import subprocess
@@ -19,6 +18,7 @@ import pytest
 import serial
 
 from conftest import BIN, closing_factory, wait_for
+from conftest import read_line as conftest_read_line
 
 VBUS = Path(os.environ.get("DAN_VBUS", BIN / "dan-vbus"))
 TIMEOUT = 10.0
@@ -29,23 +29,12 @@ CAPTURE_RE = re.compile(
 
 def read_line(p, timeout=TIMEOUT):
     """Reads one line from p.stdout without blocking past the deadline."""
-    fd = p.stdout.fileno()
-    buf = b""
-    end = time.monotonic() + timeout
-    while not buf.endswith(b"\n"):
-        left = end - time.monotonic()
-        if left <= 0:
-            raise AssertionError(f"no line from {p.args[0]} within {timeout}s (got {buf!r})")
-        r, _, _ = select.select([fd], [], [], left)
-        if r:
-            c = os.read(fd, 1)
-            if not c:
-                raise AssertionError(
-                    f"{p.args[0]} closed stdout (exit {p.wait(5)}), got {buf!r}; "
-                    f"log: {p.log_path.read_text()}"
-                )
-            buf += c
-    return buf.decode()
+    return conftest_read_line(
+        p.stdout.fileno(),
+        timeout,
+        p.args[0],
+        lambda: f"closed stdout (exit {p.wait(5)}); log: {p.log_path.read_text()}",
+    )
 
 
 class Bus:

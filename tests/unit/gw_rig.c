@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "dan/can_gw/dsdl_file.h"
 #include "dan/codes.h"
 #include "gw_rig.h"
 
@@ -75,6 +76,12 @@ int finish(void)
     return dan_gw_complete(&R->gw, R->bus.now);
 }
 
+void call_ok(int started)
+{
+    assert_int_equal(started, DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+}
+
 uint32_t remote_code(void)
 {
     dan_error_msg_t e;
@@ -117,24 +124,49 @@ cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from)
     return NULL;
 }
 
+cap_t *expect_cap(uint16_t dtid, uint8_t tt, size_t *from)
+{
+    cap_t *c = find_cap(dtid, tt, from);
+    assert_non_null(c);
+    return c;
+}
+
+/* Splits t into frames and gives them to the node. */
+static void feed(dan_dc_transfer_t *t)
+{
+    dan_can_frame_t f[64];
+    int n = dan_dc_tx_build(t, f, 64), i;
+    assert_true(n > 0);
+    for (i = 0; i < n; i++) {
+        dan_gw_node_rx_can(&R->g, &f[i], R->bus.now);
+    }
+}
+
 /* Sends a transfer from fake node src into the gateway. */
 void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
             const uint8_t *payload, int len)
 {
     dan_dc_transfer_t t;
-    dan_can_frame_t f[64];
-    int n, i;
     assert_true(len >= 0);
     dan_dc_transfer_init(&t, dtid, sig, (dan_dc_transfer_type_t)tt, payload, (size_t)len);
     t.priority = 16;
     t.source_node = src;
     t.destination_node = dst;
     t.transfer_id = (uint8_t)dan_dc_tid_next(&R->tids, dtid, tt, (uint8_t)(dst + src * 0));
-    n = dan_dc_tx_build(&t, f, 64);
-    assert_true(n > 0);
-    for (i = 0; i < n; i++) {
-        dan_gw_node_rx_can(&R->g, &f[i], R->bus.now);
-    }
+    feed(&t);
+}
+
+void answer_cap(const cap_t *c, uint16_t dtid, uint64_t sig, uint8_t prio, const uint8_t *payload,
+                int len)
+{
+    dan_dc_transfer_t t;
+    assert_true(len > 0);
+    dan_dc_transfer_init(&t, dtid, sig, DAN_DC_TRANSFER_RESPONSE, payload, (size_t)len);
+    t.priority = prio;
+    t.source_node = c->dst;
+    t.destination_node = R->g.cfg.node_id;
+    t.transfer_id = c->tid;
+    feed(&t);
 }
 
 int setup(void **state)
@@ -173,14 +205,16 @@ int teardown(void **state)
     return 0;
 }
 
-void config_timeout(uint32_t ms)
+void config_set(uint8_t mask, uint32_t value)
 {
     dan_gw_config_t set;
     memset(&set, 0, sizeof set);
-    set.set_mask = DAN_GW_CFG_ESC_TIMEOUT;
-    set.esc_timeout_ms = ms;
-    assert_int_equal(dan_gw_config(&R->gw, &set, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    set.set_mask = mask;
+    set.esc_timeout_ms = (mask & DAN_GW_CFG_ESC_TIMEOUT) ? value : 0u;
+    set.arming_rate_hz = (mask & DAN_GW_CFG_ARMING_RATE) ? value : 0u;
+    set.telem_timeout_ms = (mask & DAN_GW_CFG_TELEM_TIMEOUT) ? value : 0u;
+    set.dna = (mask & DAN_GW_CFG_DNA) ? (uint8_t)value : 0u;
+    call_ok(dan_gw_config(&R->gw, &set, R->bus.now));
 }
 
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm)
@@ -209,4 +243,16 @@ void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode
     s.mode = mode;
     inject(src, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
            buf, dan_dc_node_status_encode(&s, buf, sizeof buf));
+}
+
+void file_read_from(uint8_t src, uint64_t offset, const char *path)
+{
+    dan_dc_file_req_t q;
+    uint8_t buf[DAN_DC_FILE_READ_REQ_MAX_SIZE];
+    memset(&q, 0, sizeof q);
+    q.offset = offset;
+    q.path_len = (uint8_t)strlen(path);
+    memcpy(q.path, path, q.path_len);
+    inject(src, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE, DAN_DC_TRANSFER_REQUEST,
+           R->g.cfg.node_id, buf, dan_dc_file_read_req_encode(&q, buf, sizeof buf));
 }

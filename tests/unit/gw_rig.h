@@ -45,6 +45,8 @@ void drain(void);
 int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 /* Completes the client's transaction in flight. */
 int finish(void);
+/* A client call that starts (started == DAN_OK) and completes with DAN_OK. */
+void call_ok(int started);
 /* The request code of the error frame that refused the last transaction
  * (fails the test if there is none). */
 uint32_t remote_code(void);
@@ -56,13 +58,22 @@ size_t last_req(uint8_t *out);
 void lose_response(void);
 /* The next captured transfer of a type from index *from on. */
 cap_t *find_cap(uint16_t dtid, uint8_t tt, size_t *from);
+/* The same, which must be there. */
+cap_t *expect_cap(uint16_t dtid, uint8_t tt, size_t *from);
 /* A transfer from fake node src into the gateway. */
 void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
             const uint8_t *payload, int len);
+/* The answer (a response of priority prio) of the node a captured request c
+ * went to, with c's transfer ID. */
+void answer_cap(const cap_t *c, uint16_t dtid, uint64_t sig, uint8_t prio, const uint8_t *payload,
+                int len);
+/* A file.Read request from fake node src to the gateway. */
+void file_read_from(uint8_t src, uint64_t offset, const char *path);
 /* A NodeStatus from fake node src. */
 void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode);
-/* CONFIG esc_timeout_ms through the client, completed. */
-void config_timeout(uint32_t ms);
+/* CONFIG of one setting (mask: one DAN_GW_CFG_* bit) to value through the
+ * client, completed. */
+void config_set(uint8_t mask, uint32_t value);
 /* An esc.Status from fake node src. */
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm);
 int setup(void **state);

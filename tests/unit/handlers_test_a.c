@@ -39,3 +39,16 @@ const dan_handler_t test_a_handlers[TEST_A_NHANDLERS] = {
     {DAN_TYPE_TEST_A_FIRST + 2u, h_reverse},
     {DAN_TYPE_TEST_A_FIRST + 3u, h_silent},
 };
+
+dan_ptype_t test_a_type(unsigned *calls)
+{
+    static const dan_identity_t ident = {1,       "DAN Project",         "test A", "rev 1",
+                                         "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
+    dan_ptype_t t = {0};
+    t.first = DAN_TYPE_TEST_A_FIRST;
+    t.identity = &ident;
+    t.handlers = test_a_handlers;
+    t.nhandlers = TEST_A_NHANDLERS;
+    t.user = calls;
+    return t;
+}

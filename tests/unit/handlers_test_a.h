@@ -11,4 +11,8 @@
 #define TEST_A_NHANDLERS 2u
 extern const dan_handler_t test_a_handlers[TEST_A_NHANDLERS];
 
+/* The test-a type of the unit tests' peripherals: these handlers, identity
+ * "DAN Project" "test A" (the defined bauds); *calls counts 0x63's calls. */
+dan_ptype_t test_a_type(unsigned *calls);
+
 #endif /* DAN_HANDLERS_TEST_A_H */

@@ -9,6 +9,7 @@
 
 #include "dan/dan.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* ---- helpers ---- */
 
@@ -106,21 +107,22 @@ static void test_crc8_table_matches_bitwise(void **state)
     }
 }
 
+static void crc8_row(vec_file_t *v, void *ctx)
+{
+    uint8_t in[512], want[1];
+    char *f[2];
+    size_t n;
+    (void)ctx;
+    assert_int_equal(vec_split(v->line, ' ', f, 2), 2);
+    n = vec_hex(f[0], in, sizeof in);
+    vec_hex(f[1], want, 1);
+    assert_int_equal(dan_crc8(0, in, n), want[0]);
+}
+
 static void test_crc8_vectors(void **state)
 {
-    vec_file_t v;
-    uint8_t in[512], want[1];
     (void)state;
-    vec_open(&v, "crc8.txt");
-    while (vec_next(&v)) {
-        char *f[2];
-        size_t n;
-        assert_int_equal(vec_split(v.line, ' ', f, 2), 2);
-        n = vec_hex(f[0], in, sizeof in);
-        vec_hex(f[1], want, 1);
-        assert_int_equal(dan_crc8(0, in, n), want[0]);
-    }
-    vec_close(&v);
+    (void)vec_each("crc8.txt", crc8_row, NULL);
 }
 
 /* ---- uvarint ---- */
@@ -161,42 +163,40 @@ static void test_uvarint_edges(void **state)
     }
 }
 
+static void uvarint_row(vec_file_t *v, void *ctx)
+{
+    char *f[3];
+    uint8_t b[16], enc[5];
+    uint32_t val = 0;
+    size_t n;
+    int nf = vec_split(v->line, ' ', f, 3);
+    (void)ctx;
+    if (strcmp(f[0], "ok") == 0) {
+        unsigned long want;
+        assert_int_equal(nf, 3);
+        want = strtoul(f[1], NULL, 10);
+        n = vec_hex(f[2], b, sizeof b);
+        assert_int_equal(dan_uvarint_decode(b, n, &val), (int)n);
+        assert_int_equal(val, (uint32_t)want);
+        if (dan_uvarint_size((uint32_t)want) == n) {
+            assert_int_equal(dan_uvarint_encode((uint32_t)want, enc, 5), (int)n);
+            assert_memory_equal(enc, b, n);
+        }
+    } else if (strcmp(f[0], "truncated") == 0) {
+        n = vec_hex(f[1], b, sizeof b);
+        assert_int_equal(dan_uvarint_decode(b, n, &val), 0);
+    } else if (strcmp(f[0], "malformed") == 0) {
+        n = vec_hex(f[1], b, sizeof b);
+        assert_int_equal(dan_uvarint_decode(b, n, &val), DAN_ERR_MALFORMED);
+    } else {
+        fail_msg("%s:%d: unknown kind %s", v->path, v->lineno, f[0]);
+    }
+}
+
 static void test_uvarint_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "uvarint.txt");
-    while (vec_next(&v)) {
-        char *f[3];
-        uint8_t b[16], enc[5];
-        uint32_t val = 0;
-        size_t n;
-        int nf = vec_split(v.line, ' ', f, 3);
-        if (strcmp(f[0], "ok") == 0) {
-            unsigned long want;
-            assert_int_equal(nf, 3);
-            want = strtoul(f[1], NULL, 10);
-            n = vec_hex(f[2], b, sizeof b);
-            assert_int_equal(dan_uvarint_decode(b, n, &val), (int)n);
-            assert_int_equal(val, (uint32_t)want);
-            if (dan_uvarint_size((uint32_t)want) == n) {
-                assert_int_equal(dan_uvarint_encode((uint32_t)want, enc, 5), (int)n);
-                assert_memory_equal(enc, b, n);
-            }
-        } else if (strcmp(f[0], "truncated") == 0) {
-            n = vec_hex(f[1], b, sizeof b);
-            assert_int_equal(dan_uvarint_decode(b, n, &val), 0);
-        } else if (strcmp(f[0], "malformed") == 0) {
-            n = vec_hex(f[1], b, sizeof b);
-            assert_int_equal(dan_uvarint_decode(b, n, &val), DAN_ERR_MALFORMED);
-        } else {
-            fail_msg("%s:%d: unknown kind %s", v.path, v.lineno, f[0]);
-        }
-        count++;
-    }
-    vec_close(&v);
-    assert_true(count >= 20);
+    assert_true(vec_each("uvarint.txt", uvarint_row, NULL) >= 20);
 }
 
 /* ---- writer / reader ---- */
@@ -353,74 +353,69 @@ static void test_frame_encode_limits(void **state)
                 (int)DAN_MAX_FRAME);
 }
 
+static void frame_row(vec_file_t *v, void *ctx)
+{
+    char *f[4];
+    uint8_t payload[DAN_MAX_PAYLOAD], wire[DAN_MAX_FRAME], out[DAN_MAX_FRAME];
+    size_t plen, wlen, used;
+    unsigned long code;
+    dan_decoder_t d;
+    dan_frame_t fr;
+    (void)ctx;
+    assert_int_equal(vec_split(v->line, ' ', f, 4), 4);
+    assert_string_equal(f[0], "frame");
+    code = strtoul(f[1], NULL, 10);
+    plen = vec_hex(f[2], payload, sizeof payload);
+    wlen = vec_hex(f[3], wire, sizeof wire);
+    assert_int_equal(dan_frame_encode((uint32_t)code, payload, plen, out, sizeof out), (int)wlen);
+    assert_memory_equal(out, wire, wlen);
+    dan_decoder_init(&d);
+    assert_int_equal(dan_decoder_feed(&d, wire, wlen, &used, &fr), 1);
+    assert_int_equal(used, wlen);
+    assert_int_equal(fr.code, (uint32_t)code);
+    assert_int_equal(fr.len, plen);
+    if (plen > 0) {
+        assert_memory_equal(fr.payload, payload, plen);
+    }
+    assert_int_equal(dan_decoder_feed(&d, NULL, 0, &used, &fr), 0);
+    assert_false(dan_decoder_busy(&d));
+}
+
 static void test_frame_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "frames.txt");
-    while (vec_next(&v)) {
-        char *f[4];
-        uint8_t payload[DAN_MAX_PAYLOAD], wire[DAN_MAX_FRAME], out[DAN_MAX_FRAME];
-        size_t plen, wlen, used;
-        unsigned long code;
+    assert_true(vec_each("frames.txt", frame_row, NULL) >= 10);
+}
+
+static void stream_row(vec_file_t *v, void *ctx)
+{
+    char *f[64];
+    static uint8_t wire[2048];
+    static raw_frame_t got[64];
+    uint8_t want[DAN_MAX_FRAME];
+    size_t wlen, chunk;
+    int nf = vec_split(v->line, ' ', f, 64), i;
+    (void)ctx;
+    assert_string_equal(f[0], "stream");
+    wlen = vec_hex(f[1], wire, sizeof wire);
+    for (chunk = 0; chunk <= 3; chunk++) { /* whole, 1, 2 and 3 bytes a call */
         dan_decoder_t d;
-        dan_frame_t fr;
-        assert_int_equal(vec_split(v.line, ' ', f, 4), 4);
-        assert_string_equal(f[0], "frame");
-        code = strtoul(f[1], NULL, 10);
-        plen = vec_hex(f[2], payload, sizeof payload);
-        wlen = vec_hex(f[3], wire, sizeof wire);
-        assert_int_equal(dan_frame_encode((uint32_t)code, payload, plen, out, sizeof out),
-                         (int)wlen);
-        assert_memory_equal(out, wire, wlen);
+        size_t n;
         dan_decoder_init(&d);
-        assert_int_equal(dan_decoder_feed(&d, wire, wlen, &used, &fr), 1);
-        assert_int_equal(used, wlen);
-        assert_int_equal(fr.code, (uint32_t)code);
-        assert_int_equal(fr.len, plen);
-        if (plen > 0) {
-            assert_memory_equal(fr.payload, payload, plen);
+        n = decode_all(&d, wire, wlen, chunk, got, 64);
+        assert_int_equal(n, (size_t)(nf - 2));
+        for (i = 2; i < nf; i++) {
+            size_t wl = vec_hex(f[i], want, sizeof want);
+            assert_int_equal(got[i - 2].len, wl);
+            assert_memory_equal(got[i - 2].wire, want, wl);
         }
-        assert_int_equal(dan_decoder_feed(&d, NULL, 0, &used, &fr), 0);
-        assert_false(dan_decoder_busy(&d));
-        count++;
     }
-    vec_close(&v);
-    assert_true(count >= 10);
 }
 
 static void test_stream_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "streams.txt");
-    while (vec_next(&v)) {
-        char *f[64];
-        static uint8_t wire[2048];
-        static raw_frame_t got[64];
-        uint8_t want[DAN_MAX_FRAME];
-        size_t wlen, chunk;
-        int nf = vec_split(v.line, ' ', f, 64), i;
-        assert_string_equal(f[0], "stream");
-        wlen = vec_hex(f[1], wire, sizeof wire);
-        for (chunk = 0; chunk <= 3; chunk++) { /* whole, 1, 2 and 3 bytes a call */
-            dan_decoder_t d;
-            size_t n;
-            dan_decoder_init(&d);
-            n = decode_all(&d, wire, wlen, chunk, got, 64);
-            assert_int_equal(n, (size_t)(nf - 2));
-            for (i = 2; i < nf; i++) {
-                size_t wl = vec_hex(f[i], want, sizeof want);
-                assert_int_equal(got[i - 2].len, wl);
-                assert_memory_equal(got[i - 2].wire, want, wl);
-            }
-        }
-        count++;
-    }
-    vec_close(&v);
-    assert_true(count >= 8);
+    assert_true(vec_each("streams.txt", stream_row, NULL) >= 8);
 }
 
 /* Every single-bit flip of a valid frame is rejected: the CRC catches
@@ -444,12 +439,20 @@ static void assert_all_flips_rejected(uint8_t *wire, size_t n)
     }
 }
 
+static void frame_flips_row(vec_file_t *v, void *ctx)
+{
+    uint8_t wire[DAN_MAX_FRAME];
+    char *f[4];
+    (void)ctx;
+    assert_int_equal(vec_split(v->line, ' ', f, 4), 4);
+    assert_all_flips_rejected(wire, vec_hex(f[3], wire, sizeof wire));
+}
+
 static void test_every_bit_flip_rejected(void **state)
 {
     uint8_t payload[40], wire[DAN_MAX_FRAME];
     uint32_t codes[3] = {0x21, 0x44, 16384};
     size_t i, c;
-    vec_file_t v;
     (void)state;
     for (i = 0; i < sizeof payload; i++) {
         payload[i] = (uint8_t)(i * 37u + 5u);
@@ -459,13 +462,7 @@ static void test_every_bit_flip_rejected(void **state)
         assert_true(n > 0);
         assert_all_flips_rejected(wire, (size_t)n);
     }
-    vec_open(&v, "frames.txt"); /* and every frame vector */
-    while (vec_next(&v)) {
-        char *f[4];
-        assert_int_equal(vec_split(v.line, ' ', f, 4), 4);
-        assert_all_flips_rejected(wire, vec_hex(f[3], wire, sizeof wire));
-    }
-    vec_close(&v);
+    (void)vec_each("frames.txt", frame_flips_row, NULL); /* and every frame vector */
 }
 
 /* Counters say what happened. */
@@ -590,103 +587,148 @@ static void test_noise_then_idle_resync(void **state)
 
 /* ---- payloads ---- */
 
+/* The payloads.txt checks: f the line's fields, want its payload bytes. */
+
+static void identity_row(const vec_file_t *v, char **f, const uint8_t *want, size_t wl)
+{
+    uint8_t out[256];
+    dan_identity_t id, back;
+    (void)v;
+    memset(&id, 0, sizeof id);
+    id.dan_version = (uint8_t)atoi(f[1]);
+    strcpy(id.manufacturer, f[2]);
+    strcpy(id.model, f[3]);
+    strcpy(id.hw_version, f[4]);
+    strcpy(id.sw_version, f[5]);
+    id.baud_mask = (uint16_t)strtoul(f[6], NULL, 16);
+    id.capabilities = (uint16_t)strtoul(f[7], NULL, 16);
+    assert_int_equal(dan_identity_encode(&id, NULL, 0), (int)wl);
+    assert_int_equal(dan_identity_encode(&id, out, sizeof out), (int)wl);
+    assert_memory_equal(out, want, wl);
+    assert_int_equal(dan_identity_encode(&id, out, wl - 1u), DAN_ERR_OVERFLOW);
+    assert_int_equal(dan_identity_decode(&back, want, wl), DAN_OK);
+    assert_int_equal(back.dan_version, id.dan_version);
+    assert_string_equal(back.manufacturer, id.manufacturer);
+    assert_string_equal(back.model, id.model);
+    assert_string_equal(back.hw_version, id.hw_version);
+    assert_string_equal(back.sw_version, id.sw_version);
+    assert_int_equal(back.baud_mask, id.baud_mask);
+    assert_int_equal(back.capabilities, id.capabilities);
+    assert_false(back.truncated);
+}
+
+static void configure_row(const vec_file_t *v, char **f, const uint8_t *want, size_t wl)
+{
+    uint8_t out[256];
+    dan_configure_t c, back;
+    (void)v;
+    c.type = (uint8_t)atoi(f[1]);
+    c.baud = (uint32_t)strtoul(f[2], NULL, 10);
+    assert_int_equal(dan_configure_encode(&c, out, sizeof out), (int)wl);
+    assert_memory_equal(out, want, wl);
+    assert_int_equal(dan_configure_decode(&back, want, wl), DAN_OK);
+    assert_int_equal(back.type, c.type);
+    assert_int_equal(back.baud, c.baud);
+}
+
+static void ack_row(const vec_file_t *v, char **f, const uint8_t *want, size_t wl)
+{
+    uint8_t out[256], a = 0xFF;
+    (void)v;
+    assert_int_equal(dan_ack_encode((uint8_t)atoi(f[1]), out, sizeof out), (int)wl);
+    assert_memory_equal(out, want, wl);
+    assert_int_equal(dan_ack_decode(&a, want, wl), DAN_OK);
+    assert_int_equal(a, atoi(f[1]));
+}
+
+static void error_row(const vec_file_t *v, char **f, const uint8_t *want, size_t wl)
+{
+    uint8_t out[256];
+    dan_error_msg_t e;
+    (void)v;
+    assert_int_equal(
+        dan_error_encode((uint32_t)atol(f[1]), (uint32_t)atol(f[2]), f[3], out, sizeof out),
+        (int)wl);
+    assert_memory_equal(out, want, wl);
+    assert_int_equal(dan_error_decode(&e, want, wl), DAN_OK);
+    assert_int_equal(e.code, (uint32_t)atol(f[1]));
+    assert_int_equal(e.error, (uint32_t)atol(f[2]));
+    assert_string_equal(e.text, f[3]);
+}
+
+/* bad_<kind>: the decoder of kind refuses the payload. */
+static void bad_row(const vec_file_t *v, char **f, const uint8_t *want, size_t wl)
+{
+    const char *kind = f[0] + 4;
+    union {
+        dan_identity_t id;
+        dan_configure_t c;
+        uint8_t a;
+        dan_error_msg_t e;
+    } m;
+    int rc;
+    if (strcmp(kind, "identity") == 0) {
+        rc = dan_identity_decode(&m.id, want, wl);
+    } else if (strcmp(kind, "configure") == 0) {
+        rc = dan_configure_decode(&m.c, want, wl);
+    } else if (strcmp(kind, "ack") == 0) {
+        rc = dan_ack_decode(&m.a, want, wl);
+    } else if (strcmp(kind, "error") == 0) {
+        rc = dan_error_decode(&m.e, want, wl);
+    } else {
+        fail_msg("%s:%d: unknown kind %s", v->path, v->lineno, f[0]);
+        return;
+    }
+    assert_int_equal(rc, DAN_ERR_MALFORMED);
+}
+
+static void unsupported_row(const vec_file_t *v, char **f, const uint8_t *want, size_t wl)
+{
+    dan_configure_t c;
+    (void)v;
+    (void)f;
+    assert_int_equal(dan_configure_decode(&c, want, wl), DAN_ERR_UNSUPPORTED);
+}
+
+/* One payloads.txt line: its kind (a prefix for bad_) picks the check; nf
+ * fields (0: not checked), the payload hex in field hex. */
+static void payload_row(vec_file_t *v, void *ctx)
+{
+    static const struct {
+        const char *kind;
+        bool prefix;
+        int nf, hex;
+        void (*check)(const vec_file_t *v, char **f, const uint8_t *want, size_t wl);
+    } kinds[] = {
+        {"identity", false, 9, 8, identity_row},
+        {"configure", false, 4, 3, configure_row},
+        {"ack", false, 3, 2, ack_row},
+        {"error", false, 5, 4, error_row},
+        {"bad_", true, 2, 1, bad_row},
+        {"unsupported_configure", false, 0, 1, unsupported_row},
+    };
+    char *f[10];
+    uint8_t want[256];
+    int nf = vec_split(v->line, '\t', f, 10);
+    size_t i;
+    (void)ctx;
+    for (i = 0; i < sizeof kinds / sizeof kinds[0]; i++) {
+        if (kinds[i].prefix ? strncmp(f[0], kinds[i].kind, strlen(kinds[i].kind)) == 0
+                            : strcmp(f[0], kinds[i].kind) == 0) {
+            if (kinds[i].nf != 0) {
+                assert_int_equal(nf, kinds[i].nf);
+            }
+            kinds[i].check(v, f, want, vec_hex(f[kinds[i].hex], want, sizeof want));
+            return;
+        }
+    }
+    fail_msg("%s:%d: unknown kind %s", v->path, v->lineno, f[0]);
+}
+
 static void test_payload_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "payloads.txt");
-    while (vec_next(&v)) {
-        char *f[10];
-        uint8_t want[256], out[256];
-        size_t wl;
-        int nf = vec_split(v.line, '\t', f, 10);
-        if (strcmp(f[0], "identity") == 0) {
-            dan_identity_t id, back;
-            assert_int_equal(nf, 9);
-            memset(&id, 0, sizeof id);
-            id.dan_version = (uint8_t)atoi(f[1]);
-            strcpy(id.manufacturer, f[2]);
-            strcpy(id.model, f[3]);
-            strcpy(id.hw_version, f[4]);
-            strcpy(id.sw_version, f[5]);
-            id.baud_mask = (uint16_t)strtoul(f[6], NULL, 16);
-            id.capabilities = (uint16_t)strtoul(f[7], NULL, 16);
-            wl = vec_hex(f[8], want, sizeof want);
-            assert_int_equal(dan_identity_encode(&id, NULL, 0), (int)wl);
-            assert_int_equal(dan_identity_encode(&id, out, sizeof out), (int)wl);
-            assert_memory_equal(out, want, wl);
-            assert_int_equal(dan_identity_encode(&id, out, wl - 1u), DAN_ERR_OVERFLOW);
-            assert_int_equal(dan_identity_decode(&back, want, wl), DAN_OK);
-            assert_int_equal(back.dan_version, id.dan_version);
-            assert_string_equal(back.manufacturer, id.manufacturer);
-            assert_string_equal(back.model, id.model);
-            assert_string_equal(back.hw_version, id.hw_version);
-            assert_string_equal(back.sw_version, id.sw_version);
-            assert_int_equal(back.baud_mask, id.baud_mask);
-            assert_int_equal(back.capabilities, id.capabilities);
-            assert_false(back.truncated);
-        } else if (strcmp(f[0], "configure") == 0) {
-            dan_configure_t c, back;
-            assert_int_equal(nf, 4);
-            c.type = (uint8_t)atoi(f[1]);
-            c.baud = (uint32_t)strtoul(f[2], NULL, 10);
-            wl = vec_hex(f[3], want, sizeof want);
-            assert_int_equal(dan_configure_encode(&c, out, sizeof out), (int)wl);
-            assert_memory_equal(out, want, wl);
-            assert_int_equal(dan_configure_decode(&back, want, wl), DAN_OK);
-            assert_int_equal(back.type, c.type);
-            assert_int_equal(back.baud, c.baud);
-        } else if (strcmp(f[0], "ack") == 0) {
-            uint8_t a = 0xFF;
-            assert_int_equal(nf, 3);
-            wl = vec_hex(f[2], want, sizeof want);
-            assert_int_equal(dan_ack_encode((uint8_t)atoi(f[1]), out, sizeof out), (int)wl);
-            assert_memory_equal(out, want, wl);
-            assert_int_equal(dan_ack_decode(&a, want, wl), DAN_OK);
-            assert_int_equal(a, atoi(f[1]));
-        } else if (strcmp(f[0], "error") == 0) {
-            dan_error_msg_t e;
-            assert_int_equal(nf, 5);
-            wl = vec_hex(f[4], want, sizeof want);
-            assert_int_equal(
-                dan_error_encode((uint32_t)atol(f[1]), (uint32_t)atol(f[2]), f[3], out, sizeof out),
-                (int)wl);
-            assert_memory_equal(out, want, wl);
-            assert_int_equal(dan_error_decode(&e, want, wl), DAN_OK);
-            assert_int_equal(e.code, (uint32_t)atol(f[1]));
-            assert_int_equal(e.error, (uint32_t)atol(f[2]));
-            assert_string_equal(e.text, f[3]);
-        } else if (strncmp(f[0], "bad_", 4) == 0) {
-            const char *kind = f[0] + 4;
-            assert_int_equal(nf, 2);
-            wl = vec_hex(f[1], want, sizeof want);
-            if (strcmp(kind, "identity") == 0) {
-                dan_identity_t id;
-                assert_int_equal(dan_identity_decode(&id, want, wl), DAN_ERR_MALFORMED);
-            } else if (strcmp(kind, "configure") == 0) {
-                dan_configure_t c;
-                assert_int_equal(dan_configure_decode(&c, want, wl), DAN_ERR_MALFORMED);
-            } else if (strcmp(kind, "ack") == 0) {
-                uint8_t a;
-                assert_int_equal(dan_ack_decode(&a, want, wl), DAN_ERR_MALFORMED);
-            } else if (strcmp(kind, "error") == 0) {
-                dan_error_msg_t e;
-                assert_int_equal(dan_error_decode(&e, want, wl), DAN_ERR_MALFORMED);
-            } else {
-                fail_msg("%s:%d: unknown kind %s", v.path, v.lineno, f[0]);
-            }
-        } else if (strcmp(f[0], "unsupported_configure") == 0) {
-            dan_configure_t c;
-            wl = vec_hex(f[1], want, sizeof want);
-            assert_int_equal(dan_configure_decode(&c, want, wl), DAN_ERR_UNSUPPORTED);
-        } else {
-            fail_msg("%s:%d: unknown kind %s", v.path, v.lineno, f[0]);
-        }
-        count++;
-    }
-    vec_close(&v);
-    assert_true(count >= 20);
+    assert_true(vec_each("payloads.txt", payload_row, NULL) >= 20);
 }
 
 static void test_identity_truncation(void **state)
@@ -733,26 +775,11 @@ static void test_baud_mask_helpers(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_crc8_check),
-        cmocka_unit_test(test_crc8_table_matches_bitwise),
-        cmocka_unit_test(test_crc8_vectors),
-        cmocka_unit_test(test_uvarint_edges),
-        cmocka_unit_test(test_uvarint_vectors),
-        cmocka_unit_test(test_writer_reader_roundtrip),
-        cmocka_unit_test(test_writer_overflow_sticky),
-        cmocka_unit_test(test_reader_bounds),
-        cmocka_unit_test(test_frame_anchor_vectors),
-        cmocka_unit_test(test_frame_encode_limits),
-        cmocka_unit_test(test_frame_vectors),
-        cmocka_unit_test(test_stream_vectors),
-        cmocka_unit_test(test_every_bit_flip_rejected),
-        cmocka_unit_test(test_decoder_counters),
-        cmocka_unit_test(test_random_roundtrip_and_resync),
-        cmocka_unit_test(test_noise_then_idle_resync),
-        cmocka_unit_test(test_payload_vectors),
-        cmocka_unit_test(test_identity_truncation),
-        cmocka_unit_test(test_baud_mask_helpers),
-    };
-    return cmocka_run_group_tests_name("codec", tests, NULL, NULL);
+    return UNIT_RUN("codec", NULL, NULL, test_crc8_check, test_crc8_table_matches_bitwise,
+                    test_crc8_vectors, test_uvarint_edges, test_uvarint_vectors,
+                    test_writer_reader_roundtrip, test_writer_overflow_sticky, test_reader_bounds,
+                    test_frame_anchor_vectors, test_frame_encode_limits, test_frame_vectors,
+                    test_stream_vectors, test_every_bit_flip_rejected, test_decoder_counters,
+                    test_random_roundtrip_and_resync, test_noise_then_idle_resync,
+                    test_payload_vectors, test_identity_truncation, test_baud_mask_helpers);
 }

@@ -11,13 +11,12 @@
 #include "dan/codes.h"
 #include "simbus.h"
 #include "handlers_test_a.h"
+#include "unit_run.h"
 
 #define STEP_US 10u
 
 /* ---- test peripherals ---- */
 
-static const dan_identity_t ident_a = {1,       "DAN Project",         "test A", "rev 1",
-                                       "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
 static const dan_identity_t ident_b = {
     1,       "DAN Project", "test B",
     "rev 2", "2.0.0",       DAN_BAUD_MASK_19200 | DAN_BAUD_MASK_57600 | DAN_BAUD_MASK_115200,
@@ -47,11 +46,7 @@ static void rig_setup(bool echo)
 {
     dan_master_config_t cfg;
     memset(&rig, 0, sizeof rig);
-    types_dev1[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST,
-                                  .identity = &ident_a,
-                                  .handlers = test_a_handlers,
-                                  .nhandlers = TEST_A_NHANDLERS,
-                                  .user = &silent_calls};
+    types_dev1[0] = test_a_type(&silent_calls);
     types_dev1[1] = (dan_ptype_t){.first = DAN_TYPE_TEST_B_FIRST, .identity = &ident_b};
     types_dev2[0] = (dan_ptype_t){.first = DAN_TYPE_CAN_GW_FIRST, .identity = &ident_gw};
     sim_init(&rig.bus, STEP_US);
@@ -541,25 +536,12 @@ static void test_api_errors(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_discovery_identities),
-        cmocka_unit_test(test_configure_best_baud),
-        cmocka_unit_test(test_baud_switch_after_ack),
-        cmocka_unit_test(test_turnaround_gap),
-        cmocka_unit_test(test_unknown_malformed_silent),
-        cmocka_unit_test(test_master_restart_recovery),
-        cmocka_unit_test(test_configure_verify_failure_recovers),
-        cmocka_unit_test(test_configure_peer_vanishes),
-        cmocka_unit_test(test_collision_detected_and_retried),
-        cmocka_unit_test(test_listen_before_talk),
-        cmocka_unit_test(test_busy_line_times_out),
-        cmocka_unit_test(test_noise_no_wrong_data),
-        cmocka_unit_test(test_direction_pin),
-        cmocka_unit_test(test_discovery_configure_time),
-        cmocka_unit_test(test_late_echo_is_not_a_reply),
-        cmocka_unit_test(test_reply_in_same_read_as_echo),
-        cmocka_unit_test(test_peripheral_ignores_own_reply_after_collision),
-        cmocka_unit_test(test_api_errors),
-    };
-    return cmocka_run_group_tests_name("engines", tests, NULL, NULL);
+    return UNIT_RUN("engines", NULL, NULL, test_discovery_identities, test_configure_best_baud,
+                    test_baud_switch_after_ack, test_turnaround_gap, test_unknown_malformed_silent,
+                    test_master_restart_recovery, test_configure_verify_failure_recovers,
+                    test_configure_peer_vanishes, test_collision_detected_and_retried,
+                    test_listen_before_talk, test_busy_line_times_out, test_noise_no_wrong_data,
+                    test_direction_pin, test_discovery_configure_time,
+                    test_late_echo_is_not_a_reply, test_reply_in_same_read_as_echo,
+                    test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }

@@ -13,6 +13,7 @@
 
 #include "dan/can_gw/esc_map.h"
 #include "dan/common.h"
+#include "unit_run.h"
 
 #define NOUT 32
 
@@ -113,9 +114,5 @@ static void test_cap_and_null(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_table),
-        cmocka_unit_test(test_cap_and_null),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("esc_map", NULL, NULL, test_table, test_cap_and_null);
 }

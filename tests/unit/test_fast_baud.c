@@ -13,12 +13,11 @@
 #include "dan/codes.h"
 #include "simbus.h"
 #include "handlers_test_a.h"
+#include "unit_run.h"
 
 /* 1 us steps: a character is 5 us at 2 Mbit/s. */
 #define STEP_US 1u
 
-static const dan_identity_t ident_a = {1,       "DAN Project",         "test A", "rev 1",
-                                       "1.0.0", DAN_BAUD_MASK_DEFINED, 0,        false};
 static const dan_identity_t ident_gw = {1, "ACME", "gateway", "1", "0.1", DAN_BAUD_MASK_DEFINED,
                                         0, false};
 static const dan_identity_t ident_b = {1, "Old Co", "v1 only", "1", "0.9", DAN_BAUD_MASK_DEFINED,
@@ -66,11 +65,7 @@ static void master_init(uint32_t fast_max, uint32_t seed)
 static void rig_setup(const uint32_t *gw_fast, size_t gw_fast_n, bool with_v1)
 {
     memset(&rig, 0, sizeof rig);
-    type_a[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_A_FIRST,
-                              .identity = &ident_a,
-                              .handlers = test_a_handlers,
-                              .nhandlers = TEST_A_NHANDLERS,
-                              .user = &silent_calls};
+    type_a[0] = test_a_type(&silent_calls);
     type_gw[0] = (dan_ptype_t){.first = DAN_TYPE_CAN_GW_FIRST, .identity = &ident_gw};
     type_b[0] = (dan_ptype_t){.first = DAN_TYPE_TEST_B_FIRST, .identity = &ident_b};
     sim_init(&rig.bus, STEP_US);
@@ -402,19 +397,9 @@ static void test_fast_list_rules(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_negotiates_2m),
-        cmocka_unit_test(test_refusal_moves_back),
-        cmocka_unit_test(test_v1_peer_best_common),
-        cmocka_unit_test(test_ack_without_switch_recovered),
-        cmocka_unit_test(test_switched_then_silent_dropped),
-        cmocka_unit_test(test_named_baud_lie_recovered),
-        cmocka_unit_test(test_named_baud),
-        cmocka_unit_test(test_restart_finds_fast_bus),
-        cmocka_unit_test(test_timing_1m),
-        cmocka_unit_test(test_backoff_1m),
-        cmocka_unit_test(test_reply_tail_1m),
-        cmocka_unit_test(test_fast_list_rules),
-    };
-    return cmocka_run_group_tests_name("fast_baud", tests, NULL, NULL);
+    return UNIT_RUN("fast_baud", NULL, NULL, test_negotiates_2m, test_refusal_moves_back,
+                    test_v1_peer_best_common, test_ack_without_switch_recovered,
+                    test_switched_then_silent_dropped, test_named_baud_lie_recovered,
+                    test_named_baud, test_restart_finds_fast_bus, test_timing_1m, test_backoff_1m,
+                    test_reply_tail_1m, test_fast_list_rules);
 }

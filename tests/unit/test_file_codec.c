@@ -13,6 +13,7 @@
 
 #include "dan/can_gw/dsdl_file.h"
 #include "dan/can_gw/file_store.h"
+#include "unit_run.h"
 
 static bool name_ok(const char *s)
 {
@@ -204,10 +205,6 @@ static void test_signatures(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_names),    cmocka_unit_test(test_paths),
-        cmocka_unit_test(test_read_req), cmocka_unit_test(test_getinfo),
-        cmocka_unit_test(test_read_rsp), cmocka_unit_test(test_signatures),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("file_codec", NULL, NULL, test_names, test_paths, test_read_req, test_getinfo,
+                    test_read_rsp, test_signatures);
 }

@@ -18,6 +18,7 @@
 
 #include "dan/common.h"
 #include "file_dir.h"
+#include "unit_run.h"
 
 static char dir[64];
 static dan_file_dir_t d;
@@ -230,13 +231,6 @@ static void test_size_cap(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_open_errors, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_committed, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_symlinks_refused, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_upload, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_resume_after_restart, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_size_cap, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("file_dir", setup, teardown, test_open_errors, test_committed,
+                    test_symlinks_refused, test_upload, test_resume_after_restart, test_size_cap);
 }

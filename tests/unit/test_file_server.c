@@ -23,6 +23,7 @@
 #include "dan/codes.h"
 #include "file_dir.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 #define IMG_SIZE 600u
 
@@ -100,27 +101,14 @@ static int teardown_dir(void **state)
     return teardown(state);
 }
 
-static void send_read(uint8_t src, uint64_t offset, const char *path)
-{
-    dan_dc_file_req_t q;
-    uint8_t buf[DAN_DC_FILE_READ_REQ_MAX_SIZE];
-    memset(&q, 0, sizeof q);
-    q.offset = offset;
-    q.path_len = (uint8_t)strlen(path);
-    memcpy(q.path, path, q.path_len);
-    inject(src, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE, DAN_DC_TRANSFER_REQUEST, 10, buf,
-           dan_dc_file_read_req_encode(&q, buf, sizeof buf));
-}
-
 /* Reads offset of path as node 42 (the listener): the response, decoded. */
 static void read_at(uint64_t offset, const char *path, dan_dc_file_read_rsp_t *r)
 {
     size_t from = R->ncap;
     cap_t *c;
-    send_read(LISTEN_NODE, offset, path);
+    file_read_from(LISTEN_NODE, offset, path);
     drain();
-    c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(c->src, 10);
     assert_int_equal(c->dst, LISTEN_NODE);
     assert_int_equal(dan_dc_file_read_rsp_decode(r, c->payload, c->len), DAN_OK);
@@ -269,8 +257,7 @@ static void test_read_nul_path(void **state)
         inject(LISTEN_NODE, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE,
                DAN_DC_TRANSFER_REQUEST, 10, req, (int)sizeof req);
         drain();
-        c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-        assert_non_null(c);
+        c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
         assert_int_equal(dan_dc_file_read_rsp_decode(&r, c->payload, c->len), DAN_OK);
         assert_int_equal(r.error, DAN_DC_FILE_INVALID_VALUE);
     }
@@ -288,8 +275,7 @@ static void get_info(const char *path, dan_dc_file_getinfo_rsp_t *r)
     inject(LISTEN_NODE, DAN_DC_FILE_GETINFO_ID, DAN_DC_FILE_GETINFO_SIGNATURE,
            DAN_DC_TRANSFER_REQUEST, 10, buf, dan_dc_file_getinfo_req_encode(&q, buf, sizeof buf));
     drain();
-    c = find_cap(DAN_DC_FILE_GETINFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_FILE_GETINFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(dan_dc_file_getinfo_rsp_decode(r, c->payload, c->len), DAN_OK);
 }
 
@@ -334,7 +320,7 @@ static void test_reads_in_flight(void **state)
     advance(10000); /* our own timers in the future */
     from = R->ncap;
     for (i = 0; i < 5; i++) {
-        send_read(LISTEN_NODE, (uint64_t)(i % 2) * 256u, "fw.bin"); /* 256 bytes each */
+        file_read_from(LISTEN_NODE, (uint64_t)(i % 2) * 256u, "fw.bin"); /* 256 bytes each */
     }
     assert_int_equal(R->g.file_nwait, 2);
     assert_int_equal(R->g.stats.can_tx_dropped, 0);
@@ -344,8 +330,7 @@ static void test_reads_in_flight(void **state)
     advance(1000);
     assert_int_equal(R->g.file_nwait, 0);
     for (i = 0; i < 5; i++) {
-        c = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-        assert_non_null(c);
+        c = expect_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from);
         if (i == 0) {
             tid0 = c->tid;
         }
@@ -358,7 +343,7 @@ static void test_reads_in_flight(void **state)
     assert_int_equal(R->g.stats.can_tx_dropped, 0);
     /* 3 answered, 8 wait, 1 dropped; then the 8 go stale */
     for (i = 0; i < 12; i++) {
-        send_read((uint8_t)(60 + i), 0, "fw.bin");
+        file_read_from((uint8_t)(60 + i), 0, "fw.bin");
     }
     assert_int_equal(R->g.file_nwait, DAN_GW_NODE_FILE_WAIT);
     assert_int_equal(R->g.stats.file_dropped, 1);
@@ -374,7 +359,7 @@ static void test_no_store(void **state)
     size_t from = R->ncap;
     (void)state;
     R->g.cfg.files = NULL;
-    send_read(LISTEN_NODE, 0, "fw.bin");
+    file_read_from(LISTEN_NODE, 0, "fw.bin");
     drain();
     assert_null(find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from));
     assert_int_equal(calls, 0);
@@ -450,20 +435,11 @@ static void test_info_after_update(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_read_chunks, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_read_errors, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_store_failure, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_read_chunks, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_read_errors, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_getinfo_dir, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_reads_in_flight, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_dir_symlink_out, setup_dir, teardown_dir),
-        cmocka_unit_test_setup_teardown(test_read_nul_path, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_getinfo, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_reads_in_flight, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_no_store, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_info_after_update, setup_files, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = UNIT_RUN("file_server", setup_files, teardown, test_read_chunks, test_read_errors,
+                          test_store_failure, test_read_nul_path, test_getinfo,
+                          test_reads_in_flight, test_no_store, test_info_after_update);
+    failed +=
+        UNIT_RUN("file_server_dir", setup_dir, teardown_dir, test_read_chunks, test_read_errors,
+                 test_getinfo_dir, test_reads_in_flight, test_dir_symlink_out);
+    return failed;
 }

@@ -20,6 +20,7 @@
 #include "gw_rig.h"
 #include "simbus.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* ---- tests ---- */
 
@@ -60,8 +61,7 @@ static void test_esc_command_raw_command(void **state)
     /* the request is a 14-byte frame: 12 plus the seal */
     assert_int_equal(R->m.link.tx_len, 14);
     assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->src, 10);
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
     assert_int_equal(rc.count, 4);
@@ -70,10 +70,8 @@ static void test_esc_command_raw_command(void **state)
     assert_int_equal(R->gw.last_telem, DAN_GW_NONE);
     /* 8 channels: a multi-frame transfer (14 bytes + CRC = 3 frames) */
     nf = R->nframes;
-    assert_int_equal(dan_gw_esc_command(&R->gw, v8, 8, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    call_ok(dan_gw_esc_command(&R->gw, v8, 8, R->bus.now));
+    c = expect_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
     assert_int_equal(rc.count, 8);
     assert_memory_equal(rc.cmd, v8, sizeof v8);
@@ -106,8 +104,7 @@ static void test_telemetry_round_robin(void **state)
            DAN_DC_TRANSFER_BROADCAST, 0, buf,
            dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
     for (i = 0; i < 6; i++) {
-        assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_esc_command(&R->gw, v, 4, R->bus.now));
         assert_int_equal(R->gw.esc_seen, 3);
         order[i] = R->gw.last_telem;
     }
@@ -130,8 +127,7 @@ static void test_telemetry_round_robin(void **state)
     assert_int_equal(R->gw.esc[3].status_flags, 370085);
     /* the paged telemetry returns all of them */
     memset(R->gw.esc, 0, sizeof R->gw.esc);
-    assert_int_equal(dan_gw_telemetry(&R->gw, 0, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_telemetry(&R->gw, 0, R->bus.now));
     assert_int_equal(R->gw.telem_next, DAN_GW_NONE);
     assert_int_equal(R->gw.esc[3].motor_angle, 359);
     assert_int_equal(R->gw.esc[0].temperature_f16, dan_f16_from_f32(300.0f));
@@ -153,8 +149,7 @@ static void test_telemetry_paging(void **state)
         dan_reader_t r;
         dan_gw_telem_hdr_t h;
         dan_gw_telem_t t;
-        assert_int_equal(dan_gw_telemetry(&R->gw, first, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_telemetry(&R->gw, first, R->bus.now));
         dan_reader_init(&r, R->m.resp, R->m.resp_len);
         assert_int_equal(dan_gw_msg_telem_hdr_get(&r, &h), DAN_OK);
         for (i = 0; i < h.count; i++) {
@@ -183,8 +178,7 @@ static void test_arming(void **state)
     t0 = R->bus.now;
     assert_int_equal(finish(), DAN_OK);
     assert_true(R->gw.gw_flags & DAN_GW_FLAG_ARMED);
-    c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->payload[0], 255);
     assert_true(c->at_us - t0 < 20000u); /* at once, not at the next period */
     /* then steadily at 2 Hz */
@@ -194,10 +188,8 @@ static void test_arming(void **state)
         n++;
     }
     assert_true(n >= 3 && n <= 5);
-    assert_int_equal(dan_gw_arm(&R->gw, false, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    call_ok(dan_gw_arm(&R->gw, false, R->bus.now));
+    c = expect_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->payload[0], 0);
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_ARMED);
 }
@@ -205,56 +197,43 @@ static void test_arming(void **state)
 static void test_failsafe(void **state)
 {
     const int16_t v[6] = {1000, 2000, 3000, 4000, 5000, 6000};
-    dan_gw_config_t set;
     dan_dc_esc_raw_command_t rc;
     size_t from;
     cap_t *c;
     uint64_t t_last;
     (void)state;
-    memset(&set, 0, sizeof set);
-    set.set_mask = DAN_GW_CFG_ESC_TIMEOUT;
-    set.esc_timeout_ms = 200;
-    assert_int_equal(dan_gw_config(&R->gw, &set, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
     assert_int_equal(R->gw.config.esc_timeout_ms, 200);
     assert_int_equal(R->gw.config.node_id, 10);
-    assert_int_equal(dan_gw_arm(&R->gw, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 6, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_arm(&R->gw, true, R->bus.now));
+    call_ok(dan_gw_esc_command(&R->gw, v, 6, R->bus.now));
     t_last = R->g.esc.last_cmd_us; /* when the gateway got it */
     from = R->ncap;
     advance(150000);
     assert_int_equal(R->g.stats.failsafes, 0);
     advance(100000);
     assert_int_equal(R->g.stats.failsafes, 1);
-    c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_true(c->at_us - t_last >= 200000u && c->at_us - t_last <= 202000u);
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
     assert_int_equal(rc.count, 6);
     assert_int_equal(rc.cmd[0] | rc.cmd[1] | rc.cmd[2] | rc.cmd[3] | rc.cmd[4] | rc.cmd[5], 0);
-    c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->payload[0], 0);
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FAILSAFES], 1);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FAILSAFE_ACTIVE], 1);
-    assert_int_equal(dan_gw_config(&R->gw, NULL, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_config(&R->gw, NULL, R->bus.now));
     assert_true(R->gw.gw_flags & DAN_GW_FLAG_FAILSAFE);
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_ARMED);
     /* a new command ends it */
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 6, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_command(&R->gw, v, 6, R->bus.now));
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_FAILSAFE);
     /* forced failsafe (daemon shutdown) */
     from = R->ncap;
     dan_gw_node_failsafe(&R->g, R->bus.now);
     drain();
-    c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
     assert_int_equal(rc.count, 6);
     assert_int_equal(rc.cmd[5], 0);
@@ -296,8 +275,7 @@ static void test_tunnel_targetted_retries(void **state)
     o.serial_id = 2;
     o.options = DAN_DC_TUNNEL_OPTION_LOCK_PORT;
     o.baud = 57600;
-    assert_int_equal(dan_gw_tunnel_open(&R->gw, &o, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_tunnel_open(&R->gw, &o, R->bus.now));
     from = R->ncap;
     /* the far end sends 3000 bytes in 120-byte chunks; one from another
      * node and one for another serial port must be ignored */
@@ -382,8 +360,7 @@ static void test_tunnel_broadcast_and_drops(void **state)
     o.mode = DAN_GW_TUN_BROADCAST;
     o.protocol = DAN_DC_TUNNEL_GPS_GENERIC;
     o.target = 7;
-    assert_int_equal(dan_gw_tunnel_open(&R->gw, &o, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_tunnel_open(&R->gw, &o, R->bus.now));
     from = R->ncap;
     assert_int_equal(
         dan_gw_tunnel_xfer(&R->gw, 0, (const uint8_t *)"hello broadcast", 15, 128, R->bus.now),
@@ -391,8 +368,7 @@ static void test_tunnel_broadcast_and_drops(void **state)
     assert_int_equal(finish(), DAN_OK);
     assert_int_equal(R->gw.tun[0].accepted, 15);
     advance(5000);
-    c = find_cap(DAN_DC_TUNNEL_BROADCAST_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_TUNNEL_BROADCAST_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_tunnel_broadcast_decode(&m, c->payload, c->len), DAN_OK);
     assert_int_equal(m.channel_id, 7);
     assert_int_equal(m.protocol, DAN_DC_TUNNEL_GPS_GENERIC);
@@ -412,14 +388,12 @@ static void test_tunnel_broadcast_and_drops(void **state)
                DAN_DC_TRANSFER_BROADCAST, 0, buf,
                dan_dc_tunnel_broadcast_encode(&m, buf, sizeof buf));
     }
-    assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, NULL, 0, 128, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_tunnel_xfer(&R->gw, 0, NULL, 0, 128, R->bus.now));
     assert_int_equal(R->gw.tun[0].rd_dropped, 84u * 60u - 4096u);
     assert_int_equal(dan_gw_tunnel_data(&R->gw, &d, &n), DAN_OK);
     assert_int_equal(n, 128);
     assert_memory_equal(d, data, 60);
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_TUN_DROPPED], 84u * 60u - 4096u);
     /* closed port: error frame */
     assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 1, NULL, 0, 128, R->bus.now), DAN_OK);
@@ -440,14 +414,12 @@ static void test_raw_frames_and_filters(void **state)
     f[0].mask = 0x00FFFF80u;
     f[1].id = 0x100;
     f[1].mask = 0x700;
-    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, f, 2, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, f, 2, R->bus.now));
     assert_int_equal(dan_gw_filter_begin(&R->gw, &r, &res, &cnt), DAN_OK);
     assert_int_equal(res, 0);
     assert_int_equal(cnt, 2);
     /* adding an entry twice (a retry) changes nothing */
-    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_ADD, f + 1, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_ADD, f + 1, 1, R->bus.now));
     assert_int_equal(dan_gw_filter_begin(&R->gw, &r, &res, &cnt), DAN_OK);
     assert_int_equal(cnt, 2);
     /* frames arrive: one ESC status (3 frames), one 11-bit 0x123, one 0x223
@@ -462,8 +434,7 @@ static void test_raw_frames_and_filters(void **state)
     fr[1].dlc = 1;
     dan_gw_node_rx_can(&R->g, &fr[0], R->bus.now);
     dan_gw_node_rx_can(&R->g, &fr[1], R->bus.now);
-    assert_int_equal(dan_gw_can_recv(&R->gw, 11, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_recv(&R->gw, 11, R->bus.now));
     assert_int_equal(dan_gw_can_begin(&R->gw, &r, &h), DAN_OK);
     assert_int_equal(h.count, 4);
     for (i = 0; i < 3; i++) {
@@ -478,8 +449,7 @@ static void test_raw_frames_and_filters(void **state)
     assert_int_equal(R->gw.can_rx_next, 4);
     /* the same fetch again (as if its response was lost) must not lose
      * frames: nothing new until acknowledged by the next request */
-    assert_int_equal(dan_gw_can_recv(&R->gw, 11, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_recv(&R->gw, 11, R->bus.now));
     assert_int_equal(dan_gw_can_begin(&R->gw, &r, &h), DAN_OK);
     assert_int_equal(h.count, 0);
     assert_int_equal(h.seq, 4);
@@ -506,8 +476,7 @@ static void test_raw_frames_and_filters(void **state)
         found = R->g.stats.can_tx;
         (void)found;
     }
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_true(R->gw.stats[DAN_GW_STAT_CAN_RX] >= 5);
 }
 
@@ -569,8 +538,7 @@ static void test_node_table(void **state)
            buf, dan_dc_node_status_encode(&s, buf, sizeof buf));
     advance(10000);
     /* the gateway asks node 42 (our listener) for GetNodeInfo */
-    c = find_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_REQUEST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_REQUEST, &from);
     assert_int_equal(c->src, 10);
     assert_int_equal(c->dst, LISTEN_NODE);
     /* node 42 answers */
@@ -610,8 +578,7 @@ static void test_node_table(void **state)
     }
     assert_int_equal(requests, 1); /* the listener only sees requests to 42 */
     assert_int_equal(R->g.stats.info_requests, 4);
-    assert_int_equal(dan_gw_nodes(&R->gw, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_nodes(&R->gw, 1, R->bus.now));
     assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
     assert_int_equal(h.count, 2);
     assert_int_equal(h.next, 0);
@@ -628,8 +595,7 @@ static void test_node_table(void **state)
     assert_int_equal(dan_gw_nodes_next(&r, &e), DAN_OK);
     assert_int_equal(e.node_id, 99);
     assert_int_equal(e.info_state & DAN_GW_INFO_MASK, DAN_GW_INFO_FAILED);
-    assert_int_equal(dan_gw_node_info(&R->gw, 42, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_node_info(&R->gw, 42, R->bus.now));
     assert_int_equal(dan_gw_node_info_get(&R->gw, &ni), DAN_OK);
     assert_string_equal(ni.name, "com.example.esc1");
     assert_int_equal(ni.sw_major, 3);
@@ -647,8 +613,7 @@ static void test_node_table(void **state)
         uint8_t first = 1;
         int total = 0, pages = 0;
         do {
-            assert_int_equal(dan_gw_nodes(&R->gw, first, R->bus.now), DAN_OK);
-            assert_int_equal(finish(), DAN_OK);
+            call_ok(dan_gw_nodes(&R->gw, first, R->bus.now));
             assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
             total += h.count;
             first = h.next;
@@ -668,16 +633,13 @@ static void test_own_node_status_and_info(void **state)
     (void)state;
     /* no master yet: WARNING */
     advance(1000);
-    c = find_cap(DAN_DC_NODE_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_NODE_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_node_status_decode(&s, c->payload, c->len), DAN_OK);
     assert_int_equal(s.health, DAN_DC_HEALTH_WARNING);
     assert_int_equal(s.mode, DAN_DC_MODE_OPERATIONAL);
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     advance(1000000);
-    c = find_cap(DAN_DC_NODE_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_NODE_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_node_status_decode(&s, c->payload, c->len), DAN_OK);
     assert_int_equal(s.health, DAN_DC_HEALTH_OK);
     assert_int_equal(s.uptime_sec, 1);
@@ -685,8 +647,7 @@ static void test_own_node_status_and_info(void **state)
     inject(LISTEN_NODE, DAN_DC_GET_NODE_INFO_ID, DAN_DC_GET_NODE_INFO_SIGNATURE,
            DAN_DC_TRANSFER_REQUEST, 10, NULL, 0);
     drain();
-    c = find_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(c->dst, LISTEN_NODE);
     assert_int_equal(dan_dc_get_node_info_rsp_decode(&info, c->payload, c->len), DAN_OK);
     assert_string_equal(info.name, "org.dan.can_gateway");
@@ -719,8 +680,7 @@ static void test_malformed(void **state)
     assert_int_equal(R->p.stats.errors_sent - errs, 6);
     assert_int_equal(R->g.stats.esc_cmds, 0);
     /* the client's stats show them */
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_DAN_ERRORS_SENT], 6);
     assert_true(R->gw.stats[DAN_GW_STAT_DAN_FRAMES] >= 7);
     assert_true(R->gw.stats[DAN_GW_STAT_CAN_TX] >= 1);
@@ -750,11 +710,9 @@ static void test_bad_seal_dropped(void **state)
     from = 0;
     assert_null(find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from));
     (void)nf;
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_command(&R->gw, v, 4, R->bus.now));
     assert_int_equal(R->g.stats.esc_cmds, 1);
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_BAD_CHECKS], 3);
     /* the client refuses a reply with a bad seal: the master counts it */
     assert_int_equal(
@@ -864,8 +822,7 @@ static void test_full_pages_leave_room_for_the_seal(void **state)
         do {
             dan_reader_t r;
             dan_gw_telem_hdr_t h;
-            assert_int_equal(dan_gw_telemetry(&R->gw, first, R->bus.now), DAN_OK);
-            assert_int_equal(finish(), DAN_OK);
+            call_ok(dan_gw_telemetry(&R->gw, first, R->bus.now));
             assert_true(R->m.resp_len <= DAN_MAX_PAYLOAD);
             dan_reader_init(&r, R->m.resp, R->m.resp_len);
             assert_int_equal(dan_gw_msg_telem_hdr_get(&r, &h), DAN_OK);
@@ -891,12 +848,10 @@ static void test_can_send_seq_reuse_after_reboot(void **state)
     a.data[0] = 1;
     b = a;
     b.data[0] = 2;
-    assert_int_equal(dan_gw_can_send(&R->gw, &a, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_send(&R->gw, &a, 1, R->bus.now));
     nf = R->nframes;
     dan_gw_init(&R->gw, &R->m); /* the FC reboots: its seq starts over */
-    assert_int_equal(dan_gw_can_send(&R->gw, &b, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_send(&R->gw, &b, 1, R->bus.now));
     assert_int_equal(R->gw.can_accepted, 1);
     assert_true(R->nframes > nf); /* b went out */
 }
@@ -912,13 +867,11 @@ static void test_arm_during_failsafe(void **state)
     dan_dc_esc_raw_command_t rc;
     int zeros = 0;
     (void)state;
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_command(&R->gw, v, 4, R->bus.now));
     advance(700000);
     assert_true(R->g.esc.failsafe);
     from = R->ncap;
-    assert_int_equal(dan_gw_arm(&R->gw, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_arm(&R->gw, true, R->bus.now));
     advance(1200000);
     while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
         last = c;
@@ -953,29 +906,25 @@ static void test_can_recv_follows_gateway_restart(void **state)
     f.id = 0;
     f.mask = 0; /* everything */
     advance(1000);
-    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, &f, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, &f, 1, R->bus.now));
     raw.id = 0x123;
     raw.flags = 0;
     raw.dlc = 1;
     raw.data[0] = 1;
     dan_gw_node_rx_can(&R->g, &raw, R->bus.now);
-    assert_int_equal(dan_gw_can_recv(&R->gw, 11, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_recv(&R->gw, 11, R->bus.now));
     assert_true(R->gw.can_rx_next > 0u);
     /* power cycle: a new sequence start */
     dan_gw_node_config_default(&gc);
     gc.raw_seq_start = 0x80000000u;
     assert_int_equal(dan_gw_node_init(&R->g, &gc, R->bus.now), DAN_OK);
     dan_gw_node_attach(&R->g, &R->p);
-    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, &f, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, &f, 1, R->bus.now));
     for (n = 0; n < 3; n++) {
         raw.data[0] = (uint8_t)(2 + n);
         dan_gw_node_rx_can(&R->g, &raw, R->bus.now);
     }
-    assert_int_equal(dan_gw_can_recv(&R->gw, 11, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_recv(&R->gw, 11, R->bus.now));
     assert_int_equal(R->gw.can_rx_resyncs, 1);
     assert_int_equal(dan_gw_can_begin(&R->gw, &r, &h), DAN_OK);
     assert_int_equal(h.seq, 0x80000000u);
@@ -1033,35 +982,19 @@ static void test_node_table_full(void **state)
         }
     }
     assert_true(i < DAN_GW_NODE_MAX_NODES);
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_NODES_DROPPED], 1);
 }
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_discover_and_identity, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_esc_command_raw_command, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_bad_seal_dropped, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_stalled_can_latest_throttle_wins, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_full_pages_leave_room_for_the_seal, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_can_send_seq_reuse_after_reboot, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_arm_during_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_can_recv_follows_gateway_restart, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_bus_off_reported, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_node_table_full, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_telemetry_round_robin, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_telemetry_paging, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_arming, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_targetted_retries, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_broadcast_and_drops, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_raw_frames_and_filters, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_raw_send_exact, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_node_table, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_own_node_status_and_info, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_malformed, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN(
+        "tests", setup, teardown, test_discover_and_identity, test_esc_command_raw_command,
+        test_bad_seal_dropped, test_stalled_can_latest_throttle_wins,
+        test_full_pages_leave_room_for_the_seal, test_can_send_seq_reuse_after_reboot,
+        test_arm_during_failsafe, test_can_recv_follows_gateway_restart, test_bus_off_reported,
+        test_node_table_full, test_telemetry_round_robin, test_telemetry_paging, test_arming,
+        test_failsafe, test_tunnel_targetted_retries, test_tunnel_broadcast_and_drops,
+        test_raw_frames_and_filters, test_raw_send_exact, test_node_table,
+        test_own_node_status_and_info, test_malformed);
 }

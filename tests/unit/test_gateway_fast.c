@@ -17,6 +17,7 @@
 #include "dan/can_gw/f16.h"
 #include "dan/frame.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 /* The RawCommand captured from index *from on must be exactly v[0..n). */
 static void expect_raw(size_t *from, const int16_t *v, size_t n)
@@ -80,8 +81,7 @@ static void test_fast_record_round_robin(void **state)
            dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
     advance(10000); /* 10 ms: age 2 units of 4 ms */
     for (i = 0; i < 7; i++) {
-        assert_int_equal(dan_gw_esc_fast(&R->gw, v, 4, true, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_esc_fast(&R->gw, v, 4, true, R->bus.now));
         order[i] = R->gw.last_telem;
         if (i == 0u) { /* 10 ms and the request's 1.1 ms: 2 units */
             assert_int_equal(R->gw.esc[0].age_ms, 8u);
@@ -106,12 +106,10 @@ static void test_fast_record_round_robin(void **state)
     /* a new esc.Status of ESC 1 is fresh again; ESC_FAST (no T) carries none
      * and does not move the round robin */
     esc_status(21, 1, 16.0f, 2.0f, 311.0f, 42);
-    assert_int_equal(dan_gw_esc_fast(&R->gw, v, 4, false, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_fast(&R->gw, v, 4, false, R->bus.now));
     assert_int_equal(R->gw.last_telem, DAN_GW_NONE);
     assert_int_equal(R->m.resp_len, 1u + DAN_GW_SEAL_SIZE);
-    assert_int_equal(dan_gw_esc_fast(&R->gw, v, 4, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_fast(&R->gw, v, 4, true, R->bus.now));
     assert_int_equal(R->gw.last_telem, 1);
     assert_true(R->gw.telem_fresh);
     assert_int_equal(R->gw.esc[1].rpm, 42);
@@ -122,16 +120,14 @@ static void test_fast_age_saturates(void **state)
 {
     const int16_t v[1] = {0};
     (void)state;
-    config_timeout(60000);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 60000);
     esc_status(20, 2, 12.0f, 1.0f, 300.0f, 7);
     advance(1010000);
-    assert_int_equal(dan_gw_esc_fast(&R->gw, v, 1, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_fast(&R->gw, v, 1, true, R->bus.now));
     assert_int_equal(R->gw.last_telem, 2);
     assert_true(R->gw.esc[2].age_ms >= 1008u && R->gw.esc[2].age_ms <= 1016u);
     advance(5000000);
-    assert_int_equal(dan_gw_esc_fast(&R->gw, v, 1, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_fast(&R->gw, v, 1, true, R->bus.now));
     assert_int_equal(R->gw.esc[2].age_ms, 1020u); /* 255: 1020 ms or older */
     assert_false(R->gw.telem_fresh);
 }
@@ -143,10 +139,9 @@ static void test_fast_feeds_failsafe(void **state)
     const int16_t zeros[4] = {0};
     size_t i, from;
     (void)state;
-    config_timeout(100);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 100);
     for (i = 0; i < 40; i++) { /* 400 ms of commands every 10 ms */
-        assert_int_equal(dan_gw_esc_fast(&R->gw, v, 4, i % 4u == 0u, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_esc_fast(&R->gw, v, 4, i % 4u == 0u, R->bus.now));
         advance(10000);
     }
     assert_int_equal(R->g.stats.failsafes, 0);
@@ -154,8 +149,7 @@ static void test_fast_feeds_failsafe(void **state)
     advance(100000);
     assert_int_equal(R->g.stats.failsafes, 1);
     expect_raw(&from, zeros, 4);
-    assert_int_equal(dan_gw_esc_fast(&R->gw, v, 4, false, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_esc_fast(&R->gw, v, 4, false, R->bus.now));
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_FAILSAFE);
     expect_raw(&from, v, 4);
 }
@@ -221,13 +215,9 @@ static void test_fast_codec_limits(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_fast_sizes_and_values, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_record_round_robin, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_age_saturates, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_feeds_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fast_malformed, setup, teardown),
-        cmocka_unit_test(test_fast_codec_limits),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = UNIT_RUN("gateway_fast", setup, teardown, test_fast_sizes_and_values,
+                          test_fast_record_round_robin, test_fast_age_saturates,
+                          test_fast_feeds_failsafe, test_fast_malformed);
+    failed += UNIT_RUN("gateway_fast_codec", NULL, NULL, test_fast_codec_limits);
+    return failed;
 }

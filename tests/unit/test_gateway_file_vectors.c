@@ -14,7 +14,9 @@
 
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/msgs_file.h"
+#include "gw_vectors.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* FILE_OPEN / FILE_WRITE: the request and the (shared) response. */
 static int vec_open_write(const char *msg, bool req, const uint8_t *p, size_t len, char *txt,
@@ -81,12 +83,7 @@ static int vec_fw(const char *msg, const uint8_t *p, size_t len, char *txt, size
         dan_gw_node_info_t ni;
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
         assert_true(ni.follow);
-        vec_cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
-                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
-                ni.hw_major, ni.hw_minor);
-        vec_cat_hex(txt, cap, ni.unique_id, 16);
-        vec_cat(txt, cap, " name=");
-        vec_cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
+        vec_cat_node_info(txt, cap, &ni);
         vec_cat(txt, cap, " status=%u fflags=%u read=%lu size=%lu since=%lu", ni.status,
                 ni.file_flags, (unsigned long)ni.bytes_read, (unsigned long)ni.file_size,
                 (unsigned long)ni.since_read_ms);
@@ -195,48 +192,49 @@ static void vec_bad(const char *msg, const uint8_t *p, size_t len)
     assert_int_equal(rc, DAN_ERR_MALFORMED);
 }
 
+/* The counts of the kinds of gateway_file.txt lines. */
+typedef struct {
+    int bad, crcs;
+} file_counts_t;
+
+/* A crc32 line: "data=<hex> crc=<decimal>", whole and chained. */
+static void crc32_row(char *text)
+{
+    uint8_t data[512];
+    char *kv[2];
+    size_t dl;
+    assert_int_equal(vec_split(text, ' ', kv, 2), 2);
+    dl = vec_hex(kv[0] + 5, data, sizeof data);
+    assert_int_equal(dan_gw_crc32(0, data, dl), strtoul(kv[1] + 4, NULL, 10));
+    /* chained over two pieces: the same */
+    assert_int_equal(dan_gw_crc32(dan_gw_crc32(0, data, dl / 3u), data + dl / 3u, dl - dl / 3u),
+                     strtoul(kv[1] + 4, NULL, 10));
+}
+
+static void file_row(vec_file_t *v, void *ctx)
+{
+    file_counts_t *c = ctx;
+    char *f[3];
+    uint8_t p[DAN_MAX_PAYLOAD];
+    size_t len = vec_message(v, f, p, sizeof p);
+    if (!strcmp(f[0], "crc32")) {
+        crc32_row(f[2]);
+        c->crcs++;
+    } else if (!strcmp(f[1], "bad")) {
+        vec_bad(f[0], p, len);
+        c->bad++;
+    } else {
+        vec_check_message(v, f, p, len, vec_one);
+    }
+}
+
 static void test_file_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0, bad = 0, crcs = 0;
+    file_counts_t c = {0, 0};
     (void)state;
-    vec_open(&v, "gateway_file.txt");
-    while (vec_next(&v)) {
-        char *f[3];
-        char txt[2048];
-        uint8_t p[DAN_MAX_PAYLOAD], enc[DAN_MAX_PAYLOAD];
-        size_t len = vec_message(&v, f, p, sizeof p);
-        int n;
-        if (!strcmp(f[0], "crc32")) {
-            uint8_t data[512];
-            char *kv[2];
-            assert_int_equal(vec_split(f[2], ' ', kv, 2), 2);
-            size_t dl = vec_hex(kv[0] + 5, data, sizeof data);
-            assert_int_equal(dan_gw_crc32(0, data, dl), strtoul(kv[1] + 4, NULL, 10));
-            /* chained over two pieces: the same */
-            assert_int_equal(
-                dan_gw_crc32(dan_gw_crc32(0, data, dl / 3u), data + dl / 3u, dl - dl / 3u),
-                strtoul(kv[1] + 4, NULL, 10));
-            crcs++;
-            continue;
-        }
-        if (!strcmp(f[1], "bad")) {
-            vec_bad(f[0], p, len);
-            bad++;
-            continue;
-        }
-        n = vec_one(f[0], f[1], p, len, txt, sizeof txt, enc, sizeof enc);
-        if (strcmp(txt, f[2]) != 0) {
-            fail_msg("line %d: decoded\n  %s\nexpected\n  %s", v.lineno, txt, f[2]);
-        }
-        assert_int_equal(n, (int)len);
-        assert_memory_equal(enc, p, len);
-        count++;
-    }
-    vec_close(&v);
-    assert_true(count >= 40);
-    assert_true(bad >= 12);
-    assert_int_equal(crcs, 4);
+    assert_true(vec_each("gateway_file.txt", file_row, &c) - (size_t)(c.bad + c.crcs) >= 40u);
+    assert_true(c.bad >= 12);
+    assert_int_equal(c.crcs, 4);
 }
 
 /* Encoders refuse what decoders would: names of 0 or 33 bytes, an empty
@@ -299,9 +297,5 @@ static void test_file_codec_limits(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_file_vectors),
-        cmocka_unit_test(test_file_codec_limits),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_file_vectors", NULL, NULL, test_file_vectors, test_file_codec_limits);
 }

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "file_rig.h"
+#include "unit_run.h"
 
 static void test_upload_commit(void **state)
 {
@@ -135,8 +136,7 @@ static void test_crc_and_short(void **state)
     assert_int_not_equal(held, crc);
     assert_null(ram_store_file(&S, "fw.bin"));
     assert_int_equal(S.fs.size(S.fs.ctx, "fw.bin"), DAN_GW_FS_ENOENT);
-    assert_int_equal(dan_gw_file_list(&R->gw, 0, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_file_list(&R->gw, 0, R->bus.now));
     assert_int_equal(dan_gw_file_list_begin(&R->gw, &r, &h), DAN_OK);
     assert_int_equal(h.count, 0);
     assert_int_equal(h.next, DAN_GW_NONE);
@@ -151,8 +151,7 @@ static uint8_t list_page(uint8_t first, char *names, size_t cap)
     dan_gw_file_list_hdr_t h;
     dan_gw_file_entry_t e;
     size_t i;
-    assert_int_equal(dan_gw_file_list(&R->gw, first, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_file_list(&R->gw, first, R->bus.now));
     assert_int_equal(dan_gw_file_list_begin(&R->gw, &r, &h), DAN_OK);
     for (i = 0; i < h.count; i++) {
         assert_int_equal(dan_gw_file_list_next(&r, &e), DAN_OK);
@@ -262,16 +261,8 @@ static void test_store_failures(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_upload_commit, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_retried_writes, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_gap_and_too_large, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_resume_after_restart, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_crc_and_short, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_list_paging_and_remove, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_no_store, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_bad_names, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_store_failures, setup_files, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_files", setup_files, teardown, test_upload_commit, test_retried_writes,
+                    test_gap_and_too_large, test_resume_after_restart, test_crc_and_short,
+                    test_list_paging_and_remove, test_no_store, test_bad_names,
+                    test_store_failures);
 }

@@ -17,6 +17,7 @@
 
 #include "file_rig.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 #define NODE LISTEN_NODE /* the rig's listener reassembles what is sent to it */
 
@@ -25,41 +26,25 @@ static void answer(const cap_t *c, uint8_t error, const char *msg)
 {
     dan_dc_fw_begin_rsp_t m;
     uint8_t buf[1u + DAN_DC_FW_BEGIN_MESSAGE_MAX];
-    dan_dc_transfer_t t;
-    dan_can_frame_t f[32];
-    int n, i;
     memset(&m, 0, sizeof m);
     m.error = error;
     m.message_len = (uint8_t)strlen(msg);
     memcpy(m.message, msg, m.message_len);
-    n = dan_dc_fw_begin_rsp_encode(&m, buf, sizeof buf);
-    assert_true(n > 0);
-    dan_dc_transfer_init(&t, DAN_DC_FW_BEGIN_ID, DAN_DC_FW_BEGIN_SIGNATURE,
-                         DAN_DC_TRANSFER_RESPONSE, buf, (size_t)n);
-    t.priority = 16;
-    t.source_node = c->dst;
-    t.destination_node = R->g.cfg.node_id;
-    t.transfer_id = c->tid;
-    n = dan_dc_tx_build(&t, f, 32);
-    assert_true(n > 0);
-    for (i = 0; i < n; i++) {
-        dan_gw_node_rx_can(&R->g, &f[i], R->bus.now);
-    }
+    answer_cap(c, DAN_DC_FW_BEGIN_ID, DAN_DC_FW_BEGIN_SIGNATURE, 16, buf,
+               dan_dc_fw_begin_rsp_encode(&m, buf, sizeof buf));
 }
 
 /* FW_BEGIN through the client, completed: the call state. */
 static uint8_t fw_begin(uint16_t id, const char *name)
 {
-    assert_int_equal(dan_gw_fw_begin(&R->gw, id, NODE, name, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_fw_begin(&R->gw, id, NODE, name, R->bus.now));
     return R->gw.call.state;
 }
 
 static void fw_result(uint16_t id, dan_gw_fw_result_t *r)
 {
     dan_gw_result_t res;
-    assert_int_equal(dan_gw_call_result(&R->gw, id, 0, 128, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_call_result(&R->gw, id, 0, 128, R->bus.now));
     assert_int_equal(dan_gw_call_result_get(&R->gw, &res), DAN_OK);
     assert_int_equal(res.state, DAN_GW_CALL_DONE);
     assert_int_equal(res.len, res.result_len);
@@ -68,24 +53,9 @@ static void fw_result(uint16_t id, dan_gw_fw_result_t *r)
 
 static void node_info(dan_gw_node_info_t *i)
 {
-    assert_int_equal(dan_gw_node_info(&R->gw, NODE, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_node_info(&R->gw, NODE, R->bus.now));
     assert_int_equal(dan_gw_node_info_get(&R->gw, i), DAN_OK);
     assert_true(i->follow);
-}
-
-/* NODE reads len bytes of path at offset (wt14a's file server answers). */
-static void node_reads(uint32_t offset, const char *path)
-{
-    dan_dc_file_req_t q;
-    uint8_t buf[DAN_DC_FILE_READ_REQ_MAX_SIZE];
-    memset(&q, 0, sizeof q);
-    q.offset = offset;
-    q.path_len = (uint8_t)strlen(path);
-    memcpy(q.path, path, q.path_len);
-    inject(NODE, DAN_DC_FILE_READ_ID, DAN_DC_FILE_READ_SIGNATURE, DAN_DC_TRANSFER_REQUEST,
-           R->g.cfg.node_id, buf, dan_dc_file_read_req_encode(&q, buf, sizeof buf));
-    drain();
 }
 
 /* fw.bin committed, NODE operational, FW_BEGIN id started: the
@@ -96,8 +66,7 @@ static cap_t *begin_sent(uint16_t id, size_t *from)
     upload("fw.bin", IMG_SIZE);
     node_status_from(NODE, 10, DAN_DC_HEALTH_OK, DAN_DC_MODE_OPERATIONAL);
     assert_int_equal(fw_begin(id, "fw.bin"), DAN_GW_CALL_PENDING);
-    c = find_cap(DAN_DC_FW_BEGIN_ID, DAN_DC_TRANSFER_REQUEST, from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_FW_BEGIN_ID, DAN_DC_TRANSFER_REQUEST, from);
     return c;
 }
 
@@ -131,8 +100,10 @@ static void test_fw_begin_and_follow(void **state)
     assert_true(i.since_read_ms >= 20u && i.since_read_ms < 1000u);
     /* the node goes into its bootloader and reads */
     node_status_from(NODE, 11, DAN_DC_HEALTH_OK, DAN_DC_MODE_SOFTWARE_UPDATE);
-    node_reads(0, "fw.bin");
-    node_reads(256, "/fw.bin");
+    file_read_from(NODE, 0, "fw.bin");
+    drain();
+    file_read_from(NODE, 256, "/fw.bin");
+    drain();
     node_info(&i);
     assert_int_equal(i.status, DAN_DC_MODE_SOFTWARE_UPDATE << 2);
     assert_int_equal(i.file_flags, DAN_GW_FW_BEGUN | DAN_GW_FW_READING);
@@ -140,8 +111,7 @@ static void test_fw_begin_and_follow(void **state)
     assert_int_equal(i.file_size, IMG_SIZE);
     assert_true(i.since_read_ms < 20u);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FW_BEGINS], 0); /* not read yet */
-    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FW_BEGINS], 1);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_FILE_COMMITS], 1);
     assert_int_equal(R->gw.stats[DAN_GW_STAT_UPLOAD_BYTES], IMG_SIZE);
@@ -226,63 +196,59 @@ static void test_crc_refused_not_served(void **state)
     assert_int_equal(open_file("fw.bin", IMG_SIZE, false, NULL), DAN_GW_FILE_OK);
     upload_range(0, IMG_SIZE);
     assert_int_equal(commit(crc ^ 0x80u, NULL), DAN_GW_FILE_CRC);
-    node_reads(0, "fw.bin");
+    file_read_from(NODE, 0, "fw.bin");
+    drain();
     assert_int_equal(read_error(&from, &len), DAN_DC_FILE_NOT_FOUND);
     assert_int_equal(len, 0);
     assert_int_equal(dan_gw_fw_begin(&R->gw, 9, NODE, "fw.bin", R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_ERR_REMOTE);
     assert_int_equal(commit(crc, NULL), DAN_GW_FILE_OK);
-    node_reads(0, "fw.bin");
+    file_read_from(NODE, 0, "fw.bin");
+    drain();
     assert_int_equal(read_error(&from, &len), DAN_DC_FILE_OK);
     assert_int_equal(len, 256);
 }
 
 /* The DSDL codec against pydronecan's bytes (tests/vectors/dronecan_fw.txt):
  * decoded to the fields, encoded back byte for byte. */
+static void fw_dsdl_row(vec_file_t *v, void *ctx)
+{
+    char *f[3];
+    uint8_t p[256], want[256], enc[256];
+    size_t len = vec_message(v, f, p, sizeof p),
+           wl = vec_hex(strchr(f[2], '=') + 1, want, sizeof want);
+    unsigned long num = strtoul(strchr(f[1], '=') + 1, NULL, 10);
+    (void)ctx;
+    if (!strcmp(f[0], "fw_begin_req")) {
+        dan_dc_fw_begin_req_t q;
+        assert_int_equal(dan_dc_fw_begin_req_decode(&q, p, len), DAN_OK);
+        assert_int_equal(q.source_node_id, num);
+        assert_int_equal(q.path_len, wl);
+        assert_memory_equal(q.path, want, wl);
+        assert_int_equal(dan_dc_fw_begin_req_encode(&q, enc, sizeof enc), (int)len);
+    } else {
+        dan_dc_fw_begin_rsp_t r;
+        assert_string_equal(f[0], "fw_begin_rsp");
+        assert_int_equal(dan_dc_fw_begin_rsp_decode(&r, p, len), DAN_OK);
+        assert_int_equal(r.error, num);
+        assert_int_equal(r.message_len, wl);
+        assert_memory_equal(r.message, want, wl);
+        assert_int_equal(dan_dc_fw_begin_rsp_encode(&r, enc, sizeof enc), (int)len);
+    }
+    assert_memory_equal(enc, p, len);
+}
+
 static void test_fw_dsdl_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "dronecan_fw.txt");
-    while (vec_next(&v)) {
-        char *f[3];
-        uint8_t p[256], want[256], enc[256];
-        size_t len = vec_message(&v, f, p, sizeof p),
-               wl = vec_hex(strchr(f[2], '=') + 1, want, sizeof want);
-        unsigned long num = strtoul(strchr(f[1], '=') + 1, NULL, 10);
-        if (!strcmp(f[0], "fw_begin_req")) {
-            dan_dc_fw_begin_req_t q;
-            assert_int_equal(dan_dc_fw_begin_req_decode(&q, p, len), DAN_OK);
-            assert_int_equal(q.source_node_id, num);
-            assert_int_equal(q.path_len, wl);
-            assert_memory_equal(q.path, want, wl);
-            assert_int_equal(dan_dc_fw_begin_req_encode(&q, enc, sizeof enc), (int)len);
-        } else {
-            dan_dc_fw_begin_rsp_t r;
-            assert_string_equal(f[0], "fw_begin_rsp");
-            assert_int_equal(dan_dc_fw_begin_rsp_decode(&r, p, len), DAN_OK);
-            assert_int_equal(r.error, num);
-            assert_int_equal(r.message_len, wl);
-            assert_memory_equal(r.message, want, wl);
-            assert_int_equal(dan_dc_fw_begin_rsp_encode(&r, enc, sizeof enc), (int)len);
-        }
-        assert_memory_equal(enc, p, len);
-        count++;
-    }
-    vec_close(&v);
-    assert_int_equal(count, 8);
+    assert_int_equal(vec_each("dronecan_fw.txt", fw_dsdl_row, NULL), 8);
 }
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_fw_begin_and_follow, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_fw_begin_refused, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_fw_begin_not_a_file, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_fw_begin_timeout, setup_files, teardown),
-        cmocka_unit_test_setup_teardown(test_crc_refused_not_served, setup_files, teardown),
-        cmocka_unit_test(test_fw_dsdl_vectors),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    int failed = UNIT_RUN("gateway_fw", setup_files, teardown, test_fw_begin_and_follow,
+                          test_fw_begin_refused, test_fw_begin_not_a_file, test_fw_begin_timeout,
+                          test_crc_refused_not_served);
+    failed += UNIT_RUN("gateway_fw_codec", NULL, NULL, test_fw_dsdl_vectors);
+    return failed;
 }

@@ -16,6 +16,7 @@
 
 #include "dan/codes.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 static const uint8_t UID_A[16] = {0xA1, 0xA2, 0xA3, 0xA4, 0xA5, 0xA6, 0xA7, 0xA8,
                                   0xA9, 0xAA, 0xAB, 0xAC, 0xAD, 0xAE, 0xAF, 0xA0};
@@ -192,13 +193,8 @@ static void test_dna_off(void **state)
 {
     size_t from;
     dan_dc_allocation_t m;
-    dan_gw_config_t c;
     (void)state;
-    memset(&c, 0, sizeof c);
-    c.set_mask = DAN_GW_CFG_DNA;
-    c.dna = 0;
-    assert_int_equal(dan_gw_config(&R->gw, &c, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    config_set(DAN_GW_CFG_DNA, 0);
     assert_int_equal(R->gw.config.dna, 0);
     from = R->ncap;
     alloc_stage(UID_A, 0, 6, 0, true);
@@ -217,8 +213,7 @@ static void test_dna_foreign_allocator(void **state)
     inject(99, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
            dan_dc_allocation_encode(&m, buf, sizeof buf));
     assert_int_equal(R->g.stats.dna_foreign, 1);
-    assert_int_equal(dan_gw_health(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_health(&R->gw, R->bus.now));
     assert_int_equal(R->gw.health.verdict, DAN_GW_HEALTH_FAIL);
     assert_int_equal(R->gw.health.reason, DAN_GW_REASON_DNA_CONFLICT);
     assert_int_equal(R->gw.health.subject, 99);
@@ -228,8 +223,7 @@ static void test_dna_foreign_allocator(void **state)
     inject(98, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
            dan_dc_allocation_encode(&m, buf, sizeof buf));
     assert_int_equal(R->g.stats.dna_foreign, 1);
-    assert_int_equal(dan_gw_health(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_health(&R->gw, R->bus.now));
     assert_int_not_equal(R->gw.health.reason, DAN_GW_REASON_DNA_CONFLICT);
 }
 
@@ -267,11 +261,9 @@ static void test_fc_frames_heard(void **state)
     k = dan_dc_tx_build(&t, fr + 1, 3);
     assert_int_equal(k, 1);
     from = R->ncap;
-    assert_int_equal(dan_gw_can_send(&R->gw, fr, 2, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_send(&R->gw, fr, 2, R->bus.now));
     advance(20000);
-    c = find_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_GET_NODE_INFO_ID, DAN_DC_TRANSFER_RESPONSE, &from);
     assert_int_equal(c->src, 10);
     assert_int_equal(c->dst, LISTEN_NODE);
     assert_int_equal(c->tid, 3);
@@ -429,8 +421,7 @@ static void test_dna_table_full(void **state)
     }
     uid[0] = 0xEE;
     assert_int_equal(allocate(uid, 0), 0);
-    assert_int_equal(dan_gw_health(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_health(&R->gw, R->bus.now));
     assert_int_equal(R->gw.health.reason, DAN_GW_REASON_DNA_FULL);
 }
 
@@ -442,9 +433,6 @@ static void answer_getset(const cap_t *c, const char *name, int64_t value)
 {
     dan_dc_param_getset_rsp_t rsp;
     uint8_t buf[DAN_DC_PARAM_GETSET_RSP_MAX_SIZE];
-    dan_dc_transfer_t t;
-    dan_can_frame_t f[64];
-    int n, i;
     memset(&rsp, 0, sizeof rsp);
     rsp.value.tag = DAN_DC_PARAM_INTEGER;
     rsp.value.integer = value;
@@ -454,18 +442,8 @@ static void answer_getset(const cap_t *c, const char *name, int64_t value)
     rsp.max_value.integer = 100;
     rsp.name_len = (uint8_t)strlen(name);
     memcpy(rsp.name, name, rsp.name_len);
-    n = dan_dc_param_getset_rsp_encode(&rsp, buf, sizeof buf);
-    assert_true(n > 0);
-    dan_dc_transfer_init(&t, DAN_DC_PARAM_GETSET_ID, DAN_DC_PARAM_GETSET_SIGNATURE,
-                         DAN_DC_TRANSFER_RESPONSE, buf, (size_t)n);
-    t.priority = 24;
-    t.source_node = c->dst;
-    t.destination_node = 10;
-    t.transfer_id = c->tid;
-    n = dan_dc_tx_build(&t, f, 64);
-    for (i = 0; i < n; i++) {
-        dan_gw_node_rx_can(&R->g, &f[i], R->bus.now);
-    }
+    answer_cap(c, DAN_DC_PARAM_GETSET_ID, DAN_DC_PARAM_GETSET_SIGNATURE, 24, buf,
+               dan_dc_param_getset_rsp_encode(&rsp, buf, sizeof buf));
 }
 
 static void read_param(uint16_t call_id, dan_gw_param_t *p)
@@ -474,8 +452,7 @@ static void read_param(uint16_t call_id, dan_gw_param_t *p)
     dan_gw_result_t res;
     uint32_t off = 0, total;
     do {
-        assert_int_equal(dan_gw_call_result(&R->gw, call_id, off, 100, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_call_result(&R->gw, call_id, off, 100, R->bus.now));
         assert_int_equal(dan_gw_call_result_get(&R->gw, &res), DAN_OK);
         assert_int_equal(res.state, DAN_GW_CALL_DONE);
         assert_int_equal(res.offset, off);
@@ -522,8 +499,7 @@ static void test_param_get_pipelined(void **state)
     read_param(100, &p);
     assert_string_equal(p.name, "telem_frequency");
     assert_int_equal(p.value.integer, 50);
-    assert_int_equal(dan_gw_call_result(&R->gw, 101, 0, 100, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_call_result(&R->gw, 101, 0, 100, R->bus.now));
     assert_int_equal(R->gw.m->resp[2], DAN_GW_CALL_PENDING);
 }
 
@@ -556,24 +532,20 @@ static void test_call_timeout_and_busy(void **state)
     size_t from = R->ncap, sent = 0;
     uint16_t k;
     (void)state;
-    assert_int_equal(dan_gw_param_save(&R->gw, 1, 33, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_param_save(&R->gw, 1, 33, R->bus.now));
     advance(3500000); /* three attempts, 1 s apart, unanswered */
     while (find_cap(DAN_DC_PARAM_OPCODE_ID, DAN_DC_TRANSFER_REQUEST, &from) != NULL) {
         sent++;
     }
     (void)sent; /* node 33 is not the listener: its requests are not captured */
-    assert_int_equal(dan_gw_call_result(&R->gw, 1, 0, 100, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_call_result(&R->gw, 1, 0, 100, R->bus.now));
     assert_int_equal(R->gw.m->resp[2], DAN_GW_CALL_TIMEOUT);
     assert_int_equal(R->g.stats.call_timeouts, 1);
     for (k = 0; k < DAN_GW_NODE_CALLS; k++) { /* the timed-out slot is reused */
-        assert_int_equal(dan_gw_param_save(&R->gw, (uint16_t)(10 + k), 33, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_param_save(&R->gw, (uint16_t)(10 + k), 33, R->bus.now));
         assert_int_equal(R->gw.call.state, DAN_GW_CALL_PENDING);
     }
-    assert_int_equal(dan_gw_param_save(&R->gw, 99, 33, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_param_save(&R->gw, 99, 33, R->bus.now));
     assert_int_equal(R->gw.call.state, DAN_GW_CALL_BUSY);
 }
 
@@ -588,18 +560,14 @@ static void test_restart_magic(void **state)
     assert_int_equal(finish(), DAN_ERR_REMOTE); /* refused before anything was sent */
     advance(10000);
     assert_null(find_cap(DAN_DC_RESTART_ID, DAN_DC_TRANSFER_REQUEST, &from));
-    assert_int_equal(dan_gw_restart(&R->gw, 2, LISTEN_NODE, 0xBEEFCAFEull, true, R->bus.now),
-                     DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_RESTART_ID, DAN_DC_TRANSFER_REQUEST, &from);
-    assert_non_null(c);
+    call_ok(dan_gw_restart(&R->gw, 2, LISTEN_NODE, 0xBEEFCAFEull, true, R->bus.now));
+    c = expect_cap(DAN_DC_RESTART_ID, DAN_DC_TRANSFER_REQUEST, &from);
     assert_int_equal(dan_dc_restart_req_decode(&magic, c->payload, c->len), DAN_OK);
     assert_int_equal(magic, 0xBEEFCAFEull);
     assert_int_equal(
         dan_gw_restart(&R->gw, 3, LISTEN_NODE, DAN_GW_RESTART_MAGIC, false, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_RESTART_ID, DAN_DC_TRANSFER_REQUEST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_RESTART_ID, DAN_DC_TRANSFER_REQUEST, &from);
     assert_int_equal(dan_dc_restart_req_decode(&magic, c->payload, c->len), DAN_OK);
     assert_int_equal(magic, DAN_GW_RESTART_MAGIC);
 }
@@ -608,8 +576,7 @@ static void test_restart_magic(void **state)
 
 static void health(dan_gw_health_t *h)
 {
-    assert_int_equal(dan_gw_health(&R->gw, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_health(&R->gw, R->bus.now));
     *h = R->gw.health;
 }
 
@@ -670,8 +637,7 @@ static void test_health_esc_telemetry(void **state)
     int k;
     (void)state;
     for (k = 0; k < 15; k++) { /* 1.5 s of commands; only ESC 0 reports */
-        assert_int_equal(dan_gw_esc_command(&R->gw, v, 2, R->bus.now), DAN_OK);
-        assert_int_equal(finish(), DAN_OK);
+        call_ok(dan_gw_esc_command(&R->gw, v, 2, R->bus.now));
         esc_status(20, 0, 12.0f, 1.0f, 300.0f, 100);
         advance(100000);
     }
@@ -697,14 +663,11 @@ static void test_own_frames_and_times(void **state)
     f[0].mask = 0;
     f[1].id = 0; /* every standard frame, received only */
     f[1].mask = 0;
-    assert_int_equal(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, f, 2, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK); /* a RawCommand left: captured as ours */
+    call_ok(dan_gw_can_filter(&R->gw, DAN_GW_FILTER_REPLACE, f, 2, R->bus.now));
+    call_ok(dan_gw_esc_command(&R->gw, v, 1, R->bus.now)); /* a RawCommand left: captured as ours */
     advance(2000);
     esc_status(20, 0, 12.0f, 1.0f, 300.0f, 5); /* a frame from another node */
-    assert_int_equal(dan_gw_can_recv_opts(&R->gw, 11, DAN_GW_RECV_TIMES, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_can_recv_opts(&R->gw, 11, DAN_GW_RECV_TIMES, R->bus.now));
     assert_int_equal(dan_gw_can_begin(&R->gw, &r, &hdr), DAN_OK);
     assert_true(hdr.count >= 2);
     t = t0 = hdr.t0_us;
@@ -724,27 +687,11 @@ static void test_own_frames_and_times(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_dna_ids, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_skips_ids_in_use, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_waits_for_discovery, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_stage_timeout_and_garbage, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_flood, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_off, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_foreign_allocator, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_fc_frames_heard, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_storage, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_blob_reasons, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_table_id_taken, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_dna_table_full, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_param_get_pipelined, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_param_set_retry_sent_once, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_call_timeout_and_busy, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_restart_magic, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_health_verdicts, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_own_id_claimed, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_health_esc_telemetry, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_own_frames_and_times, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_mgmt", setup, teardown, test_dna_ids, test_dna_skips_ids_in_use,
+                    test_dna_waits_for_discovery, test_dna_stage_timeout_and_garbage,
+                    test_dna_flood, test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard,
+                    test_dna_storage, test_dna_blob_reasons, test_dna_table_id_taken,
+                    test_dna_table_full, test_param_get_pipelined, test_param_set_retry_sent_once,
+                    test_call_timeout_and_busy, test_restart_magic, test_health_verdicts,
+                    test_own_id_claimed, test_health_esc_telemetry, test_own_frames_and_times);
 }

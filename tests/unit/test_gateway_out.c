@@ -16,6 +16,7 @@
 
 #include "dan/can_gw/f16.h"
 #include "gw_rig.h"
+#include "unit_run.h"
 
 /* The newest SafetyState captured since *from; -1 if none. */
 static int last_safety(size_t *from)
@@ -41,13 +42,12 @@ static void test_safety_state(void **state)
     advance(1200000);
     assert_int_equal(last_safety(&from), DAN_DC_SAFETY_ON); /* from the start: ON */
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_SAFETY_OFF);
-    config_timeout(200);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
     assert_int_equal(dan_gw_safety(&R->gw, true, R->bus.now), DAN_OK);
     t0 = R->bus.now;
     assert_int_equal(finish(), DAN_OK);
     assert_true(R->gw.gw_flags & DAN_GW_FLAG_SAFETY_OFF);
-    c = find_cap(DAN_DC_SAFETY_STATE_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_SAFETY_STATE_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->payload[0], DAN_DC_SAFETY_OFF);
     assert_true(c->at_us - t0 < 20000u); /* at once, not at the next period */
     /* then at the arming rate (2 Hz) */
@@ -59,18 +59,15 @@ static void test_safety_state(void **state)
     assert_true(n >= 3 && n <= 5);
     /* armed and driving; then the master goes silent: the failsafe sends
      * DISARMED and safety ON together */
-    assert_int_equal(dan_gw_arm(&R->gw, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_arm(&R->gw, true, R->bus.now));
+    call_ok(dan_gw_esc_command(&R->gw, v, 4, R->bus.now));
     advance(250000);
     assert_int_equal(R->g.stats.failsafes, 1);
     assert_int_equal(last_safety(&from), DAN_DC_SAFETY_ON);
     assert_false(dan_gw_node_flags(&R->g) & DAN_GW_FLAG_SAFETY_OFF);
     assert_false(dan_gw_node_flags(&R->g) & DAN_GW_FLAG_ARMED);
     /* the daemon's failsafe (UART lost, stop) does the same */
-    assert_int_equal(dan_gw_safety(&R->gw, true, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_safety(&R->gw, true, R->bus.now));
     assert_int_equal(last_safety(&from), DAN_DC_SAFETY_OFF);
     dan_gw_node_failsafe(&R->g, R->bus.now);
     drain();
@@ -94,8 +91,7 @@ static void test_arm_refuses_other_values(void **state)
     assert_int_equal(request_sealed(DAN_GW_CODE_ARM, &full, 1), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK);
     drain();
-    c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    c = expect_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->payload[0], 255);
 }
 
@@ -123,13 +119,12 @@ static void test_servos_and_failsafe(void **state)
     dan_dc_actuator_cmd_t got[64];
     size_t from, n, msgs, i;
     (void)state;
-    config_timeout(200);
+    config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
     for (i = 0; i < 20; i++) {
         s[i] = dan_gw_servo_make((uint8_t)i, DAN_DC_ACTUATOR_UNITLESS, (float)i / 32.0f);
     }
     from = R->ncap;
-    assert_int_equal(dan_gw_servo(&R->gw, s, 20, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo(&R->gw, s, 20, R->bus.now));
     n = servo_caps(&from, got, 64, &msgs);
     assert_int_equal(msgs, 2); /* 15 + 5 */
     assert_int_equal(n, 20);
@@ -140,8 +135,7 @@ static void test_servos_and_failsafe(void **state)
     }
     /* latest wins per actuator; the others repeat their last command */
     s[0] = dan_gw_servo_make(3, DAN_DC_ACTUATOR_PWM, 1900.0f);
-    assert_int_equal(dan_gw_servo(&R->gw, s, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo(&R->gw, s, 1, R->bus.now));
     n = servo_caps(&from, got, 64, &msgs);
     assert_int_equal(n, 20);
     assert_int_equal(got[3].command_type, DAN_DC_ACTUATOR_PWM);
@@ -151,8 +145,7 @@ static void test_servos_and_failsafe(void **state)
     fs[0].value = dan_gw_servo_make(1, DAN_DC_ACTUATOR_POSITION, -0.25f);
     fs[1].mode = DAN_GW_SERVO_HOLD;
     fs[1].value = dan_gw_servo_make(2, 0, 0.0f);
-    assert_int_equal(dan_gw_servo_failsafe(&R->gw, fs, 2, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo_failsafe(&R->gw, fs, 2, R->bus.now));
     assert_int_equal(R->gw.servo_fs_kept, 2);
     advance(150000);
     n = servo_caps(&from, got, 64, &msgs);
@@ -171,8 +164,7 @@ static void test_servos_and_failsafe(void **state)
     assert_true(dan_f16_to_f32(got[1].value_f16) == -0.25f);
     /* the next SERVO ends the failsafe */
     s[0] = dan_gw_servo_make(1, DAN_DC_ACTUATOR_UNITLESS, 0.5f);
-    assert_int_equal(dan_gw_servo(&R->gw, s, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo(&R->gw, s, 1, R->bus.now));
     n = servo_caps(&from, got, 64, &msgs);
     assert_int_equal(n, 20);
     assert_true(dan_f16_to_f32(got[1].value_f16) == 0.5f);
@@ -186,11 +178,9 @@ static void test_servo_table_full(void **state)
     for (i = 0; i < DAN_GW_SERVO_MAX; i++) {
         s[i] = dan_gw_servo_make((uint8_t)(100 + i), 0, 0.0f);
     }
-    assert_int_equal(dan_gw_servo(&R->gw, s, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo(&R->gw, s, DAN_GW_SERVO_MAX, R->bus.now));
     s[0] = dan_gw_servo_make(7, 0, 1.0f); /* a 33rd actuator */
-    assert_int_equal(dan_gw_servo(&R->gw, s, 1, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo(&R->gw, s, 1, R->bus.now));
     assert_int_equal(R->g.stats.servo_dropped, 1);
 }
 
@@ -206,21 +196,18 @@ static void test_servo_failsafe_slots_freed(void **state)
         fs[i].mode = DAN_GW_SERVO_VALUE;
         fs[i].value = dan_gw_servo_make((uint8_t)(200 + i), 0, 0.5f);
     }
-    assert_int_equal(dan_gw_servo_failsafe(&R->gw, fs, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo_failsafe(&R->gw, fs, DAN_GW_SERVO_MAX, R->bus.now));
     assert_int_equal(R->gw.servo_fs_kept, DAN_GW_SERVO_MAX);
     for (i = 0; i < DAN_GW_SERVO_MAX; i++) { /* the same, all HOLD: no slot needed */
         fs[i].mode = DAN_GW_SERVO_HOLD;
     }
-    assert_int_equal(dan_gw_servo_failsafe(&R->gw, fs, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo_failsafe(&R->gw, fs, DAN_GW_SERVO_MAX, R->bus.now));
     assert_int_equal(R->gw.servo_fs_kept, DAN_GW_SERVO_MAX);
     assert_int_equal(R->g.servos.n, 0);
     for (i = 0; i < DAN_GW_SERVO_MAX; i++) {
         s[i] = dan_gw_servo_make((uint8_t)i, 0, 0.25f);
     }
-    assert_int_equal(dan_gw_servo(&R->gw, s, DAN_GW_SERVO_MAX, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_servo(&R->gw, s, DAN_GW_SERVO_MAX, R->bus.now));
     assert_int_equal(R->g.stats.servo_dropped, 0);
 }
 
@@ -234,20 +221,16 @@ static void test_lights_and_beep(void **state)
     (void)state;
     advance(1000);
     from = R->ncap;
-    assert_int_equal(dan_gw_lights(&R->gw, l, 3, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_LIGHTS_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    call_ok(dan_gw_lights(&R->gw, l, 3, R->bus.now));
+    c = expect_cap(DAN_DC_LIGHTS_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_lights_command_decode(&lm, c->payload, c->len), DAN_OK);
     assert_int_equal(lm.count, 3);
     assert_int_equal(lm.light[0].light_id, 0);
     assert_int_equal(lm.light[0].rgb565, 0xF800);
     assert_int_equal(lm.light[2].light_id, 19);
     assert_int_equal(lm.light[2].rgb565, 0x001F);
-    assert_int_equal(dan_gw_beep(&R->gw, 2000, 250, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
-    c = find_cap(DAN_DC_BEEP_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_non_null(c);
+    call_ok(dan_gw_beep(&R->gw, 2000, 250, R->bus.now));
+    c = expect_cap(DAN_DC_BEEP_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(dan_dc_beep_command_decode(&bm, c->payload, c->len), DAN_OK);
     assert_true(dan_f16_to_f32(bm.frequency_f16) == 2000.0f);
     assert_true(dan_f16_to_f32(bm.duration_f16) == dan_f16_to_f32(dan_f16_from_f32(0.25f)));
@@ -277,8 +260,7 @@ static void test_temperature_in_telemetry(void **state)
     temperature(30, 318.0f, 1);
     temperature(77, 400.0f, 0); /* no ESC of node 77: nowhere to go */
     advance(5000);
-    assert_int_equal(dan_gw_telemetry(&R->gw, 0, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_telemetry(&R->gw, 0, R->bus.now));
     t = &R->gw.esc[2];
     assert_true(t->flags & DAN_GW_TELEM_DEVICE);
     assert_true(dan_f16_to_f32(t->dev_temp_f16) == 318.0f);
@@ -335,8 +317,7 @@ static const char *tun_read(void)
     static char out[DAN_GW_TUN_CHUNK_MAX + 1];
     const uint8_t *d;
     size_t n;
-    assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, NULL, 0, 128, R->bus.now), DAN_OK);
-    assert_int_equal(finish(), DAN_OK);
+    call_ok(dan_gw_tunnel_xfer(&R->gw, 0, NULL, 0, 128, R->bus.now));
     assert_int_equal(dan_gw_tunnel_data(&R->gw, &d, &n), DAN_OK);
     memcpy(out, d, n);
     out[n] = '\0';
@@ -412,17 +393,9 @@ static void test_malformed_outputs(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_safety_state, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_arm_refuses_other_values, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_servos_and_failsafe, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_servo_table_full, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_servo_failsafe_slots_freed, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_lights_and_beep, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_temperature_in_telemetry, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_default_serial, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_tunnel_any_channel, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_malformed_outputs, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_out", setup, teardown, test_safety_state,
+                    test_arm_refuses_other_values, test_servos_and_failsafe, test_servo_table_full,
+                    test_servo_failsafe_slots_freed, test_lights_and_beep,
+                    test_temperature_in_telemetry, test_tunnel_default_serial,
+                    test_tunnel_any_channel, test_malformed_outputs);
 }

@@ -15,7 +15,9 @@
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/f16.h"
 #include "dan/frame.h"
+#include "gw_vectors.h"
 #include "vectors.h"
+#include "unit_run.h"
 
 /* ---- codec vectors ---- */
 
@@ -357,12 +359,7 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
             return dan_writer_finish(&w);
         }
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
-        vec_cat(txt, cap, "node=%u state=%u sw=%u/%u/%u vcs=%lu hw=%u/%u uid=", ni.node_id,
-                ni.info_state, ni.sw_major, ni.sw_minor, ni.sw_flags, (unsigned long)ni.vcs_commit,
-                ni.hw_major, ni.hw_minor);
-        vec_cat_hex(txt, cap, ni.unique_id, 16);
-        vec_cat(txt, cap, " name=");
-        vec_cat_hex(txt, cap, (const uint8_t *)ni.name, strlen(ni.name));
+        vec_cat_node_info(txt, cap, &ni);
         return dan_gw_msg_node_info_encode(&ni, enc, ecap);
     }
     if (!strcmp(msg, "tun_open")) {
@@ -456,29 +453,20 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
     return vec_mgmt(msg, dir, p, len, txt, cap, enc, ecap);
 }
 
+static void message_row(vec_file_t *v, void *ctx)
+{
+    char *fields[3];
+    uint8_t p[DAN_MAX_PAYLOAD];
+    size_t len = vec_message(v, fields, p, sizeof p);
+    (void)ctx;
+    fields_hint = fields[2];
+    vec_check_message(v, fields, p, len, vec_one);
+}
+
 static void test_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "gateway.txt");
-    while (vec_next(&v)) {
-        char *fields[3];
-        char txt[2048];
-        uint8_t p[DAN_MAX_PAYLOAD], enc[DAN_MAX_PAYLOAD];
-        size_t len = vec_message(&v, fields, p, sizeof p);
-        int n;
-        fields_hint = fields[2];
-        n = vec_one(fields[0], fields[1], p, len, txt, sizeof txt, enc, sizeof enc);
-        if (strcmp(txt, fields[2]) != 0) {
-            fail_msg("line %d: decoded\n  %s\nexpected\n  %s", v.lineno, txt, fields[2]);
-        }
-        assert_int_equal(n, (int)len);
-        assert_memory_equal(enc, p, len);
-        count++;
-    }
-    vec_close(&v);
-    assert_true(count >= 40);
+    assert_true(vec_each("gateway.txt", message_row, NULL) >= 40);
 }
 
 static void test_codec_limits(void **state)
@@ -506,49 +494,49 @@ static void test_codec_limits(void **state)
     assert_true(dan_f16_to_f32(0x7BFF) == 65504.0f);
 }
 
+/* One gateway_sealed.txt line: the seal and the frame as the vector says,
+ * bound to code and direction, every bit flip caught. */
+static void sealed_row(vec_file_t *v, void *ctx)
+{
+    char *f[6];
+    uint8_t inner[DAN_MAX_PAYLOAD], sealed[DAN_MAX_PAYLOAD], want[DAN_MAX_PAYLOAD],
+        frame[DAN_MAX_FRAME], out[DAN_MAX_FRAME];
+    size_t il, sl, fl, i, bit;
+    uint32_t code;
+    uint8_t dir;
+    (void)ctx;
+    assert_int_equal(vec_split(v->line, ' ', f, 6), 6);
+    assert_string_equal(f[0], "sealed");
+    code = (uint32_t)strtoul(f[1], NULL, 10);
+    dir = (strcmp(f[2], "rsp") == 0) ? DAN_GW_RESPONSE : DAN_GW_REQUEST;
+    il = vec_hex(f[3], inner, sizeof inner);
+    sl = vec_hex(f[4], want, sizeof want);
+    fl = vec_hex(f[5], frame, sizeof frame);
+    assert_true(dan_gw_sealed_code(code));
+    memcpy(sealed, inner, il);
+    assert_int_equal(dan_gw_seal(code, dir, sealed, il, sizeof sealed), (int)sl);
+    assert_memory_equal(sealed, want, sl);
+    assert_int_equal(dan_gw_unseal(code, dir, want, sl), (int)il);
+    assert_int_equal(dan_frame_encode(code, sealed, sl, out, sizeof out), (int)fl);
+    assert_memory_equal(out, frame, fl);
+    /* bound to its code and its direction: a reply never passes for a request */
+    assert_int_equal(dan_gw_unseal(code + 1u, dir, want, sl), DAN_ERR_MALFORMED);
+    assert_int_equal(dan_gw_unseal(code, (uint8_t)(dir ^ 1u), want, sl), DAN_ERR_MALFORMED);
+    for (i = 0; i < sl; i++) {
+        for (bit = 0; bit < 8; bit++) {
+            want[i] ^= (uint8_t)(1u << bit);
+            assert_int_equal(dan_gw_unseal(code, dir, want, sl), DAN_ERR_MALFORMED);
+            want[i] ^= (uint8_t)(1u << bit);
+        }
+    }
+}
+
 /* The seal against its vectors; every single-bit flip of a sealed payload
  * is caught by the seal alone (CRC-16 detects all of them). */
 static void test_sealed_vectors(void **state)
 {
-    vec_file_t v;
-    int count = 0;
     (void)state;
-    vec_open(&v, "gateway_sealed.txt");
-    while (vec_next(&v)) {
-        char *f[6];
-        uint8_t inner[DAN_MAX_PAYLOAD], sealed[DAN_MAX_PAYLOAD], want[DAN_MAX_PAYLOAD],
-            frame[DAN_MAX_FRAME], out[DAN_MAX_FRAME];
-        size_t il, sl, fl, i, bit;
-        uint32_t code;
-        uint8_t dir;
-        assert_int_equal(vec_split(v.line, ' ', f, 6), 6);
-        assert_string_equal(f[0], "sealed");
-        code = (uint32_t)strtoul(f[1], NULL, 10);
-        dir = (strcmp(f[2], "rsp") == 0) ? DAN_GW_RESPONSE : DAN_GW_REQUEST;
-        il = vec_hex(f[3], inner, sizeof inner);
-        sl = vec_hex(f[4], want, sizeof want);
-        fl = vec_hex(f[5], frame, sizeof frame);
-        assert_true(dan_gw_sealed_code(code));
-        memcpy(sealed, inner, il);
-        assert_int_equal(dan_gw_seal(code, dir, sealed, il, sizeof sealed), (int)sl);
-        assert_memory_equal(sealed, want, sl);
-        assert_int_equal(dan_gw_unseal(code, dir, want, sl), (int)il);
-        assert_int_equal(dan_frame_encode(code, sealed, sl, out, sizeof out), (int)fl);
-        assert_memory_equal(out, frame, fl);
-        /* bound to its code and its direction: a reply never passes for a request */
-        assert_int_equal(dan_gw_unseal(code + 1u, dir, want, sl), DAN_ERR_MALFORMED);
-        assert_int_equal(dan_gw_unseal(code, (uint8_t)(dir ^ 1u), want, sl), DAN_ERR_MALFORMED);
-        for (i = 0; i < sl; i++) {
-            for (bit = 0; bit < 8; bit++) {
-                want[i] ^= (uint8_t)(1u << bit);
-                assert_int_equal(dan_gw_unseal(code, dir, want, sl), DAN_ERR_MALFORMED);
-                want[i] ^= (uint8_t)(1u << bit);
-            }
-        }
-        count++;
-    }
-    vec_close(&v);
-    assert_true(count >= 8);
+    assert_true(vec_each("gateway_sealed.txt", sealed_row, NULL) >= 8);
     assert_int_equal(dan_gw_seal(0x42, DAN_GW_REQUEST, (uint8_t *)"", 0, 1), DAN_ERR_OVERFLOW);
     assert_int_equal(dan_gw_unseal(0x42, DAN_GW_REQUEST, (const uint8_t *)"x", 1),
                      DAN_ERR_MALFORMED);
@@ -558,10 +546,6 @@ static void test_sealed_vectors(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_vectors),
-        cmocka_unit_test(test_codec_limits),
-        cmocka_unit_test(test_sealed_vectors),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gateway_vectors", NULL, NULL, test_vectors, test_codec_limits,
+                    test_sealed_vectors);
 }

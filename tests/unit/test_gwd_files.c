@@ -17,6 +17,7 @@
 
 #include "dna_file.h"
 #include "node_uid.h"
+#include "unit_run.h"
 
 static char dir[64], path[128];
 
@@ -178,11 +179,6 @@ static void test_uid(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test_setup_teardown(test_missing_store_reload, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_refused_files, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_unreadable_and_unwritable, setup, teardown),
-        cmocka_unit_test_setup_teardown(test_uid, setup, teardown),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("gwd_files", setup, teardown, test_missing_store_reload, test_refused_files,
+                    test_unreadable_and_unwritable, test_uid);
 }

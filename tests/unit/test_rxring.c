@@ -9,6 +9,7 @@
 #include <cmocka.h>
 
 #include "dan/rxring.h"
+#include "unit_run.h"
 
 static dan_rxring_t ring;
 
@@ -159,13 +160,7 @@ static void test_two_threads(void **state)
 
 int main(void)
 {
-    const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_empty),
-        cmocka_unit_test(test_order_and_partial_reads),
-        cmocka_unit_test(test_full_counts_drops),
-        cmocka_unit_test(test_wraps_many_times),
-        cmocka_unit_test(test_index_counter_overflow),
-        cmocka_unit_test(test_two_threads),
-    };
-    return cmocka_run_group_tests(tests, NULL, NULL);
+    return UNIT_RUN("rxring", NULL, NULL, test_empty, test_order_and_partial_reads,
+                    test_full_counts_drops, test_wraps_many_times, test_index_counter_overflow,
+                    test_two_threads);
 }

@@ -1,3 +1,4 @@
+#include <ctype.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <setjmp.h>
@@ -5,6 +6,7 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "dan/common.h"
 #include "vectors.h"
 
 void vec_open(vec_file_t *v, const char *name)
@@ -45,6 +47,32 @@ void vec_close(vec_file_t *v)
     }
 }
 
+size_t vec_each(const char *name, void (*row)(vec_file_t *v, void *ctx), void *ctx)
+{
+    static vec_file_t v; /* 8 KiB line buffer: not on the stack */
+    size_t count = 0;
+    vec_open(&v, name);
+    while (vec_next(&v)) {
+        row(&v, ctx);
+        count++;
+    }
+    vec_close(&v);
+    return count;
+}
+
+void vec_check_message(const vec_file_t *v, char *f[3], const uint8_t *p, size_t len,
+                       vec_codec_fn codec)
+{
+    char txt[2048];
+    uint8_t enc[DAN_MAX_PAYLOAD];
+    int n = codec(f[0], f[1], p, len, txt, sizeof txt, enc, sizeof enc);
+    if (strcmp(txt, f[2]) != 0) {
+        fail_msg("line %d: decoded\n  %s\nexpected\n  %s", v->lineno, txt, f[2]);
+    }
+    assert_int_equal(n, (int)len);
+    assert_memory_equal(enc, p, len);
+}
+
 int vec_split(char *s, char sep, char **fields, int max)
 {
     int n = 0;
@@ -60,17 +88,6 @@ int vec_split(char *s, char sep, char **fields, int max)
     return n;
 }
 
-static int hexval(char c)
-{
-    if (c >= '0' && c <= '9')
-        return c - '0';
-    if (c >= 'a' && c <= 'f')
-        return c - 'a' + 10;
-    if (c >= 'A' && c <= 'F')
-        return c - 'A' + 10;
-    return -1;
-}
-
 size_t vec_hex(const char *hex, uint8_t *out, size_t cap)
 {
     size_t n = 0;
@@ -78,12 +95,11 @@ size_t vec_hex(const char *hex, uint8_t *out, size_t cap)
         return 0;
     }
     while (hex[0] != '\0') {
-        int hi = hexval(hex[0]);
-        int lo = (hi < 0) ? -1 : hexval(hex[1]);
-        if (lo < 0 || n >= cap) {
+        char pair[3] = {hex[0], hex[1], '\0'};
+        if (!isxdigit((unsigned char)pair[0]) || !isxdigit((unsigned char)pair[1]) || n >= cap) {
             fail_msg("bad hex or too long: %s", hex);
         }
-        out[n++] = (uint8_t)(hi * 16 + lo);
+        out[n++] = (uint8_t)strtoul(pair, NULL, 16);
         hex += 2;
     }
     return n;

@@ -28,8 +28,7 @@ EXAMPLES = (
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    g = p.add_argument_group("arm options")
+    g = add_gateway_options(p, own="arm")
     g.add_argument(
         "--status",
         type=non_negative_int,

@@ -14,8 +14,7 @@ EXAMPLES = ("danprobe beep --port /dev/ttyUSB0 --baud 115200 --hz 2000 --ms 100"
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    g = p.add_argument_group("beep options")
+    g = add_gateway_options(p, own="beep")
     g.add_argument(
         "--hz",
         type=int_range(1, O.BEEP_HZ_MAX, "--hz"),

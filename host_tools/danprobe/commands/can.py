@@ -68,8 +68,7 @@ def add_arguments(p):
     d = sub.add_parser(
         "dump", help="print received frames in candump log format", description=DESCRIPTION
     )
-    add_gateway_options(d, long_running=True)
-    g = d.add_argument_group("dump options")
+    g = add_gateway_options(d, long_running=True, own="dump")
     g.add_argument(
         "--filter",
         type=filter_spec,

@@ -326,6 +326,24 @@ def master_operation(
         return m, failure, (now() - t0) * 1000
 
 
+def add_bus_options(p: argparse.ArgumentParser, baud_help: str):
+    """The common and the bus options of a command on the whole bus
+    (discover, configure)."""
+    add_common_options(p, baud_help=baud_help)
+    add_master_options(p)
+
+
+def peers_report(ctx: Context, m: Master, failure, ms: float, fields, failure_text, headline):
+    """report() of a command that ends with the peers found: the human text
+    is headline and the peers table."""
+
+    def human():
+        print(headline)
+        print(peers_table(m.present()))
+
+    return report(ctx, m, failure, ms, fields, failure_text, human)
+
+
 def report(
     ctx: Context,
     m: Master,
@@ -370,9 +388,11 @@ def add_gateway_options(
     long_running: bool = False,
     timeout_default: float = 30.0,
     timeout_help: Optional[str] = None,
+    own: Optional[str] = None,
 ):
     """The options of every gateway command: the common and bus options
-    (--types defaults to can-gw alone), --bus-baud and --configure."""
+    (--types defaults to can-gw alone), --bus-baud and --configure. With own
+    (the command's name), returns the group "<own> options" for its own."""
     add_common_options(
         p,
         baud_help="the baud the bus is at, if known: the gateway is tried there first "
@@ -397,6 +417,7 @@ def add_gateway_options(
         help="first move the bus to the best baud of every peripheral found "
         "(--types; 115200 for the gateway alone, or up to --max-baud)",
     )
+    return p.add_argument_group(f"{own} options") if own else None
 
 
 def gateway_actions(p: argparse.ArgumentParser, command: str, helps: dict, description: str):
@@ -407,8 +428,7 @@ def gateway_actions(p: argparse.ArgumentParser, command: str, helps: dict, descr
     sub.required = True
     for name, text in helps.items():
         s = sub.add_parser(name, help=text, description=description)
-        add_gateway_options(s)
-        yield name, s.add_argument_group(f"{command} {name} options")
+        yield name, add_gateway_options(s, own=f"{command} {name}")
 
 
 def find_gateway(ctx: Context, m: Master):
@@ -455,6 +475,19 @@ def gateway_operation(ctx: Context, op: Callable[[Master, gateway_client.Gateway
         op(m, gateway_client.GatewayClient(m))
 
     return master_operation(ctx, a.baud or DEFAULT_BAUD, run)
+
+
+def gateway_reads(ctx: Context, **reads: Callable):
+    """gateway_operation() of calls that only read: each keyword's function
+    of the client gives one result. Returns (master, failure, ms, results:
+    a dict by keyword, of the calls that returned)."""
+    got = {}
+
+    def op(m, gw):
+        for name, read in reads.items():
+            got[name] = read(gw)
+
+    return (*gateway_operation(ctx, op), got)
 
 
 def gateway_report(

@@ -2,11 +2,9 @@
 
 from danprobe.commands.common import (
     DEFAULT_BAUD,
-    add_common_options,
-    add_master_options,
+    add_bus_options,
     master_operation,
-    peers_table,
-    report,
+    peers_report,
 )
 
 NAME = "configure"
@@ -19,12 +17,11 @@ DESCRIPTION = (
 
 
 def add_arguments(p):
-    add_common_options(
+    add_bus_options(
         p,
         baud_help="the target baud, any value the adapter can do (default: the fastest "
         "every peripheral accepts, up to --max-baud)",
     )
-    add_master_options(p)
 
 
 def run(ctx) -> int:
@@ -37,21 +34,14 @@ def run(ctx) -> int:
         target = m.configure(target)
 
     m, failure, ms = master_operation(ctx, DEFAULT_BAUD, op)
-
-    def human():
-        print(
-            f"configure: ok, bus at {m.baud} baud, {len(m.present())} peripheral(s) "
-            f"verified ({ms:.1f} ms)"
-        )
-        print(peers_table(m.present()))
-
     recovered = f"; bus recovered at {m.baud} baud" if m.stats.recoveries else ""
-    return report(
+    return peers_report(
         ctx,
         m,
         failure,
         ms,
         {"target": target, "recoveries": m.stats.recoveries, "retries": m.stats.retries},
         f"configure failed: {failure}{recovered}",
-        human,
+        f"configure: ok, bus at {m.baud} baud, {len(m.present())} peripheral(s) "
+        f"verified ({ms:.1f} ms)",
     )

@@ -16,8 +16,7 @@ EXAMPLES = ("danprobe disarm --port /dev/ttyUSB0 --baud 115200 --safety-on",)
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    p.add_argument_group("disarm options").add_argument(
+    add_gateway_options(p, own="disarm").add_argument(
         "--safety-on", action="store_true", help="then send SAFETY 0 (SafetyState ON)"
     )
 

@@ -2,11 +2,9 @@
 
 from danprobe.commands.common import (
     DEFAULT_BAUD,
-    add_common_options,
-    add_master_options,
+    add_bus_options,
     master_operation,
-    peers_table,
-    report,
+    peers_report,
 )
 from danprobe.master import DISCOVERY_BAUDS, NotFound
 
@@ -20,11 +18,10 @@ DESCRIPTION = (
 
 
 def add_arguments(p):
-    add_common_options(
+    add_bus_options(
         p,
         baud_help="the port's opening baud (default 9600); discovery itself always starts at 9600",
     )
-    add_master_options(p)
 
 
 def run(ctx) -> int:
@@ -32,12 +29,7 @@ def run(ctx) -> int:
     m, failure, ms = master_operation(
         ctx, a.baud or DEFAULT_BAUD, lambda m: m.discover(), (NotFound,)
     )
-
-    def human():
-        print(f"discover: {len(m.present())} peripheral(s) in {ms:.1f} ms, bus at {m.baud} baud")
-        print(peers_table(m.present()))
-
-    return report(
+    return peers_report(
         ctx,
         m,
         failure,
@@ -45,5 +37,5 @@ def run(ctx) -> int:
         {"types": [t.name for t in a.types]},
         f"no peripheral answered (probed {', '.join(t.name for t in a.types)} at "
         f"{', '.join(map(str, DISCOVERY_BAUDS))} baud)",
-        human,
+        f"discover: {len(m.present())} peripheral(s) in {ms:.1f} ms, bus at {m.baud} baud",
     )

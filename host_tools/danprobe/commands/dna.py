@@ -20,8 +20,7 @@ DESCRIPTION = (
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    g = p.add_argument_group("dna options")
+    g = add_gateway_options(p, own="dna")
     g.add_argument(
         "--server",
         choices=("on", "off"),

@@ -77,8 +77,7 @@ def throttle(s: str) -> int:
 
 
 def add_arguments(p):
-    add_gateway_options(p, long_running=True)
-    g = p.add_argument_group("esc options")
+    g = add_gateway_options(p, long_running=True, own="esc")
     what = g.add_mutually_exclusive_group(required=True)
     what.add_argument(
         "--values",

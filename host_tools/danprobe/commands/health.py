@@ -3,7 +3,7 @@
 from danprobe.commands.common import (
     EXIT_FAIL,
     add_gateway_options,
-    gateway_operation,
+    gateway_reads,
     gateway_report,
 )
 
@@ -23,12 +23,7 @@ def add_arguments(p):
 
 
 def run(ctx) -> int:
-    got = {}
-
-    def op(m, gw):
-        got["health"] = gw.health()
-
-    m, failure, ms = gateway_operation(ctx, op)
+    m, failure, ms, got = gateway_reads(ctx, health=lambda gw: gw.health())
     h = got.get("health")
     fields = {"health": h.as_dict() if h else None}
     rc = gateway_report(ctx, m, failure, ms, fields, lambda: print(f"health: {h.text()}"))

@@ -31,8 +31,7 @@ def parse_colour(light_id: int, spec: str) -> O.Light:
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    p.add_argument_group("lights options").add_argument(
+    add_gateway_options(p, own="lights").add_argument(
         "--light",
         action="append",
         required=True,

@@ -27,8 +27,7 @@ DESCRIPTION = (
 
 
 def add_arguments(p):
-    add_gateway_options(p, long_running=True)
-    g = p.add_argument_group("nodes options")
+    g = add_gateway_options(p, long_running=True, own="nodes")
     g.add_argument(
         "--watch",
         action="store_true",

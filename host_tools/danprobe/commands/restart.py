@@ -22,8 +22,7 @@ DESCRIPTION = (
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    g = p.add_argument_group("restart options")
+    g = add_gateway_options(p, own="restart")
     add_node_option(g, "the node to restart")
     g.add_argument(
         "--magic",

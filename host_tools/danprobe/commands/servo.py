@@ -65,8 +65,7 @@ def failsafe_item(actuator: int, spec: str) -> O.ServoFailsafe:
 
 
 def add_arguments(p):
-    add_gateway_options(p)
-    g = p.add_argument_group("servo options")
+    g = add_gateway_options(p, own="servo")
     g.add_argument(
         "--set",
         action="append",

@@ -51,8 +51,7 @@ SENT_KEEP = 256  # our frames remembered until their copy (bit 29) comes back
 
 
 def add_arguments(p):
-    add_gateway_options(p, long_running=True)
-    g = p.add_argument_group("slcan options")
+    g = add_gateway_options(p, long_running=True, own="slcan")
     add_pty_options(g)
     g.add_argument(
         "--no-own",

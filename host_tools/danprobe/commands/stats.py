@@ -4,7 +4,7 @@ from danprobe import gateway_msgs
 from danprobe.commands.common import (
     add_gateway_options,
     format_table,
-    gateway_operation,
+    gateway_reads,
     gateway_report,
 )
 
@@ -22,13 +22,9 @@ def add_arguments(p):
 
 
 def run(ctx) -> int:
-    got = {}
-
-    def op(m, gw):
-        got["config"] = gw.read_config()
-        got["stats"] = gw.read_stats()
-
-    m, failure, ms = gateway_operation(ctx, op)
+    m, failure, ms, got = gateway_reads(
+        ctx, config=lambda gw: gw.read_config(), stats=lambda gw: gw.read_stats()
+    )
     cfg, stats = got.get("config"), got.get("stats", {})
 
     def human():

@@ -45,8 +45,7 @@ IN_LIMIT = 4096  # bytes from the pty client waiting for the gateway
 
 
 def add_arguments(p):
-    add_gateway_options(p, long_running=True)
-    g = p.add_argument_group("tunnel options")
+    g = add_gateway_options(p, long_running=True, own="tunnel")
     g.add_argument(
         "--target",
         type=non_negative_int,

@@ -64,8 +64,7 @@ typedef struct {
     uint16_t vendor_specific_status_code;
 } dan_dc_node_status_t;
 
-int dan_dc_node_status_encode(const dan_dc_node_status_t *m, uint8_t *buf, size_t cap);
-int dan_dc_node_status_decode(dan_dc_node_status_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_node_status, dan_dc_node_status_t);
 
 /* ---- uavcan.protocol.GetNodeInfo (service 1) ----
  * Request: empty. Response: NodeStatus, SoftwareVersion, HardwareVersion,
@@ -108,8 +107,7 @@ typedef struct {
 /* The request has no fields: encode returns 0, decode accepts any bytes. */
 int dan_dc_get_node_info_req_encode(uint8_t *buf, size_t cap);
 int dan_dc_get_node_info_req_decode(const uint8_t *buf, size_t len);
-int dan_dc_get_node_info_rsp_encode(const dan_dc_get_node_info_rsp_t *m, uint8_t *buf, size_t cap);
-int dan_dc_get_node_info_rsp_decode(dan_dc_get_node_info_rsp_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_get_node_info_rsp, dan_dc_get_node_info_rsp_t);
 
 /* ---- uavcan.equipment.esc.RawCommand (message 1030): int14[<=20] cmd ---- */
 
@@ -122,8 +120,7 @@ typedef struct {
     int16_t cmd[DAN_DC_ESC_RAW_COMMAND_MAX_CMDS]; /* saturated to int14 */
 } dan_dc_esc_raw_command_t;
 
-int dan_dc_esc_raw_command_encode(const dan_dc_esc_raw_command_t *m, uint8_t *buf, size_t cap);
-int dan_dc_esc_raw_command_decode(dan_dc_esc_raw_command_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_esc_raw_command, dan_dc_esc_raw_command_t);
 
 /* ---- uavcan.equipment.esc.Status (message 1034) ---- */
 
@@ -143,8 +140,7 @@ typedef struct {
     uint8_t esc_index;        /* uint5 */
 } dan_dc_esc_status_t;
 
-int dan_dc_esc_status_encode(const dan_dc_esc_status_t *m, uint8_t *buf, size_t cap);
-int dan_dc_esc_status_decode(dan_dc_esc_status_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_esc_status, dan_dc_esc_status_t);
 
 /* ---- uavcan.equipment.esc.StatusExtended (message 1036) ---- */
 
@@ -161,10 +157,7 @@ typedef struct {
     uint8_t esc_index;              /* uint5 */
 } dan_dc_esc_status_extended_t;
 
-int dan_dc_esc_status_extended_encode(const dan_dc_esc_status_extended_t *m, uint8_t *buf,
-                                      size_t cap);
-int dan_dc_esc_status_extended_decode(dan_dc_esc_status_extended_t *m, const uint8_t *buf,
-                                      size_t len);
+DAN_DC_CODEC(dan_dc_esc_status_extended, dan_dc_esc_status_extended_t);
 
 /* ---- uavcan.equipment.safety.ArmingStatus (message 1100) ---- */
 
@@ -178,8 +171,7 @@ typedef struct {
     uint8_t status;
 } dan_dc_arming_status_t;
 
-int dan_dc_arming_status_encode(const dan_dc_arming_status_t *m, uint8_t *buf, size_t cap);
-int dan_dc_arming_status_decode(dan_dc_arming_status_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_arming_status, dan_dc_arming_status_t);
 
 /* ---- uavcan.tunnel (Protocol is a nested uint8) ---- */
 
@@ -211,8 +203,7 @@ typedef struct {
     uint8_t buffer[DAN_DC_TUNNEL_TARGETTED_BUFFER_MAX];
 } dan_dc_tunnel_targetted_t;
 
-int dan_dc_tunnel_targetted_encode(const dan_dc_tunnel_targetted_t *m, uint8_t *buf, size_t cap);
-int dan_dc_tunnel_targetted_decode(dan_dc_tunnel_targetted_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_tunnel_targetted, dan_dc_tunnel_targetted_t);
 
 /* uavcan.tunnel.Broadcast (message 2010): Protocol protocol, uint8
  * channel_id, uint8[<=60] buffer (TAO). */
@@ -228,8 +219,7 @@ typedef struct {
     uint8_t buffer[DAN_DC_TUNNEL_BROADCAST_BUFFER_MAX];
 } dan_dc_tunnel_broadcast_t;
 
-int dan_dc_tunnel_broadcast_encode(const dan_dc_tunnel_broadcast_t *m, uint8_t *buf, size_t cap);
-int dan_dc_tunnel_broadcast_decode(dan_dc_tunnel_broadcast_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_tunnel_broadcast, dan_dc_tunnel_broadcast_t);
 
 /* Signature of a data type this file knows, by transfer kind (messages:
  * DAN_DC_TRANSFER_BROADCAST; services: either request or response) and ID;

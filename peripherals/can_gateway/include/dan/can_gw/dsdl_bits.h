@@ -150,6 +150,44 @@ int dan_dc_encode_table(const void *m, const dan_dc_field_t *f, size_t n, uint8_
 int dan_dc_decode_table(void *m, size_t size, const dan_dc_field_t *f, size_t n, const uint8_t *buf,
                         size_t len);
 
+/* Starts a decode: false (DAN_ERR_ARG) for m NULL or buf NULL with len > 0;
+ * else m (size bytes) is zeroed and r reads buf[0..len). */
+bool dan_dc_dec_begin(dan_dc_br_t *r, void *m, size_t size, const uint8_t *buf, size_t len);
+
+/* A top-level type that is one tail array (RawCommand, ArrayCommand,
+ * LightsCommand): a uint8_t count member at count_offset, at most max
+ * elements of elem_bits each; put/get write or read element i. Encode and
+ * decode return as the codecs do (count above max: DAN_ERR_ARG, on the wire:
+ * DAN_ERR_MALFORMED). */
+typedef void (*dan_dc_put_elem_t)(dan_dc_bw_t *w, const void *m, size_t i);
+typedef void (*dan_dc_get_elem_t)(dan_dc_br_t *r, void *m, size_t i);
+int dan_dc_encode_tao_array(const void *m, size_t count_offset, size_t max, dan_dc_put_elem_t put,
+                            uint8_t *buf, size_t cap);
+int dan_dc_decode_tao_array(void *m, size_t size, size_t count_offset, size_t max,
+                            unsigned elem_bits, dan_dc_get_elem_t get, const uint8_t *buf,
+                            size_t len);
+
+/* Defines NAME_encode and NAME_decode of TYPE, one tail array of up to MAX
+ * elements of ELEM_BITS bits counted by member count, with PUT and GET. */
+#define DAN_DC_TAO_ARRAY_CODEC(name, type, max, elem_bits, put, get)                           \
+    int name##_encode(const type *m, uint8_t *buf, size_t cap)                                 \
+    {                                                                                          \
+        return dan_dc_encode_tao_array(m, offsetof(type, count), max, put, buf, cap);          \
+    }                                                                                          \
+    int name##_decode(type *m, const uint8_t *buf, size_t len)                                 \
+    {                                                                                          \
+        return dan_dc_decode_tao_array(m, sizeof(type), offsetof(type, count), max, elem_bits, \
+                                       get, buf, len);                                         \
+    }
+
+/* Declares NAME_encode and NAME_decode of TYPE, the pattern of every DSDL
+ * codec (dsdl.h):
+ *   int NAME_encode(const TYPE *m, uint8_t *buf, size_t cap);
+ *   int NAME_decode(TYPE *m, const uint8_t *buf, size_t len); */
+#define DAN_DC_CODEC(name, type)                                \
+    int name##_encode(const type *m, uint8_t *buf, size_t cap); \
+    int name##_decode(type *m, const uint8_t *buf, size_t len)
+
 /* Defines NAME_encode and NAME_decode of TYPE from TABLE. */
 #define DAN_DC_TABLE_CODEC(name, type, table)                                                \
     int name##_encode(const type *m, uint8_t *buf, size_t cap)                               \

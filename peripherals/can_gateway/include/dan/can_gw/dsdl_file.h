@@ -72,14 +72,10 @@ typedef struct {
     uint8_t data[DAN_DC_FILE_READ_MAX];
 } dan_dc_file_read_rsp_t;
 
-int dan_dc_file_getinfo_req_encode(const dan_dc_file_req_t *m, uint8_t *buf, size_t cap);
-int dan_dc_file_getinfo_req_decode(dan_dc_file_req_t *m, const uint8_t *buf, size_t len);
-int dan_dc_file_getinfo_rsp_encode(const dan_dc_file_getinfo_rsp_t *m, uint8_t *buf, size_t cap);
-int dan_dc_file_getinfo_rsp_decode(dan_dc_file_getinfo_rsp_t *m, const uint8_t *buf, size_t len);
-int dan_dc_file_read_req_encode(const dan_dc_file_req_t *m, uint8_t *buf, size_t cap);
-int dan_dc_file_read_req_decode(dan_dc_file_req_t *m, const uint8_t *buf, size_t len);
-int dan_dc_file_read_rsp_encode(const dan_dc_file_read_rsp_t *m, uint8_t *buf, size_t cap);
-int dan_dc_file_read_rsp_decode(dan_dc_file_read_rsp_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_file_getinfo_req, dan_dc_file_req_t);
+DAN_DC_CODEC(dan_dc_file_getinfo_rsp, dan_dc_file_getinfo_rsp_t);
+DAN_DC_CODEC(dan_dc_file_read_req, dan_dc_file_req_t);
+DAN_DC_CODEC(dan_dc_file_read_rsp, dan_dc_file_read_rsp_t);
 
 #ifdef __cplusplus
 }

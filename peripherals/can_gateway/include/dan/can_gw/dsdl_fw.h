@@ -39,10 +39,8 @@ typedef struct {
     uint8_t message[DAN_DC_FW_BEGIN_MESSAGE_MAX];
 } dan_dc_fw_begin_rsp_t;
 
-int dan_dc_fw_begin_req_encode(const dan_dc_fw_begin_req_t *m, uint8_t *buf, size_t cap);
-int dan_dc_fw_begin_req_decode(dan_dc_fw_begin_req_t *m, const uint8_t *buf, size_t len);
-int dan_dc_fw_begin_rsp_encode(const dan_dc_fw_begin_rsp_t *m, uint8_t *buf, size_t cap);
-int dan_dc_fw_begin_rsp_decode(dan_dc_fw_begin_rsp_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_fw_begin_req, dan_dc_fw_begin_req_t);
+DAN_DC_CODEC(dan_dc_fw_begin_rsp, dan_dc_fw_begin_rsp_t);
 
 #ifdef __cplusplus
 }

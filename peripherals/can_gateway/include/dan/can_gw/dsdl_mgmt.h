@@ -35,8 +35,7 @@ typedef struct {
     uint8_t uid[DAN_DC_UNIQUE_ID_SIZE];
 } dan_dc_allocation_t;
 
-int dan_dc_allocation_encode(const dan_dc_allocation_t *m, uint8_t *buf, size_t cap);
-int dan_dc_allocation_decode(dan_dc_allocation_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_allocation, dan_dc_allocation_t);
 
 /* ---- uavcan.protocol.param.Value / NumericValue ----
  * Value: a union with a 3-bit tag (NumericValue: 2 bits, no boolean or
@@ -85,10 +84,8 @@ typedef struct {
     char name[DAN_DC_PARAM_NAME_MAX + 1u];
 } dan_dc_param_getset_rsp_t;
 
-int dan_dc_param_getset_req_encode(const dan_dc_param_getset_req_t *m, uint8_t *buf, size_t cap);
-int dan_dc_param_getset_req_decode(dan_dc_param_getset_req_t *m, const uint8_t *buf, size_t len);
-int dan_dc_param_getset_rsp_encode(const dan_dc_param_getset_rsp_t *m, uint8_t *buf, size_t cap);
-int dan_dc_param_getset_rsp_decode(dan_dc_param_getset_rsp_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_param_getset_req, dan_dc_param_getset_req_t);
+DAN_DC_CODEC(dan_dc_param_getset_rsp, dan_dc_param_getset_rsp_t);
 
 /* ---- uavcan.protocol.param.ExecuteOpcode (service 10) ----
  * Request: uint8 opcode, int48 argument. Response: int48 argument, bool ok. */
@@ -103,10 +100,8 @@ typedef struct {
     bool ok;          /* response */
 } dan_dc_param_opcode_t;
 
-int dan_dc_param_opcode_req_encode(const dan_dc_param_opcode_t *m, uint8_t *buf, size_t cap);
-int dan_dc_param_opcode_req_decode(dan_dc_param_opcode_t *m, const uint8_t *buf, size_t len);
-int dan_dc_param_opcode_rsp_encode(const dan_dc_param_opcode_t *m, uint8_t *buf, size_t cap);
-int dan_dc_param_opcode_rsp_decode(dan_dc_param_opcode_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_param_opcode_req, dan_dc_param_opcode_t);
+DAN_DC_CODEC(dan_dc_param_opcode_rsp, dan_dc_param_opcode_t);
 
 /* ---- uavcan.protocol.RestartNode (service 5) ----
  * Request: uint40 magic_number. Response: bool ok. A node rejects any

@@ -39,8 +39,7 @@ typedef struct {
     dan_dc_actuator_cmd_t cmd[DAN_DC_ARRAY_COMMAND_MAX];
 } dan_dc_array_command_t;
 
-int dan_dc_array_command_encode(const dan_dc_array_command_t *m, uint8_t *buf, size_t cap);
-int dan_dc_array_command_decode(dan_dc_array_command_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_array_command, dan_dc_array_command_t);
 
 /* ---- uavcan.equipment.indication.LightsCommand (message 1081) ----
  * SingleLightCommand[<=20] commands (TAO); SingleLightCommand: uint8
@@ -60,8 +59,7 @@ typedef struct {
     dan_dc_light_t light[DAN_DC_LIGHTS_MAX];
 } dan_dc_lights_command_t;
 
-int dan_dc_lights_command_encode(const dan_dc_lights_command_t *m, uint8_t *buf, size_t cap);
-int dan_dc_lights_command_decode(dan_dc_lights_command_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_lights_command, dan_dc_lights_command_t);
 
 /* ---- uavcan.equipment.indication.BeepCommand (message 1080) ----
  * float16 frequency (Hz), float16 duration (s). */
@@ -74,8 +72,7 @@ typedef struct {
     uint16_t duration_f16;  /* s */
 } dan_dc_beep_command_t;
 
-int dan_dc_beep_command_encode(const dan_dc_beep_command_t *m, uint8_t *buf, size_t cap);
-int dan_dc_beep_command_decode(dan_dc_beep_command_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_beep_command, dan_dc_beep_command_t);
 
 /* ---- ardupilot.indication.SafetyState (message 20000) ---- uint8 status */
 #define DAN_DC_SAFETY_STATE_ID        20000u
@@ -99,8 +96,7 @@ typedef struct {
     uint8_t error_flags;      /* 1 overheating, 2 overcooling */
 } dan_dc_temperature_t;
 
-int dan_dc_temperature_encode(const dan_dc_temperature_t *m, uint8_t *buf, size_t cap);
-int dan_dc_temperature_decode(dan_dc_temperature_t *m, const uint8_t *buf, size_t len);
+DAN_DC_CODEC(dan_dc_temperature, dan_dc_temperature_t);
 
 #ifdef __cplusplus
 }
