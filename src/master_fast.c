@@ -73,7 +73,7 @@ static bool to_ask(const dan_master_t *m, size_t i)
            p->fast_refused == (m->pass == 0u);
 }
 
-static bool step_send(dan_master_t *m, uint64_t now_us)
+static bool step_send(dan_master_t *m, uint32_t now_us)
 {
     for (; m->pass < 2u; m->pass++, m->idx = 0) {
         if (dan_mst_configure_next(m, to_ask, now_us)) {
@@ -87,7 +87,7 @@ static bool step_send(dan_master_t *m, uint64_t now_us)
 
 /* Moving back: CONFIGURE(its old baud) to each moved peer at the
  * candidate, then IDENTIFY each at its old baud; then the next one. */
-static bool step_back(dan_master_t *m, uint64_t now_us)
+static bool step_back(dan_master_t *m, uint32_t now_us)
 {
     while (m->idx < m->ntypes && !(m->moved[m->idx] && m->peers[m->idx].present)) {
         m->idx++;
@@ -110,7 +110,7 @@ static bool step_back(dan_master_t *m, uint64_t now_us)
     return dan_mst_fast_candidate(m);
 }
 
-bool dan_mst_fast_step(dan_master_t *m, uint64_t now_us)
+bool dan_mst_fast_step(dan_master_t *m, uint32_t now_us)
 {
     return (m->step == DAN_ST_FAST_SEND) ? step_send(m, now_us) : step_back(m, now_us);
 }
@@ -136,7 +136,7 @@ static void refused(dan_master_t *m, dan_peer_t *p)
     (void)dan_mst_fast_candidate(m);
 }
 
-void dan_mst_fast_txn_done(dan_master_t *m, uint64_t now_us)
+void dan_mst_fast_txn_done(dan_master_t *m, uint32_t now_us)
 {
     dan_peer_t *p = &m->peers[m->idx];
     bool ok_or_quiet = m->txn_result == DAN_ERR_TIMEOUT || dan_mst_ack_ok(m);

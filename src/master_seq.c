@@ -92,7 +92,7 @@ static uint32_t scan_baud(const dan_master_t *m, const dan_peer_t *p, size_t i)
     return (i < n) ? list[i] : 0u;
 }
 
-void dan_mst_switch_baud(dan_master_t *m, uint32_t baud, uint64_t now_us)
+void dan_mst_switch_baud(dan_master_t *m, uint32_t baud, uint32_t now_us)
 {
     if (m->link.baud != baud) {
         (void)dan_link_set_baud(&m->link, baud, now_us);
@@ -100,12 +100,12 @@ void dan_mst_switch_baud(dan_master_t *m, uint32_t baud, uint64_t now_us)
     }
 }
 
-void dan_mst_probe(dan_master_t *m, uint32_t first, uint8_t attempts, uint64_t now_us)
+void dan_mst_probe(dan_master_t *m, uint32_t first, uint8_t attempts, uint32_t now_us)
 {
     dan_mst_txn_start(m, DAN_TYPE_IDENTIFY(first), NULL, 0, attempts, now_us);
 }
 
-void dan_mst_send_configure(dan_master_t *m, uint32_t first, uint32_t baud, uint64_t now_us)
+void dan_mst_send_configure(dan_master_t *m, uint32_t first, uint32_t baud, uint32_t now_us)
 {
     /* DAN-CONFIGURE-PAYLOAD-V1 with type BPS: the type byte, the baud as a
      * uvarint (what dan_configure_encode writes, without its struct and
@@ -169,7 +169,7 @@ static size_t peers_found(const dan_master_t *m)
 
 /* Discovery: IDENTIFY each missing type at the current scan baud; then
  * the next scan baud, or the end. */
-static bool step_disc_probe(dan_master_t *m, uint64_t now_us)
+static bool step_disc_probe(dan_master_t *m, uint32_t now_us)
 {
     size_t i, found;
     while (m->idx < m->ntypes && m->peers[m->idx].present) {
@@ -198,7 +198,7 @@ static bool step_disc_probe(dan_master_t *m, uint64_t now_us)
 }
 
 bool dan_mst_configure_next(dan_master_t *m, bool (*ask)(const dan_master_t *m, size_t i),
-                            uint64_t now_us)
+                            uint32_t now_us)
 {
     while (m->idx < m->ntypes && !ask(m, m->idx)) {
         m->idx++;
@@ -211,7 +211,7 @@ bool dan_mst_configure_next(dan_master_t *m, bool (*ask)(const dan_master_t *m, 
     return true;
 }
 
-void dan_mst_start_verify(dan_master_t *m, uint64_t now_us)
+void dan_mst_start_verify(dan_master_t *m, uint32_t now_us)
 {
     m->step = DAN_ST_CFG_VERIFY;
     m->idx = 0;
@@ -226,7 +226,7 @@ static bool v1_ask(const dan_master_t *m, size_t i)
 
 /* Configure: CONFIGURE each present peer not at the target, at its baud;
  * then verify at the target. */
-static bool step_cfg_send(dan_master_t *m, uint64_t now_us)
+static bool step_cfg_send(dan_master_t *m, uint32_t now_us)
 {
     if (dan_mst_configure_next(m, v1_ask, now_us)) {
         return true;
@@ -238,7 +238,7 @@ static bool step_cfg_send(dan_master_t *m, uint64_t now_us)
 /* Verification (after configure, or after recovery): IDENTIFY each
  * present peer at the current baud. After a recovery in auto mode with
  * fast candidates left, the mask baud is next. */
-static bool step_verify(dan_master_t *m, uint64_t now_us)
+static bool step_verify(dan_master_t *m, uint32_t now_us)
 {
     while (m->idx < m->ntypes && !m->peers[m->idx].present) {
         m->idx++;
@@ -258,7 +258,7 @@ static bool step_verify(dan_master_t *m, uint64_t now_us)
 /* Recovery: find each peer at its believed baud, then at each baud
  * configure tried, then at the discovery bauds; a peer found nowhere is
  * dropped. Then verify everyone at 9600. */
-static bool step_rec_find(dan_master_t *m, uint64_t now_us)
+static bool step_rec_find(dan_master_t *m, uint32_t now_us)
 {
     uint32_t b;
     while (m->idx < m->ntypes && !m->peers[m->idx].present) {
@@ -282,7 +282,7 @@ static bool step_rec_find(dan_master_t *m, uint64_t now_us)
     return true;
 }
 
-void dan_mst_seq_next(dan_master_t *m, uint64_t now_us)
+void dan_mst_seq_next(dan_master_t *m, uint32_t now_us)
 {
     bool waiting;
     do {
@@ -330,7 +330,7 @@ static void cfg_txn_done(dan_master_t *m, dan_peer_t *p)
 
 /* Recovery's transactions: IDENTIFY at a scan baud, CONFIGURE(9600),
  * IDENTIFY at 9600. */
-static void rec_txn_done(dan_master_t *m, dan_peer_t *p, uint64_t now_us)
+static void rec_txn_done(dan_master_t *m, dan_peer_t *p, uint32_t now_us)
 {
     switch (m->step) {
     case DAN_ST_REC_FIND:
@@ -380,7 +380,7 @@ static bool probe_accept(dan_master_t *m, dan_peer_t *p)
     return true;
 }
 
-bool dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
+bool dan_mst_seq_txn_done(dan_master_t *m, uint32_t now_us)
 {
     dan_peer_t *p = (m->idx < m->ntypes) ? &m->peers[m->idx] : NULL;
     switch (m->step) {
@@ -406,10 +406,11 @@ bool dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
     return m->op != DAN_MASTER_OP_NONE; /* not finished by the step */
 }
 
-int dan_master_discover(dan_master_t *m, uint64_t now_us)
+int dan_master_discover(dan_master_t *m, uint64_t now64)
 {
     size_t i;
-    int r = dan_mst_op_begin(m, DAN_MASTER_OP_DISCOVER);
+    uint32_t now_us = (uint32_t)now64;
+    int r = dan_mst_op_begin(m, DAN_MASTER_OP_DISCOVER, now64);
     if (r != DAN_OK) {
         return r;
     }
@@ -441,13 +442,14 @@ static int cfg_check(const dan_master_t *m, uint32_t baud)
     return (baud == 0u || dan_mst_port_supports(m, baud)) ? DAN_OK : DAN_ERR_UNSUPPORTED;
 }
 
-int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us)
+int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now64)
 {
+    uint32_t now_us = (uint32_t)now64;
     int r = cfg_check(m, baud);
     if (r != DAN_OK) {
         return r;
     }
-    r = dan_mst_op_begin(m, DAN_MASTER_OP_CONFIGURE);
+    r = dan_mst_op_begin(m, DAN_MASTER_OP_CONFIGURE, now64);
     if (r != DAN_OK) {
         return r;
     }

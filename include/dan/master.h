@@ -114,10 +114,11 @@ typedef struct {
     int (*id_decode)(dan_identity_t *id, const uint8_t *p, size_t len);
 
     /* the current transaction (fields ordered for no padding: RAM) */
-    uint32_t req_code;      /* the request itself waits in link.tx */
-    uint64_t wait_until_us; /* not before: backoff or settle after a baud switch */
-    uint64_t deadline_us;   /* the reply must have started by then */
-    uint64_t busy_since_us;
+    uint32_t req_code; /* the request itself waits in link.tx */
+    /* times: the low 32 bits of now_us (see dan/link.h) */
+    uint32_t wait_until_us; /* not before: backoff or settle after a baud switch */
+    uint32_t deadline_us;   /* the reply must have started by then */
+    uint32_t busy_since_us;
     uint8_t attempts_left;
     uint8_t attempt;   /* attempts made, for the backoff */
     uint8_t txn_phase; /* internal */
