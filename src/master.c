@@ -1,6 +1,5 @@
 /* DAN master engine: transactions with listen-before-talk, echo/collision
- * handling and retries (the sequencers are in master_seq.c and
- * master_fast.c). */
+ * handling and retries (the sequencers are in master_seq.c). */
 #include <string.h>
 
 #include "dan/codes.h"
@@ -370,8 +369,8 @@ int dan_master_poll(dan_master_t *m, uint64_t now_us)
             m->txn_phase = PH_IDLE;
             if (m->op == DAN_MASTER_OP_TXN) {
                 dan_mst_op_finish(m, m->txn_result);
-            } else if (dan_mst_seq_txn_done(m, (uint32_t)now_us)) {
-                dan_mst_seq_next(m, (uint32_t)now_us);
+            } else {
+                dan_mst_seq_txn_done(m, (uint32_t)now_us);
             }
         }
     } else {

@@ -42,7 +42,7 @@ FW_LDFLAGS = $(FW_ARCH) --specs=nano.specs -nostartfiles -Wl,--gc-sections \
              -T $(FW_DIR)/fc_firmware.ld
 
 FW_CODEC_SRC  := src/common.c src/crc8.c src/frame.c src/payloads.c
-FW_MASTER_SRC := src/link.c src/master.c src/master_seq.c src/master_fast.c
+FW_MASTER_SRC := src/link.c src/master.c src/master_seq.c
 FW_LIB_SRC    := $(FW_CODEC_SRC) $(FW_MASTER_SRC) src/types.c src/rxring.c src/identity_json.c \
                  $(FW_GW_SRC)
 FW_APP_SRC    := $(FW_DIR)/startup.c $(FW_DIR)/board.c $(FW_DIR)/main.c

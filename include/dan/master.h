@@ -152,7 +152,7 @@ typedef struct {
     uint8_t pass;                             /* 0: peers that refused before, 1: the others */
     int fast_error;                           /* why the last candidate was refused */
     uint32_t back_baud[DAN_MASTER_MAX_TYPES]; /* where a moved peer was */
-    bool moved[DAN_MASTER_MAX_TYPES];         /* acknowledged the candidate */
+    uint8_t moved;                            /* bit i: peers[i] acknowledged the candidate */
     int result;
     uint32_t rng;
     dan_reply_check_fn reply_check;
