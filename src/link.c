@@ -20,7 +20,7 @@ void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud, dan_fra
     l->char_us = dan_char_us(baud);
     l->on_frame = on_frame;
     l->owner = owner;
-    l->now_us = now_us;
+    dan_link_set_now(l, now_us);
     l->last_rx_us = (uint32_t)now_us; /* idle time counts from start-up */
     dan_decoder_init(&l->dec);
 }
@@ -135,7 +135,7 @@ void dan_link_rx(dan_link_t *l, const uint8_t *data, size_t len, uint64_t now64)
     if (len == 0u) {
         return;
     }
-    l->now_us = now64;
+    dan_link_set_now(l, now64);
     l->stats.rx_bytes += (uint32_t)len;
     l->last_rx_us = now_us;
     if (l->state == DAN_LINK_TX && l->port.echo) {
@@ -172,7 +172,7 @@ int dan_link_prepare(dan_link_t *l, uint32_t code, const uint8_t *payload, size_
         l->tx_len = 0;
         return n;
     }
-    l->tx_len = (size_t)n;
+    l->tx_len = (uint16_t)n;
     return DAN_OK;
 }
 
@@ -209,7 +209,7 @@ int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t l
 dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now64)
 {
     uint32_t now_us = (uint32_t)now64;
-    l->now_us = now64;
+    dan_link_set_now(l, now64);
     if (dan_decoder_busy(&l->dec) && reached(now_us, l->last_rx_us + dan_link_gap_us(l))) {
         /* The line went quiet in the middle of a frame. */
         dan_decoder_abort(&l->dec);

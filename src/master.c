@@ -56,7 +56,7 @@ int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_co
     for (i = 0; i < ntypes; i++) {
         m->peers[i].first_code = types[i];
     }
-    m->ntypes = ntypes;
+    m->ntypes = (uint8_t)ntypes; /* <= DAN_MASTER_MAX_TYPES */
     dan_link_init(&m->link, port, baud, on_frame, m, now_us);
     m->resp = m->link.tx;
     m->link.gap_us = m->cfg.gap_us;
@@ -330,7 +330,7 @@ int dan_mst_op_begin(dan_master_t *m, dan_master_op_t op, uint64_t now_us)
     if (m->op != DAN_MASTER_OP_NONE) {
         return DAN_ERR_BUSY;
     }
-    m->link.now_us = now_us;
+    dan_link_set_now(&m->link, now_us);
     m->op = op;
     m->done = false;
     m->result = DAN_OK;
