@@ -20,9 +20,10 @@
  * are read straight out of the master's response buffer with the
  * dan_gw_*_get/next functions below; they stay valid until the next
  * transaction starts, so the client itself stays small:
- *   sizeof(dan_gw_t) ~ 100 + 44 * DAN_GW_MAX_ESC + 4 * DAN_GW_STAT_COUNT
- *                      + 24 * DAN_GW_TUNNELS bytes (436 on Cortex-M4 with
- *                      the defaults; `make size` reports it).
+ *   sizeof(dan_gw_t) ~ 92 + 44 * DAN_GW_MAX_ESC + 24 * DAN_GW_TUNNELS
+ *                      bytes (316 on Cortex-M4 with the defaults; `make
+ *                      size` reports it); the STATS counters, if kept, in
+ *                      the caller's storage (dan_gw_set_stats()).
  *
  * Retries: the master retries a transaction whose response was lost. Every
  * gateway message is idempotent under retry (ESC commands and ARM are
