@@ -214,7 +214,7 @@ static bool walk(dan_master_t *m, uint32_t now_us)
     uint8_t w = step_walk[m->step];
     for (; m->idx < m->ntypes; m->idx++) {
         dan_peer_t *p = &m->peers[m->idx];
-        bool moved = (m->moved >> m->idx) & 1u;
+        bool moved = (((unsigned)m->moved >> m->idx) & 1u) != 0u;
         uint32_t baud = p->baud, arg = m->target_baud;
         if (p->present != ((w & W_PRESENT) != 0u) || ((w & W_AWAY) && p->baud == arg) ||
             ((w & W_MOVED) && !moved) ||
