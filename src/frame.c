@@ -1,4 +1,5 @@
 /* DAN v1 frame encoder and resynchronising streaming decoder. */
+#include <stddef.h>
 #include <string.h>
 
 #include "dan/frame.h"
@@ -51,9 +52,7 @@ void dan_decoder_init(dan_decoder_t *d)
 
 void dan_decoder_reset(dan_decoder_t *d)
 {
-    dan_decoder_stats_t keep = d->stats;
-    dan_decoder_init(d);
-    d->stats = keep;
+    memset(d, 0, offsetof(dan_decoder_t, stats)); /* the counters (and the buffer) stay */
 }
 
 /* Drops buf[0..n) and any non-sync bytes after it; returns bytes skipped

@@ -1,6 +1,5 @@
 /* DAN master engine: transactions with listen-before-talk, echo/collision
- * handling and retries (the sequencers are in master_seq.c and
- * master_fast.c). */
+ * handling and retries (the sequencers are in master_seq.c). */
 #include <string.h>
 
 #include "dan/codes.h"
@@ -31,7 +30,7 @@ static uint32_t next_rand(dan_master_t *m)
     return x;
 }
 
-static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us);
+static void on_frame(void *owner, const dan_frame_t *f, uint64_t now64);
 
 int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_config_t *cfg,
                     const uint32_t *types, size_t ntypes, uint32_t baud, uint64_t now_us)
@@ -57,7 +56,7 @@ int dan_master_init(dan_master_t *m, const dan_port_t *port, const dan_master_co
     for (i = 0; i < ntypes; i++) {
         m->peers[i].first_code = types[i];
     }
-    m->ntypes = ntypes;
+    m->ntypes = (uint8_t)ntypes; /* <= DAN_MASTER_MAX_TYPES */
     dan_link_init(&m->link, port, baud, on_frame, m, now_us);
     m->resp = m->link.tx;
     m->link.gap_us = m->cfg.gap_us;
@@ -121,11 +120,11 @@ static uint32_t lbt_us(const dan_master_t *m)
 
 /* Random backoff after a failed attempt: [0, 8 * 2^k) characters, k =
  * min(attempt, 4), on top of the listen-before-talk idle time. */
-static void backoff(dan_master_t *m, uint64_t now_us)
+static void backoff(dan_master_t *m, uint32_t now_us)
 {
     uint32_t k = (m->attempt < 4u) ? m->attempt : 4u;
     uint32_t slots = 8u << k;
-    m->wait_until_us = now_us + (uint64_t)(next_rand(m) % slots) * m->link.char_us;
+    m->wait_until_us = now_us + (next_rand(m) % slots) * m->link.char_us;
 }
 
 static void txn_finish(dan_master_t *m, int result)
@@ -141,7 +140,7 @@ static void txn_finish(dan_master_t *m, int result)
 }
 
 void dan_mst_txn_start(dan_master_t *m, uint32_t code, const uint8_t *payload, size_t len,
-                       uint8_t attempts, uint64_t now_us)
+                       uint8_t attempts, uint32_t now_us)
 {
     m->req_code = code;
     /* The encoded frame waits in the link's TX buffer; retries resend it. */
@@ -158,13 +157,15 @@ void dan_mst_txn_start(dan_master_t *m, uint32_t code, const uint8_t *payload, s
     m->resp_len = 0;
     m->resp_code = 0;
     m->stats.transactions++;
-    if (m->wait_until_us < now_us) {
+    /* wait_until_us is a backoff of this transaction or the settle time of
+     * a baud switch just made: anything else (in the past) is over */
+    if (m->wait_until_us - now_us > m->cfg.settle_us) {
         m->wait_until_us = now_us;
     }
 }
 
 /* An attempt failed (timeout or collision): retry or give up. */
-static void txn_attempt_failed(dan_master_t *m, int why, uint64_t now_us)
+static void txn_attempt_failed(dan_master_t *m, int why, uint32_t now_us)
 {
     if (m->link.state == DAN_LINK_TX_DONE) {
         dan_link_ack(&m->link); /* failed from on_frame, before a poll */
@@ -203,10 +204,10 @@ int dan_master_remote_error(const dan_master_t *m, dan_error_msg_t *e)
     return dan_error_decode(e, m->resp, m->resp_len);
 }
 
-static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
+static void on_frame(void *owner, const dan_frame_t *f, uint64_t now64)
 {
     dan_master_t *m = (dan_master_t *)owner;
-    uint32_t code;
+    uint32_t code, now_us = (uint32_t)now64;
     /* A reply may arrive in the same read as the last echo byte (or, with a
      * direction pin, before a poll has noticed the end of our frame). */
     bool sent =
@@ -241,27 +242,34 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
 
 /* Response deadline: the reply must start within the turnaround plus
  * resp_latency_us after our request left the wire. */
-static uint64_t reply_start_deadline(const dan_master_t *m, uint64_t tx_end_us)
+static uint32_t reply_start_deadline(const dan_master_t *m, uint32_t tx_end_us)
 {
-    return tx_end_us + (uint64_t)DAN_TURNAROUND_CHARS * m->link.char_us + m->cfg.resp_latency_us;
+    return tx_end_us + DAN_TURNAROUND_CHARS * m->link.char_us + m->cfg.resp_latency_us;
 }
 
 /* How long past the start deadline a reply that has begun may take:
  * a maximal frame, at least the inter-byte gap (2 ms: at 1-2 Mbit/s a
  * frame is under 1 ms, shorter than a USB adapter's latency timer). */
-static uint64_t reply_tail_us(const dan_master_t *m)
+static uint32_t reply_tail_us(const dan_master_t *m)
 {
-    uint64_t frame = (uint64_t)DAN_MAX_FRAME * m->link.char_us;
-    uint64_t gap = dan_link_gap_us(&m->link);
+    uint32_t frame = DAN_MAX_FRAME * m->link.char_us;
+    uint32_t gap = dan_link_gap_us(&m->link);
     return (frame > gap) ? frame : gap;
 }
 
-static void txn_poll(dan_master_t *m, uint64_t now_us)
+/* now_us before t (wrap-safe: both within 2^31 us) */
+static bool before(uint32_t now_us, uint32_t t)
 {
-    dan_link_state_t ls = dan_link_poll(&m->link, now_us);
+    return now_us - t >= 0x80000000u;
+}
+
+static void txn_poll(dan_master_t *m, uint64_t now64)
+{
+    dan_link_state_t ls = dan_link_poll(&m->link, now64);
+    uint32_t now_us = (uint32_t)now64;
     switch (m->txn_phase) {
     case PH_LBT:
-        if (now_us < m->wait_until_us) {
+        if (before(now_us, m->wait_until_us)) {
             break;
         }
         if (dan_link_idle_us(&m->link, now_us) < lbt_us(m)) {
@@ -292,14 +300,14 @@ static void txn_poll(dan_master_t *m, uint64_t now_us)
         }
         break;
     case PH_WAIT:
-        if (now_us < m->deadline_us) {
+        if (before(now_us, m->deadline_us)) {
             break;
         }
         /* Past the start deadline: wait on while a reply is arriving, but
          * not longer than a whole maximal frame (or the inter-byte gap, at
          * fast bauds: a host gets a reply's bytes in bursts). */
         if (dan_link_idle_us(&m->link, now_us) < dan_link_gap_us(&m->link) &&
-            now_us < m->deadline_us + reply_tail_us(m)) {
+            before(now_us, m->deadline_us + reply_tail_us(m))) {
             break;
         }
         m->stats.timeouts++;
@@ -317,11 +325,12 @@ void dan_mst_op_finish(dan_master_t *m, int result)
     m->done = true;
 }
 
-int dan_mst_op_begin(dan_master_t *m, dan_master_op_t op)
+int dan_mst_op_begin(dan_master_t *m, dan_master_op_t op, uint64_t now_us)
 {
     if (m->op != DAN_MASTER_OP_NONE) {
         return DAN_ERR_BUSY;
     }
+    dan_link_set_now(&m->link, now_us);
     m->op = op;
     m->done = false;
     m->result = DAN_OK;
@@ -337,11 +346,11 @@ int dan_master_request(dan_master_t *m, uint32_t code, const uint8_t *payload, s
     if (len > DAN_MAX_PAYLOAD || (len > 0u && payload == NULL)) {
         return DAN_ERR_ARG;
     }
-    r = dan_mst_op_begin(m, DAN_MASTER_OP_TXN);
+    r = dan_mst_op_begin(m, DAN_MASTER_OP_TXN, now_us);
     if (r != DAN_OK) {
         return r;
     }
-    dan_mst_txn_start(m, code, payload, len, (uint8_t)(m->cfg.retries + 1u), now_us);
+    dan_mst_txn_start(m, code, payload, len, (uint8_t)(m->cfg.retries + 1u), (uint32_t)now_us);
     return DAN_OK;
 }
 
@@ -360,8 +369,8 @@ int dan_master_poll(dan_master_t *m, uint64_t now_us)
             m->txn_phase = PH_IDLE;
             if (m->op == DAN_MASTER_OP_TXN) {
                 dan_mst_op_finish(m, m->txn_result);
-            } else if (dan_mst_seq_txn_done(m, now_us)) {
-                dan_mst_seq_next(m, now_us);
+            } else {
+                dan_mst_seq_txn_done(m, (uint32_t)now_us);
             }
         }
     } else {
@@ -374,30 +383,34 @@ int dan_master_poll(dan_master_t *m, uint64_t now_us)
     return 0;
 }
 
-static uint64_t max_u64(uint64_t a, uint64_t b)
+static uint32_t max_u32(uint32_t a, uint32_t b)
 {
     return (a > b) ? a : b;
 }
 
+/* Waits from the link's last now_us (dan_link_due_in()): the earliest is
+ * given back as a 64-bit time. */
 uint64_t dan_master_next_us(const dan_master_t *m)
 {
-    uint64_t next = dan_link_next_us(&m->link), t = UINT64_MAX;
-    if (m->op == DAN_MASTER_OP_NONE) {
-        return next;
-    }
-    switch (m->txn_phase) {
-    case PH_LBT:
-        /* the backoff, and the line idle long enough; or the busy timeout */
-        t = max_u64(m->wait_until_us, m->link.last_rx_us + lbt_us(m));
-        if (m->busy_since_us + m->cfg.busy_timeout_us < t) {
-            t = m->busy_since_us + m->cfg.busy_timeout_us;
+    const dan_link_t *l = &m->link;
+    uint32_t next = dan_link_wait_us(l), t = UINT32_MAX;
+    if (m->op != DAN_MASTER_OP_NONE) {
+        switch (m->txn_phase) {
+        case PH_LBT: {
+            /* the backoff, and the line idle long enough; or the busy timeout */
+            uint32_t busy = dan_link_due_in(l, m->busy_since_us + m->cfg.busy_timeout_us);
+            t = max_u32(dan_link_due_in(l, m->wait_until_us),
+                        dan_link_due_in(l, l->last_rx_us + lbt_us(m)));
+            t = (busy < t) ? busy : t;
+            break;
         }
-        break;
-    case PH_WAIT:
-        t = max_u64(m->deadline_us, m->link.last_rx_us + dan_link_gap_us(&m->link));
-        break;
-    case PH_DONE: t = 0; break;
-    default: break;
+        case PH_WAIT:
+            t = max_u32(dan_link_due_in(l, m->deadline_us),
+                        dan_link_due_in(l, l->last_rx_us + dan_link_gap_us(l)));
+            break;
+        case PH_DONE: t = 0; break;
+        default: break;
+        }
     }
-    return (t < next) ? t : next;
+    return dan_link_wait_time(l, (t < next) ? t : next);
 }

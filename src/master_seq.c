@@ -1,22 +1,43 @@
-/* DAN master engine: the discovery, configure and recovery sequencers
- * (docs/PROTOCOL.md section 6). Fast bauds: master_fast.c. */
-#include <string.h>
-
+/* DAN master engine: the discovery, configure and recovery sequencers and
+ * the negotiation of fast bauds (docs/PROTOCOL.md section 6).
+ *
+ * Every step walks the peers from idx on: the first one its row of
+ * step_walk[] picks gets one request (IDENTIFY or CONFIGURE) at the baud
+ * the row names; its reply is taken by seq_took(); when no peer is left,
+ * step_end() moves on. Fast bauds: for a candidate c, CONFIGURE(c) to
+ * every peer at its baud, the peers that refused a fast baud before first
+ * (a v1-only peer refuses before anyone moves); a refusal moves the peers
+ * that already moved back and checks them; all acknowledged: switch and
+ * verify at c (then recovery, as for a v1 configure). */
 #include "dan/codes.h"
 #include "master_internal.h"
 
 /* The mask bauds discovery scans after 9600 and the fast bauds. */
 static const uint32_t mask_scan[DAN_DISCOVERY_NBAUDS - 1u] = {115200u, 57600u, 38400u, 19200u};
 
-/* The longest scan: a peer's believed baud, the bauds configure tried,
- * 9600, the fast bauds, the mask bauds. */
-#define SCAN_MAX (1u + DAN_MASTER_MAX_FAST + 1u + DAN_MASTER_MAX_FAST + DAN_DISCOVERY_NBAUDS)
+/* Which peers a step asks, where, and what. */
+#define W_PRESENT 0x01u /* present peers (else the missing ones) */
+#define W_AWAY    0x02u /* not at the target baud */
+#define W_MOVED   0x04u /* moved to the fast candidate */
+#define W_STAYED  0x08u /* not moved, and in this pass's group (refused before: pass 0) */
+#define W_SCAN    0x10u /* at scan baud bidx (else at the peer's baud) */
+#define W_HERE    0x20u /* at the current baud (no switch) */
+#define W_CONF    0x40u /* CONFIGURE (else IDENTIFY) */
+#define W_RETRY   0x80u /* IDENTIFY with retries + 1 attempts (else discovery_attempts) */
 
-static bool peer_supports(const dan_peer_t *p, uint32_t baud)
-{
-    return baud == DAN_BAUD_BASE ||
-           (p->baud_mask & DAN_BAUD_MASK_DEFINED & dan_mask_bit_of_baud(baud)) != 0u;
-}
+static const uint8_t step_walk[] = {
+    [DAN_ST_DISC_PROBE] = W_SCAN,
+    [DAN_ST_CFG_SEND] = W_PRESENT | W_AWAY | W_CONF,
+    [DAN_ST_CFG_VERIFY] = W_PRESENT | W_HERE | W_RETRY,
+    [DAN_ST_REC_FIND] = W_PRESENT | W_SCAN,
+    [DAN_ST_REC_BACK] = W_PRESENT | W_CONF, /* CONFIGURE(9600) */
+    [DAN_ST_REC_VERIFY] = W_PRESENT | W_HERE | W_RETRY,
+    [DAN_ST_FAST_SEND] = W_PRESENT | W_AWAY | W_STAYED | W_CONF,
+    [DAN_ST_FAST_BACK] = W_PRESENT | W_MOVED | W_CONF, /* CONFIGURE(its old baud) */
+    [DAN_ST_FAST_BACK_CHECK] = W_PRESENT | W_MOVED | W_RETRY,
+};
+
+/* ---- bauds ---- */
 
 uint32_t dan_master_best_baud(const dan_master_t *m)
 {
@@ -29,10 +50,7 @@ uint32_t dan_master_best_baud(const dan_master_t *m)
             any = true;
         }
     }
-    if (!any) {
-        return DAN_BAUD_BASE;
-    }
-    while (mask != 0u) {
+    while (any && mask != 0u) {
         uint32_t b = dan_baud_highest(mask);
         if (dan_mst_port_supports(m, b)) {
             return b;
@@ -42,57 +60,88 @@ uint32_t dan_master_best_baud(const dan_master_t *m)
     return DAN_BAUD_BASE;
 }
 
-/* Appends b to list (n entries) unless it is there or the port cannot. */
-static size_t scan_add(const dan_master_t *m, uint32_t *list, size_t n, uint32_t b)
+/* Fast baud k this master offers (cfg.fast_*, the port's maximum), highest
+ * first, without the v1 bauds or repeats; 0 past the end. Computed again
+ * when needed rather than kept (RAM). */
+static uint32_t fast_baud(const dan_master_t *m, size_t k)
 {
-    size_t i;
-    if (b == 0u || n >= SCAN_MAX || !dan_mst_port_supports(m, b)) {
-        return n;
+    const uint32_t *list = (m->cfg.fast_bauds != NULL) ? m->cfg.fast_bauds : dan_fast_bauds;
+    size_t i = (m->cfg.fast_bauds != NULL) ? m->cfg.nfast_bauds : DAN_NFAST_BAUDS;
+    size_t n = 0;
+    uint32_t last = UINT32_MAX;
+    if (m->cfg.fast_max_baud == 0u) {
+        return 0;
     }
-    for (i = 0; i < n; i++) {
-        if (list[i] == b) {
-            return n;
+    while (i-- > 0u && n < DAN_MASTER_MAX_FAST) { /* ascending list: from its end */
+        uint32_t b = list[i];
+        if (b <= m->cfg.fast_max_baud && !dan_baud_is_v1(b) && dan_mst_port_supports(m, b) &&
+            b < last) {
+            if (n++ == k) {
+                return b;
+            }
+            last = b;
         }
     }
-    list[n] = b;
-    return n + 1u;
+    return 0;
 }
 
-/* The bauds to look for a peer at: p's believed baud and the bauds this
- * configure tried (recovery only, p != NULL), then discovery's: 9600, the
- * fast bauds, the mask bauds, each from the highest. Returns the count. */
-static size_t scan_list(const dan_master_t *m, const dan_peer_t *p, uint32_t list[SCAN_MAX])
+/* Configure's candidate i: the baud the caller named, or fast baud i. */
+static uint32_t cand(const dan_master_t *m, size_t i)
 {
-    /* The fast list goes to list's tail, not a second array (stack): at
-     * most 1 + ntried + 1 <= SCAN_MAX - DAN_MASTER_MAX_FAST entries come
-     * before it, so list[n] is written below each fast entry still unread. */
-    uint32_t *fast = list + (SCAN_MAX - DAN_MASTER_MAX_FAST);
-    size_t n = 0, i, nf = dan_mst_fast_list(m, fast, 0, DAN_MASTER_MAX_FAST);
+    return (m->named_baud != 0u) ? m->named_baud : fast_baud(m, i);
+}
+
+/* Entry k of the scan before repeats are dropped: p's believed baud and the
+ * candidates this configure tried (recovery only, p != NULL), then
+ * discovery's: 9600, the fast bauds, the mask bauds, each from the highest.
+ * UINT32_MAX past the end. */
+static uint32_t scan_entry(const dan_master_t *m, const dan_peer_t *p, size_t k)
+{
+    size_t nf = 0;
     if (p != NULL) {
-        n = scan_add(m, list, n, p->baud);
-        for (i = 0; i < m->ntried; i++) { /* the candidates tried: dan_mst_cand(m, i) */
-            n = scan_add(m, list, n, m->named_baud != 0u ? m->named_baud : fast[i]);
+        if (k-- == 0u) {
+            return p->baud;
         }
+        if (k < m->ntried) {
+            return cand(m, k);
+        }
+        k -= m->ntried;
     }
-    n = scan_add(m, list, n, DAN_BAUD_BASE);
-    for (i = 0; i < nf; i++) {
-        n = scan_add(m, list, n, fast[i]);
+    if (k-- == 0u) {
+        return DAN_BAUD_BASE;
     }
-    for (i = 0; i < DAN_DISCOVERY_NBAUDS - 1u; i++) {
-        n = scan_add(m, list, n, mask_scan[i]);
+    while (fast_baud(m, nf) != 0u) {
+        nf++;
     }
-    return n;
+    if (k < nf) {
+        return fast_baud(m, k);
+    }
+    k -= nf;
+    return (k < DAN_DISCOVERY_NBAUDS - 1u) ? mask_scan[k] : UINT32_MAX;
 }
 
-/* Scan baud number i (0 past the end). */
+/* Scan baud number i (0 past the end): the entries the port can do, each
+ * once. Found again from the start each time (no list on the stack). */
 static uint32_t scan_baud(const dan_master_t *m, const dan_peer_t *p, size_t i)
 {
-    uint32_t list[SCAN_MAX];
-    size_t n = scan_list(m, p, list);
-    return (i < n) ? list[i] : 0u;
+    size_t k, j;
+    for (k = 0;; k++) {
+        uint32_t b = scan_entry(m, p, k);
+        if (b == UINT32_MAX) {
+            return 0;
+        }
+        if (b == 0u || !dan_mst_port_supports(m, b)) {
+            continue;
+        }
+        for (j = 0; j < k && scan_entry(m, p, j) != b; j++) {
+        }
+        if (j == k && i-- == 0u) {
+            return b;
+        }
+    }
 }
 
-void dan_mst_switch_baud(dan_master_t *m, uint32_t baud, uint64_t now_us)
+static void switch_baud(dan_master_t *m, uint32_t baud, uint32_t now_us)
 {
     if (m->link.baud != baud) {
         (void)dan_link_set_baud(&m->link, baud, now_us);
@@ -100,64 +149,8 @@ void dan_mst_switch_baud(dan_master_t *m, uint32_t baud, uint64_t now_us)
     }
 }
 
-void dan_mst_probe(dan_master_t *m, uint32_t first, uint8_t attempts, uint64_t now_us)
-{
-    dan_mst_txn_start(m, DAN_TYPE_IDENTIFY(first), NULL, 0, attempts, now_us);
-}
+/* ---- steps ---- */
 
-void dan_mst_send_configure(dan_master_t *m, uint32_t first, uint32_t baud, uint64_t now_us)
-{
-    /* DAN-CONFIGURE-PAYLOAD-V1 with type BPS: the type byte, the baud as a
-     * uvarint (what dan_configure_encode writes, without its struct and
-     * writer on the deepest stack path) */
-    uint8_t p[1u + DAN_UVARINT_MAX_BYTES];
-    p[0] = DAN_CONFIGURE_BPS;
-    dan_mst_txn_start(m, DAN_TYPE_CONFIGURE(first), p,
-                      1u + (size_t)dan_uvarint_encode(baud, p + 1, DAN_UVARINT_MAX_BYTES),
-                      (uint8_t)(m->cfg.retries + 1u), now_us);
-}
-
-bool dan_mst_ack_ok(const dan_master_t *m)
-{
-    uint8_t ack;
-    return m->txn_result == DAN_OK && dan_ack_decode(&ack, m->resp, m->resp_len) == DAN_OK &&
-           ack == DAN_ACK_OK;
-}
-
-int dan_mst_txn_error(const dan_master_t *m)
-{
-    uint8_t ack;
-    if (m->txn_result != DAN_OK) {
-        return m->txn_result;
-    }
-    if (dan_ack_decode(&ack, m->resp, m->resp_len) != DAN_OK) {
-        return DAN_ERR_MALFORMED;
-    }
-    return (ack == DAN_ACK_OK) ? DAN_OK : DAN_ERR_NACK;
-}
-
-void dan_mst_start_recovery(dan_master_t *m, int why)
-{
-    m->stats.recoveries++;
-    m->result = why; /* reported when recovery completes */
-    m->step = DAN_ST_REC_FIND;
-    m->idx = 0;
-    m->bidx = 0;
-}
-
-void dan_mst_start_v1_configure(dan_master_t *m)
-{
-    m->cidx = m->ncand; /* no fast candidate any more */
-    m->target_baud = dan_master_best_baud(m);
-    m->step = DAN_ST_CFG_SEND;
-    m->idx = 0;
-}
-
-/* Sequencer steps: each starts a transaction or finishes the operation
- * (returns true: wait for it), or moves on to another step or index
- * (returns false: dan_mst_seq_next() goes on). */
-
-/* Counts the peers found so far. */
 static size_t peers_found(const dan_master_t *m)
 {
     size_t i, found = 0;
@@ -167,203 +160,167 @@ static size_t peers_found(const dan_master_t *m)
     return found;
 }
 
-/* Discovery: IDENTIFY each missing type at the current scan baud; then
- * the next scan baud, or the end. */
-static bool step_disc_probe(dan_master_t *m, uint64_t now_us)
+static void start_step(dan_master_t *m, uint8_t step)
 {
-    size_t i, found;
-    while (m->idx < m->ntypes && m->peers[m->idx].present) {
-        m->idx++;
+    m->step = step;
+    m->idx = 0;
+}
+
+static void start_recovery(dan_master_t *m, int why)
+{
+    m->stats.recoveries++;
+    m->result = why; /* reported when recovery completes */
+    start_step(m, DAN_ST_REC_FIND);
+    m->bidx = 0;
+}
+
+/* Configure at the best mask baud of the peers left (the v1 sequence). */
+static void start_v1_configure(dan_master_t *m)
+{
+    m->cidx = m->ncand; /* no fast candidate any more */
+    m->target_baud = dan_master_best_baud(m);
+    start_step(m, DAN_ST_CFG_SEND);
+}
+
+/* Switches to the target and verifies every peer there. */
+static void start_verify(dan_master_t *m, uint32_t now_us)
+{
+    start_step(m, DAN_ST_CFG_VERIFY);
+    switch_baud(m, m->target_baud, now_us);
+}
+
+/* Starts candidate cidx, or the v1 fallback (auto), or finishes with the
+ * refusal (a baud the caller named). */
+static void fast_candidate(dan_master_t *m)
+{
+    m->moved = 0;
+    if (m->cidx < m->ncand) {
+        m->target_baud = cand(m, m->cidx);
+        if (m->ntried <= m->cidx) {
+            m->ntried = (uint8_t)(m->cidx + 1u);
+        }
+        start_step(m, DAN_ST_FAST_SEND);
+        m->pass = 0;
+    } else if (m->cfg_auto) {
+        start_v1_configure(m);
+    } else {
+        dan_mst_op_finish(m, m->fast_error); /* the baud the caller named: refused */
     }
-    if (m->idx < m->ntypes) {
-        dan_mst_switch_baud(m, scan_baud(m, NULL, m->bidx), now_us);
-        dan_mst_probe(m, m->peers[m->idx].first_code, m->cfg.discovery_attempts, now_us);
+}
+
+/* Sends the step's request to the next peer it picks: false if none is left. */
+static bool walk(dan_master_t *m, uint32_t now_us)
+{
+    uint8_t w = step_walk[m->step];
+    for (; m->idx < m->ntypes; m->idx++) {
+        dan_peer_t *p = &m->peers[m->idx];
+        bool moved = (((unsigned)m->moved >> m->idx) & 1u) != 0u;
+        uint32_t baud = p->baud, arg = m->target_baud;
+        if (p->present != ((w & W_PRESENT) != 0u) || ((w & W_AWAY) && p->baud == arg) ||
+            ((w & W_MOVED) && !moved) ||
+            ((w & W_STAYED) && (moved || p->fast_refused != (m->pass == 0u)))) {
+            continue;
+        }
+        if (w & W_SCAN) {
+            baud = scan_baud(m, (m->step == DAN_ST_REC_FIND) ? p : NULL, m->bidx);
+            if (baud == 0u) {
+                p->present = false; /* recovery: found nowhere, lost */
+                m->bidx = 0;
+                continue;
+            }
+        }
+        if (!(w & W_HERE)) {
+            switch_baud(m, baud, now_us);
+        }
+        if (w & W_CONF) {
+            /* DAN-CONFIGURE-PAYLOAD-V1 with type BPS: the type byte, the
+             * baud as a uvarint (what dan_configure_encode writes) */
+            uint8_t pl[1u + DAN_UVARINT_MAX_BYTES];
+            arg = (m->step == DAN_ST_REC_BACK)    ? DAN_BAUD_BASE
+                  : (m->step == DAN_ST_FAST_BACK) ? m->back_baud[m->idx]
+                                                  : arg;
+            pl[0] = DAN_CONFIGURE_BPS;
+            dan_mst_txn_start(m, DAN_TYPE_CONFIGURE(p->first_code), pl,
+                              1u + dan_uvarint_put(arg, pl + 1), (uint8_t)(m->cfg.retries + 1u),
+                              now_us);
+        } else {
+            dan_mst_txn_start(
+                m, DAN_TYPE_IDENTIFY(p->first_code), NULL, 0,
+                (w & W_RETRY) ? (uint8_t)(m->cfg.retries + 1u) : m->cfg.discovery_attempts, now_us);
+        }
         return true;
     }
-    found = peers_found(m);
-    m->bidx++;
-    if (found == m->ntypes || !m->cfg.scan_all_bauds || scan_baud(m, NULL, m->bidx) == 0u) {
-        /* Leave the bus at the baud of the first peer found. */
-        for (i = 0; i < m->ntypes; i++) {
+    return false;
+}
+
+/* No peer left for the step: the next step, or the end. */
+static void step_end(dan_master_t *m, uint32_t now_us)
+{
+    size_t i, found = peers_found(m);
+    switch (m->step) {
+    case DAN_ST_DISC_PROBE:
+        m->idx = 0;
+        m->bidx++;
+        if (found < m->ntypes && m->cfg.scan_all_bauds && scan_baud(m, NULL, m->bidx) != 0u) {
+            return;
+        }
+        for (i = 0; i < m->ntypes; i++) { /* leave the bus at the first peer's baud */
             if (m->peers[i].present) {
-                dan_mst_switch_baud(m, m->peers[i].baud, now_us);
+                switch_baud(m, m->peers[i].baud, now_us);
                 break;
             }
         }
         dan_mst_op_finish(m, found > 0u ? DAN_OK : DAN_ERR_NOTFOUND);
-        return true;
-    }
-    m->idx = 0;
-    return false;
-}
-
-bool dan_mst_configure_next(dan_master_t *m, bool (*ask)(const dan_master_t *m, size_t i),
-                            uint64_t now_us)
-{
-    while (m->idx < m->ntypes && !ask(m, m->idx)) {
-        m->idx++;
-    }
-    if (m->idx >= m->ntypes) {
-        return false;
-    }
-    dan_mst_switch_baud(m, m->peers[m->idx].baud, now_us);
-    dan_mst_send_configure(m, m->peers[m->idx].first_code, m->target_baud, now_us);
-    return true;
-}
-
-void dan_mst_start_verify(dan_master_t *m, uint64_t now_us)
-{
-    m->step = DAN_ST_CFG_VERIFY;
-    m->idx = 0;
-    dan_mst_switch_baud(m, m->target_baud, now_us);
-}
-
-/* Configure asks every present peer not at the target. */
-static bool v1_ask(const dan_master_t *m, size_t i)
-{
-    return m->peers[i].present && m->peers[i].baud != m->target_baud;
-}
-
-/* Configure: CONFIGURE each present peer not at the target, at its baud;
- * then verify at the target. */
-static bool step_cfg_send(dan_master_t *m, uint64_t now_us)
-{
-    if (dan_mst_configure_next(m, v1_ask, now_us)) {
-        return true;
-    }
-    dan_mst_start_verify(m, now_us);
-    return false;
-}
-
-/* Verification (after configure, or after recovery): IDENTIFY each
- * present peer at the current baud. After a recovery in auto mode with
- * fast candidates left, the mask baud is next. */
-static bool step_verify(dan_master_t *m, uint64_t now_us)
-{
-    while (m->idx < m->ntypes && !m->peers[m->idx].present) {
-        m->idx++;
-    }
-    if (m->idx < m->ntypes) {
-        dan_mst_probe(m, m->peers[m->idx].first_code, (uint8_t)(m->cfg.retries + 1u), now_us);
-        return true;
-    }
-    if (m->step == DAN_ST_REC_VERIFY && m->cfg_auto && m->cidx < m->ncand && peers_found(m) > 0u) {
-        dan_mst_start_v1_configure(m);
-        return false;
-    }
-    dan_mst_op_finish(m, m->step == DAN_ST_CFG_VERIFY ? DAN_OK : m->result);
-    return true;
-}
-
-/* Recovery: find each peer at its believed baud, then at each baud
- * configure tried, then at the discovery bauds; a peer found nowhere is
- * dropped. Then verify everyone at 9600. */
-static bool step_rec_find(dan_master_t *m, uint64_t now_us)
-{
-    uint32_t b;
-    while (m->idx < m->ntypes && !m->peers[m->idx].present) {
-        m->idx++;
-    }
-    if (m->idx >= m->ntypes) {
-        m->step = DAN_ST_REC_VERIFY;
-        m->idx = 0;
-        dan_mst_switch_baud(m, DAN_BAUD_BASE, now_us);
-        return false;
-    }
-    b = scan_baud(m, &m->peers[m->idx], m->bidx);
-    if (b == 0u) {
-        m->peers[m->idx].present = false; /* lost */
-        m->idx++;
-        m->bidx = 0;
-        return false;
-    }
-    dan_mst_switch_baud(m, b, now_us);
-    dan_mst_probe(m, m->peers[m->idx].first_code, m->cfg.discovery_attempts, now_us);
-    return true;
-}
-
-void dan_mst_seq_next(dan_master_t *m, uint64_t now_us)
-{
-    bool waiting;
-    do {
-        switch (m->step) {
-        case DAN_ST_DISC_PROBE: waiting = step_disc_probe(m, now_us); break;
-        case DAN_ST_CFG_SEND: waiting = step_cfg_send(m, now_us); break;
-        case DAN_ST_CFG_VERIFY:
-        case DAN_ST_REC_VERIFY: waiting = step_verify(m, now_us); break;
-        case DAN_ST_REC_FIND: waiting = step_rec_find(m, now_us); break;
-        case DAN_ST_FAST_SEND:
-        case DAN_ST_FAST_BACK:
-        case DAN_ST_FAST_BACK_CHECK: waiting = dan_mst_fast_step(m, now_us); break;
-        default:
-            dan_mst_op_finish(m, DAN_ERR_ARG);
-            waiting = true;
-            break;
-        }
-    } while (!waiting);
-}
-
-/* Configure's transactions: CONFIGURE to the target, IDENTIFY there. */
-static void cfg_txn_done(dan_master_t *m, dan_peer_t *p)
-{
-    if (m->step == DAN_ST_CFG_VERIFY) {
-        if (m->txn_result != DAN_OK) {
-            if (!dan_baud_is_v1(m->target_baud)) {
-                p->fast_refused = true; /* acknowledged, then not there */
-            }
-            dan_mst_start_recovery(m, m->txn_result);
+        return;
+    case DAN_ST_FAST_SEND:
+    case DAN_ST_CFG_SEND:
+        if (m->step == DAN_ST_FAST_SEND && m->pass++ == 0u) {
+            m->idx = 0; /* the second pass */
             return;
         }
-        m->idx++;
+        start_verify(m, now_us); /* everyone acknowledged (or went quiet) */
         return;
-    }
-    if (m->txn_result != DAN_ERR_TIMEOUT && !dan_mst_ack_ok(m)) {
-        dan_mst_start_recovery(m, dan_mst_txn_error(m));
-        return;
-    }
-    /* ACK-OK: it switches once its ACK has left. No answer at the old
-     * baud: a device serving several types moved them all with its first
-     * CONFIGURE; verification at the target decides. */
-    p->baud = m->target_baud;
-    m->idx++;
-}
-
-/* Recovery's transactions: IDENTIFY at a scan baud, CONFIGURE(9600),
- * IDENTIFY at 9600. */
-static void rec_txn_done(dan_master_t *m, dan_peer_t *p, uint64_t now_us)
-{
-    switch (m->step) {
     case DAN_ST_REC_FIND:
-        if (m->txn_result != DAN_OK) {
-            m->bidx++;
+        start_step(m, DAN_ST_REC_VERIFY);
+        switch_baud(m, DAN_BAUD_BASE, now_us);
+        return;
+    case DAN_ST_REC_VERIFY:
+        if (m->cfg_auto && m->cidx < m->ncand && found > 0u) {
+            start_v1_configure(m); /* after a failed fast candidate: the mask baud */
             return;
         }
-        p->baud = m->link.baud;
-        if (p->baud != DAN_BAUD_BASE) {
-            m->step = DAN_ST_REC_BACK;
-            dan_mst_send_configure(m, m->peers[m->idx].first_code, DAN_BAUD_BASE, now_us);
-            return;
-        }
-        m->idx++;
-        m->bidx = 0;
+        dan_mst_op_finish(m, m->result);
         return;
-    case DAN_ST_REC_BACK:
-        if (dan_mst_ack_ok(m)) {
-            p->baud = DAN_BAUD_BASE;
-        } else {
-            p->present = false; /* cannot be brought to a common baud */
-        }
-        m->step = DAN_ST_REC_FIND;
-        m->idx++;
-        m->bidx = 0;
+    case DAN_ST_FAST_BACK: start_step(m, DAN_ST_FAST_BACK_CHECK); return;
+    case DAN_ST_FAST_BACK_CHECK:
+        m->cidx++;
+        fast_candidate(m);
         return;
-    default: /* DAN_ST_REC_VERIFY */
-        if (m->txn_result != DAN_OK) {
-            p->present = false;
-        }
-        m->idx++;
-        return;
+    default: dan_mst_op_finish(m, m->step == DAN_ST_CFG_VERIFY ? DAN_OK : DAN_ERR_ARG); return;
     }
+}
+
+void dan_mst_seq_next(dan_master_t *m, uint32_t now_us)
+{
+    while (m->op != DAN_MASTER_OP_NONE && !walk(m, now_us)) {
+        step_end(m, now_us);
+    }
+}
+
+/* ---- replies ---- */
+
+/* A CONFIGURE's outcome: DAN_OK for ACK-OK, DAN_ERR_NACK for ACK-FAIL,
+ * DAN_ERR_MALFORMED for anything else, or the transaction's error. */
+static int ack_result(const dan_master_t *m)
+{
+    uint8_t ack;
+    if (m->txn_result != DAN_OK) {
+        return m->txn_result;
+    }
+    if (dan_ack_decode(&ack, m->resp, m->resp_len) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
+    }
+    return (ack == DAN_ACK_OK) ? DAN_OK : DAN_ERR_NACK;
 }
 
 /* Takes an IDENTIFY reply: the peer's baud mask, and its whole identity
@@ -380,36 +337,99 @@ static bool probe_accept(dan_master_t *m, dan_peer_t *p)
     return true;
 }
 
-bool dan_mst_seq_txn_done(dan_master_t *m, uint64_t now_us)
+/* A fast candidate refused: this peer and the ones not asked yet stay; the
+ * ones that moved go back. */
+static void refused(dan_master_t *m, dan_peer_t *p, int why)
 {
-    dan_peer_t *p = (m->idx < m->ntypes) ? &m->peers[m->idx] : NULL;
-    switch (m->step) {
+    p->fast_refused = true;
+    m->stats.fast_refusals++;
+    m->fast_error = why;
+    m->idx = 0;
+    if (m->moved != 0u) {
+        m->step = DAN_ST_FAST_BACK;
+        return;
+    }
+    m->cidx++;
+    fast_candidate(m);
+}
+
+/* The reply (or failure) of the step's request to peers[idx]. A
+ * CONFIGURE is good when acknowledged, or unanswered at the old baud (a
+ * device serving several types moved them all with its first CONFIGURE;
+ * verification decides), but for recovery's. */
+void dan_mst_seq_txn_done(dan_master_t *m, uint32_t now_us)
+{
+    dan_peer_t *p = &m->peers[m->idx];
+    uint8_t step = m->step;
+    bool conf = (step_walk[step] & W_CONF) != 0u;
+    int e = conf ? ack_result(m) : m->txn_result;
+    bool good = e == DAN_OK || (conf && e == DAN_ERR_TIMEOUT && step != DAN_ST_REC_BACK);
+    switch (step) {
     case DAN_ST_DISC_PROBE:
-        if (m->txn_result == DAN_OK && probe_accept(m, p)) {
+        if (good && probe_accept(m, p)) {
             p->present = true;
             p->baud = m->link.baud;
         }
+        break;
+    case DAN_ST_REC_FIND:
+        if (!good) {
+            m->bidx++;
+            break;
+        }
+        p->baud = m->link.baud;
+        if (p->baud != DAN_BAUD_BASE) {
+            m->step = DAN_ST_REC_BACK; /* CONFIGURE(9600) to it, here */
+            break;
+        }
+        m->bidx = 0;
         m->idx++;
         break;
-    case DAN_ST_CFG_SEND:
-    case DAN_ST_CFG_VERIFY: cfg_txn_done(m, p); break;
-    case DAN_ST_REC_FIND:
     case DAN_ST_REC_BACK:
-    case DAN_ST_REC_VERIFY:
-        rec_txn_done(m, p, now_us);
-        if (m->step == DAN_ST_REC_BACK) {
-            return false; /* its CONFIGURE is under way */
-        }
+        p->baud = DAN_BAUD_BASE;
+        p->present = good; /* else it cannot be brought to a common baud */
+        m->step = DAN_ST_REC_FIND;
+        m->bidx = 0;
+        m->idx++;
         break;
-    default: dan_mst_fast_txn_done(m, now_us); break;
+    case DAN_ST_REC_VERIFY: p->present = good; break;
+    default: /* configure's steps and the fast ones */
+        if (good) {
+            break;
+        }
+        if (step == DAN_ST_FAST_SEND) {
+            refused(m, p, e);
+        } else {
+            if (step == DAN_ST_CFG_VERIFY && !dan_baud_is_v1(m->target_baud)) {
+                p->fast_refused = true; /* acknowledged, then not there */
+            }
+            start_recovery(m, e);
+        }
+        dan_mst_seq_next(m, now_us);
+        return;
     }
-    return m->op != DAN_MASTER_OP_NONE; /* not finished by the step */
+    if (good && step == DAN_ST_FAST_SEND) { /* at the candidate now */
+        m->back_baud[m->idx] = p->baud;
+        m->moved |= (uint8_t)(1u << m->idx);
+    }
+    if (good && (step == DAN_ST_FAST_SEND || step == DAN_ST_CFG_SEND)) {
+        p->baud = m->target_baud;
+    }
+    if (step == DAN_ST_FAST_BACK) {
+        p->baud = m->back_baud[m->idx];
+        m->stats.moved_back++;
+    }
+    if (step < DAN_ST_REC_FIND || step > DAN_ST_REC_BACK) {
+        m->idx++;
+    }
+    dan_mst_seq_next(m, now_us);
 }
 
-int dan_master_discover(dan_master_t *m, uint64_t now_us)
+/* ---- operations ---- */
+
+int dan_master_discover(dan_master_t *m, uint64_t now64)
 {
     size_t i;
-    int r = dan_mst_op_begin(m, DAN_MASTER_OP_DISCOVER);
+    int r = dan_mst_op_begin(m, DAN_MASTER_OP_DISCOVER, now64);
     if (r != DAN_OK) {
         return r;
     }
@@ -417,8 +437,9 @@ int dan_master_discover(dan_master_t *m, uint64_t now_us)
         m->peers[i].present = false;
     }
     m->ntried = 0;
-    m->step = DAN_ST_DISC_PROBE;
-    dan_mst_seq_next(m, now_us);
+    start_step(m, DAN_ST_DISC_PROBE);
+    m->bidx = 0;
+    dan_mst_seq_next(m, (uint32_t)now64);
     return DAN_OK;
 }
 
@@ -428,9 +449,11 @@ static int cfg_check(const dan_master_t *m, uint32_t baud)
     size_t i;
     bool any = false;
     for (i = 0; i < m->ntypes; i++) {
-        if (m->peers[i].present) {
+        const dan_peer_t *p = &m->peers[i];
+        if (p->present) {
             any = true;
-            if (baud != 0u && dan_baud_is_v1(baud) && !peer_supports(&m->peers[i], baud)) {
+            if (baud != DAN_BAUD_BASE && dan_baud_is_v1(baud) &&
+                (p->baud_mask & dan_mask_bit_of_baud(baud)) == 0u) {
                 return DAN_ERR_UNSUPPORTED;
             }
         }
@@ -441,17 +464,16 @@ static int cfg_check(const dan_master_t *m, uint32_t baud)
     return (baud == 0u || dan_mst_port_supports(m, baud)) ? DAN_OK : DAN_ERR_UNSUPPORTED;
 }
 
-int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us)
+int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now64)
 {
     int r = cfg_check(m, baud);
+    if (r == DAN_OK) {
+        r = dan_mst_op_begin(m, DAN_MASTER_OP_CONFIGURE, now64);
+    }
     if (r != DAN_OK) {
         return r;
     }
-    r = dan_mst_op_begin(m, DAN_MASTER_OP_CONFIGURE);
-    if (r != DAN_OK) {
-        return r;
-    }
-    memset(m->moved, 0, sizeof m->moved);
+    m->moved = 0;
     m->cfg_auto = (baud == 0u);
     m->ncand = 0;
     m->cidx = 0;
@@ -459,19 +481,21 @@ int dan_master_configure(dan_master_t *m, uint32_t baud, uint64_t now_us)
     m->named_baud = 0;
     m->fast_error = DAN_OK;
     if (baud == 0u) {
-        m->ncand = (uint8_t)dan_mst_fast_list(m, NULL, 0, 0);
+        while (fast_baud(m, m->ncand) != 0u) {
+            m->ncand++;
+        }
     } else if (!dan_baud_is_v1(baud)) {
         m->named_baud = baud; /* one candidate, named by the caller */
         m->ncand = 1;
     }
     if (m->ncand == 0u) {
-        dan_mst_start_v1_configure(m);
+        start_v1_configure(m);
         if (baud != 0u) {
             m->target_baud = baud;
         }
     } else {
-        (void)dan_mst_fast_candidate(m);
+        fast_candidate(m);
     }
-    dan_mst_seq_next(m, now_us);
+    dan_mst_seq_next(m, (uint32_t)now64);
     return DAN_OK;
 }

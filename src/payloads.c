@@ -130,13 +130,8 @@ int dan_ack_encode(uint8_t ack, uint8_t *out, size_t cap)
 
 int dan_ack_decode(uint8_t *ack, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
-    dan_reader_init(&r, p, len);
-    *ack = dan_get_u8(&r);
-    if (r.error || *ack > DAN_ACK_FAIL) {
-        return DAN_ERR_MALFORMED;
-    }
-    return DAN_OK;
+    *ack = (p != NULL && len > 0u) ? p[0] : 0u; /* as a reader would give it */
+    return (p == NULL || len == 0u || *ack > DAN_ACK_FAIL) ? DAN_ERR_MALFORMED : DAN_OK;
 }
 
 int dan_error_encode(uint32_t code, uint32_t error, const char *text, uint8_t *out, size_t cap)

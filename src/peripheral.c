@@ -51,12 +51,12 @@ static const dan_ptype_t *find_type(const dan_periph_t *p, uint32_t code)
 
 static void queue_reply(dan_periph_t *p, uint32_t code, size_t len, uint64_t now_us)
 {
-    uint64_t turn = (uint64_t)p->cfg.turnaround_chars * p->link.char_us;
+    uint32_t turn = p->cfg.turnaround_chars * p->link.char_us;
     p->pending = true;
     p->reply_code = code;
     p->reply_len = len;
-    p->reply_after_us = now_us + turn;
-    p->reply_before_us = now_us + turn + p->cfg.reply_window_us;
+    p->reply_after_us = (uint32_t)now_us + turn;
+    p->reply_before_us = (uint32_t)now_us + turn + p->cfg.reply_window_us;
 }
 
 static void queue_error(dan_periph_t *p, uint32_t code, const char *text, uint64_t now_us)
@@ -152,7 +152,7 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
     dan_periph_t *p = (dan_periph_t *)owner;
     const dan_ptype_t *t = find_type(p, f->code);
     size_t i;
-    if (dan_link_is_late_echo(&p->link, f, now_us)) {
+    if (dan_link_is_late_echo(&p->link, f, (uint32_t)now_us)) {
         /* Our own reply, heard after a collision broke its echo: a reply
          * has the request's code, so it must never be served as one. */
         p->stats.own_echoes++;
@@ -196,9 +196,10 @@ void dan_periph_rx(dan_periph_t *p, const uint8_t *data, size_t len, uint64_t no
     dan_link_rx(&p->link, data, len, now_us);
 }
 
-void dan_periph_poll(dan_periph_t *p, uint64_t now_us)
+void dan_periph_poll(dan_periph_t *p, uint64_t now64)
 {
-    dan_link_state_t ls = dan_link_poll(&p->link, now_us);
+    dan_link_state_t ls = dan_link_poll(&p->link, now64);
+    uint32_t now_us = (uint32_t)now64;
     if (ls == DAN_LINK_TX_DONE || ls == DAN_LINK_TX_FAILED) {
         dan_link_ack(&p->link);
         if (p->sending_ack && p->next_baud != 0u) {
@@ -216,14 +217,14 @@ void dan_periph_poll(dan_periph_t *p, uint64_t now_us)
     if (!p->pending || ls != DAN_LINK_IDLE) {
         return;
     }
-    if (now_us > p->reply_before_us) {
+    if (now_us - p->reply_before_us - 1u < 0x80000000u) { /* now_us > reply_before_us */
         p->pending = false;
         p->next_baud = 0;
         p->stats.late++;
         return;
     }
-    if (now_us < p->reply_after_us ||
-        dan_link_idle_us(&p->link, now_us) < (uint64_t)p->cfg.turnaround_chars * p->link.char_us) {
+    if (now_us - p->reply_after_us >= 0x80000000u || /* now_us < reply_after_us */
+        dan_link_idle_us(&p->link, now_us) < p->cfg.turnaround_chars * p->link.char_us) {
         return;
     }
     p->pending = false;
@@ -238,19 +239,21 @@ void dan_periph_poll(dan_periph_t *p, uint64_t now_us)
 
 uint64_t dan_periph_next_us(const dan_periph_t *p)
 {
-    uint64_t next = dan_link_next_us(&p->link);
+    const dan_link_t *l = &p->link;
+    uint32_t next = dan_link_wait_us(l);
     if (p->pending) {
-        uint64_t t = p->reply_after_us;
-        uint64_t idle_at = p->link.last_rx_us + (uint64_t)p->cfg.turnaround_chars * p->link.char_us;
+        uint32_t t = dan_link_due_in(l, p->reply_after_us);
+        uint32_t idle_at = dan_link_due_in(l, l->last_rx_us + p->cfg.turnaround_chars * l->char_us);
+        uint32_t late = dan_link_due_in(l, p->reply_before_us + 1u);
         if (idle_at > t) {
             t = idle_at;
         }
-        if (t > p->reply_before_us) {
-            t = p->reply_before_us + 1u;
+        if (t > late) {
+            t = late;
         }
         if (t < next) {
             next = t;
         }
     }
-    return next;
+    return dan_link_wait_time(l, next);
 }

@@ -21,7 +21,7 @@ import stack_usage  # noqa: E402
 
 PARTS = [
     ("codec", ("common.o", "crc8.o", "crc8_nibble.o", "frame.o", "payloads.o")),
-    ("master engine", ("link.o", "master.o", "master_seq.o", "master_fast.o")),
+    ("master engine", ("link.o", "master.o", "master_seq.o")),
     (
         "gateway client",
         ("gw_client.o", "gw_client_can.o", "gw_client_mgmt.o", "gw_client_out.o", "gw_client_any.o")

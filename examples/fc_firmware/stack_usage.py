@@ -19,7 +19,7 @@ import subprocess
 # deliver_frames calls link.on_frame (the master's on_frame); on_frame calls
 # the reply check the gateway client installs (check_seal); probe_accept
 # (inlined into dan_mst_seq_txn_done) the identity decoder
-# dan_master_set_identities() installs; dan_mst_configure_next its ask();
+# dan_master_set_identities() installs;
 # dan_gw_complete the decoder the call in flight named (gw_client_internal.h).
 GW_DONE = ("telem", "fast", "flags", "config", "stats", "tun_open", "xfer", "can_send")
 GW_DONE += ("can_recv", "call", "health")
@@ -28,7 +28,6 @@ INDIRECT = {
     "master.c:on_frame": ["gw_client.c:check_seal"],
     "master_seq.c:probe_accept": ["dan_identity_decode"],
     "dan_mst_seq_txn_done": ["dan_identity_decode"],
-    "dan_mst_configure_next": ["master_seq.c:v1_ask", "master_fast.c:to_ask"],
     "dan_gw_complete": ["dan_gwc_done_" + d for d in GW_DONE],
 }
 

@@ -79,8 +79,8 @@
 
 /* ==== master engine ==== */
 
-/* Peripheral types one master probes (= peers per UART). RAM: one
- * dan_peer_t each and its configure state (~20 bytes). */
+/* Peripheral types one master probes (= peers per UART), 1..8. RAM: one
+ * dan_peer_t each and its configure state (16 bytes). */
 #ifndef DAN_MASTER_MAX_TYPES
 #define DAN_MASTER_MAX_TYPES 4u
 #endif
@@ -199,6 +199,9 @@
 
 #if DAN_MAX_PAYLOAD < 64u || DAN_MAX_PAYLOAD > 16383u
 #error "DAN_MAX_PAYLOAD must be within 64..16383"
+#endif
+#if DAN_MASTER_MAX_TYPES < 1u || DAN_MASTER_MAX_TYPES > 8u
+#error "DAN_MASTER_MAX_TYPES must be within 1..8 (a bitmask of peers)"
 #endif
 #if DAN_MAX_STRING < 2u || DAN_MAX_STRING > 255u
 #error "DAN_MAX_STRING must be within 2..255"

@@ -48,8 +48,7 @@ typedef struct {
  * the decoder rescans the bytes it had buffered after that candidate's sync
  * byte, so a valid frame that starts inside a rejected one is still found.
  */
-typedef struct {
-    uint8_t buf[DAN_MAX_FRAME];
+typedef struct {    /* the buffer last: short loads reach the rest (flash) */
     uint8_t hdr;    /* the candidate's header length (sync, code, length) */
     size_t len;     /* bytes buffered; buf[0] == DAN_SYNC when len > 0 */
     size_t scanned; /* buffered bytes already examined as the candidate */
@@ -58,6 +57,7 @@ typedef struct {
     size_t guard;   /* buffered bytes that belonged to rejected candidates */
     uint32_t code;  /* the candidate's code, once its header is read */
     dan_decoder_stats_t stats;
+    uint8_t buf[DAN_MAX_FRAME];
 } dan_decoder_t;
 
 void dan_decoder_init(dan_decoder_t *d);

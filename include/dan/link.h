@@ -4,7 +4,11 @@
  * timing and reception with idle-gap handling.
  *
  * Time is always passed in as a monotonic microsecond count (now_us); the
- * library never reads a clock or sleeps.
+ * library never reads a clock or sleeps. The link keeps times as their low
+ * 32 bits (wrap-safe differences: every interval it times is far below
+ * 2^31 us, and dan_link_poll() keeps the idle reference within 2^30 us),
+ * and the last 64-bit now_us passed in to give them back as 64-bit times
+ * (dan_link_set_now()).
  *
  * Timing (docs/PROTOCOL.md, section 6), with C = one character time
  * = 10 bits / baud (8N1), rounded up to whole microseconds:
@@ -73,24 +77,31 @@ typedef enum {
 
 typedef void (*dan_frame_cb_t)(void *owner, const dan_frame_t *frame, uint64_t now_us);
 
-typedef struct { /* fields ordered for no padding (RAM) */
-    dan_port_t port;
+typedef struct {
+    /* Fields ordered by use, small ones first (Thumb's short loads: flash)
+     * and without padding (RAM); the frame buffers last. */
+    dan_link_state_t state;
+    bool rx_any;       /* a byte was received since the last frame/send */
+    uint16_t tx_len;   /* bytes in tx */
+    uint16_t echo_pos; /* echoed bytes matched so far */
     uint32_t baud;
     uint32_t char_us;         /* one character time at baud */
     uint32_t gap_us;          /* 0 = default: max(DAN_GAP_CHARS * C, DAN_GAP_MIN_US) */
     uint32_t echo_timeout_us; /* echo must be complete by T_end + this (0 = gap) */
-    uint64_t echo_late_us;    /* when our echo last went missing or broke (0: never) */
-    uint64_t tx_start_us;
-    uint64_t last_rx_us; /* time of the last byte received (or echoed) */
-    dan_decoder_t dec;
-    uint8_t tx[DAN_MAX_FRAME];
-    bool rx_any; /* a byte was received since the last frame/send */
-    dan_link_state_t state;
-    size_t tx_len;
-    size_t echo_pos; /* echoed bytes matched so far */
+    uint32_t echo_late_us;    /* when our echo last went missing or broke (0: not within
+                                 DAN_ECHO_LATE_HOLD_US) */
+    uint32_t tx_start_us;
+    uint32_t last_rx_us; /* time of the last byte received (or echoed) */
     dan_frame_cb_t on_frame;
     void *owner;
+    dan_port_t port;
     dan_link_stats_t stats;
+    /* the last now_us passed in (dan_link_due_in()), as two halves: no
+     * 8-byte alignment (padding) */
+    uint32_t now_us;
+    uint32_t now_hi;
+    dan_decoder_t dec;
+    uint8_t tx[DAN_MAX_FRAME];
 } dan_link_t;
 
 /* Character time at baud, in microseconds (rounded up). */
@@ -99,11 +110,11 @@ uint32_t dan_char_us(uint32_t baud);
 void dan_link_init(dan_link_t *l, const dan_port_t *port, uint32_t baud, dan_frame_cb_t on_frame,
                    void *owner, uint64_t now_us);
 /* Switches the port's baud; drops any partial frame (bytes at the old baud). */
-int dan_link_set_baud(dan_link_t *l, uint32_t baud, uint64_t now_us);
+int dan_link_set_baud(dan_link_t *l, uint32_t baud, uint32_t now_us);
 /* Effective inter-byte gap. */
 uint32_t dan_link_gap_us(const dan_link_t *l);
 /* Microseconds the line has been idle at now (0 while busy). */
-uint64_t dan_link_idle_us(const dan_link_t *l, uint64_t now_us);
+uint32_t dan_link_idle_us(const dan_link_t *l, uint32_t now_us);
 /* Feeds received bytes: our own echo is matched and removed, everything
  * else goes to the decoder; whole frames go to on_frame. */
 void dan_link_rx(dan_link_t *l, const uint8_t *data, size_t len, uint64_t now_us);
@@ -114,27 +125,42 @@ int dan_link_prepare(dan_link_t *l, uint32_t code, const uint8_t *payload, size_
 /* Queues the prepared frame (again, for a retry). The caller has checked
  * listen-before-talk. Returns DAN_OK, DAN_ERR_BUSY, DAN_ERR_ARG (nothing
  * prepared) or DAN_ERR_IO. */
-int dan_link_transmit(dan_link_t *l, uint64_t now_us);
+int dan_link_transmit(dan_link_t *l, uint32_t now_us);
 /* dan_link_prepare() then dan_link_transmit(). */
 int dan_link_send(dan_link_t *l, uint32_t code, const uint8_t *payload, size_t len,
-                  uint64_t now_us);
+                  uint32_t now_us);
 /* Advances timers (idle-gap abort, end of transmission, direction pin).
  * Returns the link state; TX_DONE and TX_FAILED stay until dan_link_ack(). */
 dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now_us);
 /* Acknowledges TX_DONE / TX_FAILED, back to IDLE. */
 void dan_link_ack(dan_link_t *l);
-/* How long after an echo timeout or a collision a copy of our own frame is
- * taken for our own echo (late, or the tail of a frame a collision broke),
- * never for a frame from someone else. */
 
 /* True if f is a copy of the frame in our TX buffer and our echo went
  * missing or broke (collision) less than DAN_ECHO_LATE_HOLD_US ago: it is
  * our own echo, never a reply or a request. */
-bool dan_link_is_late_echo(const dan_link_t *l, const dan_frame_t *f, uint64_t now_us);
-/* Expected end of the current transmission on the wire. */
-uint64_t dan_link_tx_end_us(const dan_link_t *l);
-/* Earliest time dan_link_poll() has something to do (UINT64_MAX: nothing). */
-uint64_t dan_link_next_us(const dan_link_t *l);
+bool dan_link_is_late_echo(const dan_link_t *l, const dan_frame_t *f, uint32_t now_us);
+/* Keeps now_us (every entry that takes a 64-bit time). */
+static inline void dan_link_set_now(dan_link_t *l, uint64_t now_us)
+{
+    l->now_us = (uint32_t)now_us;
+    l->now_hi = (uint32_t)(now_us >> 32);
+}
+/* Microseconds from the last now_us passed in until 32-bit time t (0 if t
+ * has passed). */
+static inline uint32_t dan_link_due_in(const dan_link_t *l, uint32_t t)
+{
+    uint32_t d = t - l->now_us;
+    return (d >= 0x80000000u) ? 0u : d;
+}
+/* Microseconds until dan_link_poll() has something to do (UINT32_MAX:
+ * nothing), from the last now_us passed in. */
+uint32_t dan_link_wait_us(const dan_link_t *l);
+/* The 64-bit time of a wait from dan_link_wait_us() (UINT64_MAX for none). */
+static inline uint64_t dan_link_wait_time(const dan_link_t *l, uint32_t wait_us)
+{
+    return (wait_us == UINT32_MAX) ? UINT64_MAX
+                                   : (((uint64_t)l->now_hi << 32) | l->now_us) + wait_us;
+}
 
 #ifdef __cplusplus
 }

@@ -104,25 +104,38 @@ typedef enum {
 } dan_master_op_t;
 
 typedef struct {
-    dan_link_t link;
-    dan_master_config_t cfg;
-    size_t ntypes;
-    dan_peer_t peers[DAN_MASTER_MAX_TYPES]; /* one slot per type, in types' order */
-    /* where discovery reports identities (dan_master_set_identities()) */
-    dan_identity_t *ids;
-    size_t nids;
-    int (*id_decode)(dan_identity_t *id, const uint8_t *p, size_t len);
-
-    /* the current transaction (fields ordered for no padding: RAM) */
-    uint32_t req_code;      /* the request itself waits in link.tx */
-    uint64_t wait_until_us; /* not before: backoff or settle after a baud switch */
-    uint64_t deadline_us;   /* the reply must have started by then */
-    uint64_t busy_since_us;
+    /* Fields ordered by use, small ones first (Thumb's short loads reach
+     * bytes 0..31 and words 0..124 into the struct: flash) and without
+     * padding (RAM); the link and its frame buffers last. */
+    /* the current operation and transaction (internal but op and ntypes) */
+    dan_master_op_t op;
+    uint8_t txn_phase;
+    uint8_t step; /* sequencer state */
+    uint8_t idx;  /* type index */
+    uint8_t bidx; /* scan baud index */
     uint8_t attempts_left;
-    uint8_t attempt;   /* attempts made, for the backoff */
-    uint8_t txn_phase; /* internal */
+    uint8_t attempt; /* attempts made, for the backoff */
     bool lbt_counted;
+    bool done;
+    bool cfg_auto; /* configure(0): fall back to the best mask baud */
+    /* configure's candidates (the fast bauds, highest first, or the one
+     * fast baud the caller named): number cidx is being tried; ntried of
+     * them were (recovery scans them) */
+    uint8_t ncand, cidx, ntried;
+    uint8_t pass;  /* 0: peers that refused before, 1: the others */
+    uint8_t moved; /* bit i: peers[i] acknowledged the candidate */
+    uint8_t ntypes;
+    uint32_t req_code; /* the request itself waits in link.tx */
+    /* times: the low 32 bits of now_us (see dan/link.h) */
+    uint32_t wait_until_us; /* not before: backoff or settle after a baud switch */
+    uint32_t deadline_us;   /* the reply must have started by then */
+    uint32_t busy_since_us;
     int txn_result;
+    int result;
+    uint32_t target_baud;
+    uint32_t named_baud;
+    int fast_error; /* why the last candidate was refused */
+    uint32_t rng;
 
     /* The response of the last transaction: its payload is kept in the
      * link's TX buffer (half duplex: the request is no longer needed once
@@ -134,29 +147,18 @@ typedef struct {
     uint32_t resp_code;
     uint8_t *resp;
     size_t resp_len;
-
-    /* the current operation */
-    dan_master_op_t op;
-    uint8_t step; /* sequencer state (internal) */
-    bool done;
-    bool cfg_auto; /* configure(0): fall back to the best mask baud */
-    size_t idx;    /* type index / baud index (internal) */
-    size_t bidx;
-    uint32_t target_baud;
-    /* configure's candidates (the fast bauds, highest first, or the one
-     * fast baud the caller named): number cidx is being tried; ntried of
-     * them were (recovery scans them) */
-    uint32_t named_baud;
-    uint8_t ncand, cidx, ntried;
-    uint8_t pass;                             /* 0: peers that refused before, 1: the others */
-    int fast_error;                           /* why the last candidate was refused */
-    uint32_t back_baud[DAN_MASTER_MAX_TYPES]; /* where a moved peer was */
-    bool moved[DAN_MASTER_MAX_TYPES];         /* acknowledged the candidate */
-    int result;
-    uint32_t rng;
     dan_reply_check_fn reply_check;
     void *reply_check_user;
+
+    dan_master_config_t cfg;
+    dan_peer_t peers[DAN_MASTER_MAX_TYPES];   /* one slot per type, in types' order */
+    uint32_t back_baud[DAN_MASTER_MAX_TYPES]; /* where a moved peer was */
+    /* where discovery reports identities (dan_master_set_identities()) */
+    dan_identity_t *ids;
+    size_t nids;
+    int (*id_decode)(dan_identity_t *id, const uint8_t *p, size_t len);
     dan_master_stats_t stats;
+    dan_link_t link;
 } dan_master_t;
 
 /* types: the first code of each peripheral type to probe (e.g.

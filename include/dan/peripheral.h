@@ -118,8 +118,8 @@ typedef struct {
     uint32_t reply_code;
     uint8_t reply[DAN_MAX_PAYLOAD];
     size_t reply_len;
-    uint64_t reply_after_us;
-    uint64_t reply_before_us;
+    uint32_t reply_after_us; /* low 32 bits of now_us (see dan/link.h) */
+    uint32_t reply_before_us;
     uint32_t next_baud; /* switch after the ACK has left (0: none) */
     bool sending_ack;
     dan_periph_stats_t stats;

@@ -32,11 +32,15 @@ void dan_gw_init(dan_gw_t *gw, dan_master_t *m)
     gw->last_telem = DAN_GW_NONE;
 }
 
-/* Starts a transaction with the payload in buf, sealed. */
+/* Starts a transaction with the payload in buf, sealed. Busy first, as
+ * each call checked before it encoded. */
 int dan_gwc_start(dan_gw_t *gw, uint32_t code, dan_gw_done_fn done, uint8_t *buf, int len,
                   size_t cap, uint64_t now_us)
 {
     int rc;
+    if (!dan_gwc_idle(gw)) {
+        return DAN_ERR_BUSY;
+    }
     if (len < 0) {
         return len;
     }
@@ -68,9 +72,6 @@ bool dan_gwc_idle(const dan_gw_t *gw)
 int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t now_us)
 {
     uint8_t buf[DAN_GWC_BUF(DAN_GW_ESC_CMD_SIZE(DAN_GW_ESC_MAX))];
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start(gw, DAN_GW_CODE_ESC_CMD, dan_gwc_done_telem, buf,
                          dan_gw_msg_esc_cmd_encode(values, n, buf, DAN_GWC_CAP(buf)), sizeof buf,
                          now_us);
@@ -79,9 +80,6 @@ int dan_gw_esc_command(dan_gw_t *gw, const int16_t *values, size_t n, uint64_t n
 int dan_gw_esc_fast(dan_gw_t *gw, const int16_t *values, size_t n, bool telem, uint64_t now_us)
 {
     uint8_t buf[DAN_GWC_BUF(DAN_GW_ESC_FAST_SIZE(DAN_GW_ESC_MAX))];
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start(
         gw, telem ? DAN_GW_CODE_ESC_FAST_T : DAN_GW_CODE_ESC_FAST, dan_gwc_done_fast, buf,
         dan_gw_msg_esc_fast_encode(values, n, buf, DAN_GWC_CAP(buf)), sizeof buf, now_us);
@@ -89,28 +87,19 @@ int dan_gw_esc_fast(dan_gw_t *gw, const int16_t *values, size_t n, bool telem, u
 
 int dan_gw_telemetry(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_ESC_TELEM, dan_gwc_done_telem, first, 1u, now_us);
 }
 
 int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us)
 {
-    uint8_t v = armed ? DAN_GW_ARM_FULLY_ARMED : DAN_GW_ARM_DISARMED;
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_ARM, dan_gwc_done_flags, v, 1u, now_us);
+    return dan_gwc_start_byte(gw, DAN_GW_CODE_ARM, dan_gwc_done_flags,
+                              armed ? DAN_GW_ARM_FULLY_ARMED : DAN_GW_ARM_DISARMED, 1u, now_us);
 }
 
 int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us)
 {
     uint8_t buf[DAN_GWC_BUF(DAN_GW_CONFIG_REQ_MAX)];
     dan_gw_config_t none;
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     if (set == NULL) {
         memset(&none, 0, sizeof none);
         set = &none;
@@ -122,26 +111,22 @@ int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us)
 
 int dan_gw_stats(dan_gw_t *gw, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_STATS, dan_gwc_done_stats, 0u, 0u, now_us);
 }
 
 int dan_gw_nodes(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_NODES, NULL, first, 1u, now_us);
 }
 
 int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_NODE_INFO, NULL, node_id, 1u, now_us);
+}
+
+void dan_gw_set_stats(dan_gw_t *gw, uint32_t *v)
+{
+    gw->stats = v;
 }
 
 /* ---- completion ---- */
@@ -242,7 +227,9 @@ int dan_gwc_done_stats(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len
 {
     size_t n;
     (void)code;
-    return dan_gw_msg_stats_decode(gw->stats, DAN_GW_STAT_COUNT, &n, p, len);
+    /* checked also when not kept (no storage: dan_gw_set_stats()) */
+    return dan_gw_msg_stats_decode(gw->stats, gw->stats != NULL ? DAN_GW_STAT_COUNT : 0u, &n, p,
+                                   len);
 }
 
 int dan_gw_complete(dan_gw_t *gw, uint64_t now_us)

@@ -1,14 +1,10 @@
 /* CAN-over-DAN gateway payload codec (docs/PROTOCOL.md section 7). */
+#include <stddef.h>
 #include <string.h>
 
 #include "dan/codes.h"
 #include "dan/can_gw/msgs.h"
 #include "dan/can_gw/msgs_fast.h"
-
-static int finish_reader(const dan_reader_t *r)
-{
-    return dan_reader_finish(r);
-}
 
 /* ---- ESC command ---- */
 
@@ -42,65 +38,172 @@ int dan_gw_msg_esc_cmd_decode(const uint8_t *p, size_t len, int16_t *values, siz
     return DAN_OK;
 }
 
+/* ---- records as field lists ----
+ *
+ * The telemetry record and the CONFIG response are lists of fields, each
+ * one op: the member's offset, how it goes on the wire, and its group (a
+ * bit of the FLAGS or MASK field before it: only when that has it; FLAGS
+ * keeps the DAN_GW_TELEM_* bits only). One list drives both directions
+ * (no encode/decode pair to drift apart). Members: 1 byte for U8, FLAGS
+ * and MASK, 2 for U16, 4 for the rest. */
+enum { OP_U8, OP_FLAGS, OP_MASK, OP_U16, OP_UV, OP_U24, OP_I24 };
+typedef struct {
+    uint8_t offset;
+    uint8_t kind_group; /* kind | group << 3 */
+} gw_op_t;
+#define OP(type, member, kind, group)                                      \
+    {                                                                      \
+        (uint8_t) offsetof(type, member), (uint8_t)((kind) | (group) << 3) \
+    }
+#define NOPS(ops) (sizeof(ops) / sizeof((ops)[0]))
+
+static const gw_op_t TELEM_OPS[] = {
+    OP(dan_gw_telem_t, esc_index, OP_U8, 0),
+    OP(dan_gw_telem_t, node_id, OP_U8, 0),
+    OP(dan_gw_telem_t, flags, OP_FLAGS, 0),
+    OP(dan_gw_telem_t, age_ms, OP_UV, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, voltage_f16, OP_U16, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, current_f16, OP_U16, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, temperature_f16, OP_U16, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, rpm, OP_I24, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, power_pct, OP_U8, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, error_count, OP_UV, DAN_GW_TELEM_STATUS),
+    OP(dan_gw_telem_t, ext_age_ms, OP_UV, DAN_GW_TELEM_EXT),
+    OP(dan_gw_telem_t, input_pct, OP_U8, DAN_GW_TELEM_EXT),
+    OP(dan_gw_telem_t, output_pct, OP_U8, DAN_GW_TELEM_EXT),
+    OP(dan_gw_telem_t, motor_temp_c, OP_U16, DAN_GW_TELEM_EXT),
+    OP(dan_gw_telem_t, motor_angle, OP_U16, DAN_GW_TELEM_EXT),
+    OP(dan_gw_telem_t, status_flags, OP_U24, DAN_GW_TELEM_EXT),
+    OP(dan_gw_telem_t, dev_age_ms, OP_UV, DAN_GW_TELEM_DEVICE),
+    OP(dan_gw_telem_t, dev_temp_f16, OP_U16, DAN_GW_TELEM_DEVICE),
+    OP(dan_gw_telem_t, dev_flags, OP_U8, DAN_GW_TELEM_DEVICE),
+};
+
+static const gw_op_t TELEM_HDR_OPS[] = {
+    OP(dan_gw_telem_hdr_t, gw_flags, OP_U8, 0),
+    OP(dan_gw_telem_hdr_t, aux, OP_U8, 0),
+    OP(dan_gw_telem_hdr_t, count, OP_U8, 0),
+};
+
+static const gw_op_t CONFIG_REQ_OPS[] = {
+    OP(dan_gw_config_t, set_mask, OP_MASK, 0),
+    OP(dan_gw_config_t, esc_timeout_ms, OP_UV, DAN_GW_CFG_ESC_TIMEOUT),
+    OP(dan_gw_config_t, arming_rate_hz, OP_UV, DAN_GW_CFG_ARMING_RATE),
+    OP(dan_gw_config_t, telem_timeout_ms, OP_UV, DAN_GW_CFG_TELEM_TIMEOUT),
+    OP(dan_gw_config_t, dna, OP_U8, DAN_GW_CFG_DNA),
+};
+
+/* The last two are appended fields. */
+static const gw_op_t CONFIG_RSP_OPS[] = {
+    OP(dan_gw_config_t, node_id, OP_U8, 0),          OP(dan_gw_config_t, esc_timeout_ms, OP_UV, 0),
+    OP(dan_gw_config_t, arming_rate_hz, OP_UV, 0),   OP(dan_gw_config_t, gw_flags, OP_U8, 0),
+    OP(dan_gw_config_t, telem_timeout_ms, OP_UV, 0), OP(dan_gw_config_t, dna, OP_U8, 0),
+};
+
+static void ops_put(dan_writer_t *w, const void *s, const gw_op_t *ops, size_t n)
+{
+    const uint8_t *base = (const uint8_t *)s;
+    unsigned flags = 0;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        unsigned kind = ops[i].kind_group & 7u, group = ops[i].kind_group >> 3;
+        const uint8_t *m = base + ops[i].offset;
+        uint32_t v = m[0];
+        uint16_t v16;
+        if ((flags & group) != group) {
+            continue;
+        }
+        if (kind == OP_U16) {
+            memcpy(&v16, m, 2u);
+            v = v16;
+        } else if (kind > OP_U16) {
+            memcpy(&v, m, 4u);
+        }
+        if (kind == OP_FLAGS) {
+            v &= DAN_GW_TELEM_ALL;
+        }
+        if (kind == OP_FLAGS || kind == OP_MASK) {
+            flags = v;
+        }
+        if (kind == OP_UV) {
+            dan_put_uvarint(w, v);
+        } else if (kind == OP_U16) {
+            dan_put_u16(w, (uint16_t)v);
+        } else {
+            dan_put_u8(w, (uint8_t)(v & 0xFFu));
+            if (kind >= OP_U24) { /* low byte first, then the u16 of the rest */
+                dan_put_u16(w, (uint16_t)((v >> 8) & 0xFFFFu));
+            }
+        }
+    }
+}
+
+static int ops_get(dan_reader_t *r, void *s, const gw_op_t *ops, size_t n)
+{
+    uint8_t *base = (uint8_t *)s;
+    unsigned flags = 0;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        unsigned kind = ops[i].kind_group & 7u, group = ops[i].kind_group >> 3;
+        uint8_t *m = base + ops[i].offset;
+        uint32_t v;
+        uint16_t v16;
+        if ((flags & group) != group) {
+            continue;
+        }
+        if (kind == OP_UV) {
+            v = dan_get_uvarint(r);
+        } else if (kind == OP_U16) {
+            v = dan_get_u16(r);
+        } else {
+            v = dan_get_u8(r);
+            if (kind >= OP_U24) {
+                v |= (uint32_t)dan_get_u16(r) << 8;
+            }
+        }
+        if (kind == OP_I24) {
+            v = (v ^ 0x800000u) - 0x800000u; /* sign-extended, as the int32_t holds it */
+        }
+        if (kind == OP_FLAGS) {
+            v &= DAN_GW_TELEM_ALL;
+        }
+        if (kind == OP_FLAGS || kind == OP_MASK) {
+            flags = v;
+        }
+        if (kind < OP_U16) {
+            m[0] = (uint8_t)v;
+        } else if (kind == OP_U16) {
+            v16 = (uint16_t)v;
+            memcpy(m, &v16, 2u);
+        } else {
+            memcpy(m, &v, 4u);
+        }
+    }
+    return dan_reader_finish(r);
+}
+
 /* ---- telemetry ---- */
-
-static void put_i24(dan_writer_t *w, int32_t v)
-{
-    uint32_t u = (uint32_t)v;
-    dan_put_u8(w, (uint8_t)(u & 0xFFu));
-    dan_put_u16(w, (uint16_t)((u >> 8) & 0xFFFFu));
-}
-
-static uint32_t get_u24(dan_reader_t *r)
-{
-    uint32_t lo = dan_get_u8(r);
-    return lo | ((uint32_t)dan_get_u16(r) << 8);
-}
 
 /* Written out (not a field table): it is on the FC's ESC path, where the
  * table walker would cost flash. */
 void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h)
 {
-    dan_put_u8(w, h->gw_flags);
-    dan_put_u8(w, h->aux);
-    dan_put_u8(w, h->count);
+    ops_put(w, h, TELEM_HDR_OPS, NOPS(TELEM_HDR_OPS));
 }
 
+/* The decoders on the FC's ESC path are written out: the op walker is
+ * slower there (make bench), and no smaller. */
 int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h)
 {
     h->gw_flags = dan_get_u8(r);
     h->aux = dan_get_u8(r);
     h->count = dan_get_u8(r);
-    return finish_reader(r);
+    return dan_reader_finish(r);
 }
 
 void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
 {
-    dan_put_u8(w, t->esc_index);
-    dan_put_u8(w, t->node_id);
-    dan_put_u8(w, (uint8_t)(t->flags & DAN_GW_TELEM_ALL));
-    if (t->flags & DAN_GW_TELEM_STATUS) {
-        dan_put_uvarint(w, t->age_ms);
-        dan_put_u16(w, t->voltage_f16);
-        dan_put_u16(w, t->current_f16);
-        dan_put_u16(w, t->temperature_f16);
-        put_i24(w, t->rpm);
-        dan_put_u8(w, t->power_pct);
-        dan_put_uvarint(w, t->error_count);
-    }
-    if (t->flags & DAN_GW_TELEM_EXT) {
-        dan_put_uvarint(w, t->ext_age_ms);
-        dan_put_u8(w, t->input_pct);
-        dan_put_u8(w, t->output_pct);
-        dan_put_u16(w, (uint16_t)t->motor_temp_c);
-        dan_put_u16(w, t->motor_angle);
-        put_i24(w, (int32_t)t->status_flags);
-    }
-    if (t->flags & DAN_GW_TELEM_DEVICE) {
-        dan_put_uvarint(w, t->dev_age_ms);
-        dan_put_u16(w, t->dev_temp_f16);
-        dan_put_u8(w, t->dev_flags);
-    }
+    ops_put(w, t, TELEM_OPS, NOPS(TELEM_OPS));
 }
 
 size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t)
@@ -111,20 +214,25 @@ size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t)
     return w.len;
 }
 
+static uint32_t get_u24(dan_reader_t *r)
+{
+    uint32_t lo = dan_get_u8(r);
+    return lo | ((uint32_t)dan_get_u16(r) << 8);
+}
+
+/* TELEM_OPS, written out (see dan_gw_msg_telem_hdr_get()). */
 int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
 {
     memset(t, 0, sizeof *t);
     t->esc_index = dan_get_u8(r);
     t->node_id = dan_get_u8(r);
-    t->flags = dan_get_u8(r);
+    t->flags = (uint8_t)(dan_get_u8(r) & DAN_GW_TELEM_ALL);
     if (t->flags & DAN_GW_TELEM_STATUS) {
-        uint32_t rpm;
         t->age_ms = dan_get_uvarint(r);
         t->voltage_f16 = dan_get_u16(r);
         t->current_f16 = dan_get_u16(r);
         t->temperature_f16 = dan_get_u16(r);
-        rpm = get_u24(r);
-        t->rpm = (rpm & 0x800000u) ? (int32_t)rpm - 0x1000000 : (int32_t)rpm;
+        t->rpm = (int32_t)(get_u24(r) ^ 0x800000u) - 0x800000; /* int24 */
         t->power_pct = dan_get_u8(r);
         t->error_count = dan_get_uvarint(r);
     }
@@ -141,8 +249,7 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
         t->dev_temp_f16 = dan_get_u16(r);
         t->dev_flags = dan_get_u8(r);
     }
-    t->flags &= (uint8_t)DAN_GW_TELEM_ALL;
-    return finish_reader(r);
+    return dan_reader_finish(r);
 }
 
 /* ---- config ---- */
@@ -150,16 +257,17 @@ int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t)
 int dan_gw_msg_config_req_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
+    unsigned i;
+    /* Written out, not ops_put(): the FC links this encoder and no other
+     * ops_put() user (the field walker would cost it flash). */
     dan_writer_init(&w, out, cap);
     dan_put_u8(&w, c->set_mask);
-    if (c->set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
-        dan_put_uvarint(&w, c->esc_timeout_ms);
-    }
-    if (c->set_mask & DAN_GW_CFG_ARMING_RATE) {
-        dan_put_uvarint(&w, c->arming_rate_hz);
-    }
-    if (c->set_mask & DAN_GW_CFG_TELEM_TIMEOUT) {
-        dan_put_uvarint(&w, c->telem_timeout_ms);
+    for (i = 1; i < NOPS(CONFIG_REQ_OPS) - 1u; i++) { /* the uvarints, in mask bit order */
+        if (c->set_mask & (CONFIG_REQ_OPS[i].kind_group >> 3)) {
+            uint32_t v;
+            memcpy(&v, (const uint8_t *)c + CONFIG_REQ_OPS[i].offset, 4u);
+            dan_put_uvarint(&w, v);
+        }
     }
     if (c->set_mask & DAN_GW_CFG_DNA) {
         dan_put_u8(&w, c->dna);
@@ -175,54 +283,37 @@ int dan_gw_msg_config_req_decode(dan_gw_config_t *c, const uint8_t *p, size_t le
         return DAN_OK;
     }
     dan_reader_init(&r, p, len);
-    c->set_mask = dan_get_u8(&r);
-    if (c->set_mask & DAN_GW_CFG_ESC_TIMEOUT) {
-        c->esc_timeout_ms = dan_get_uvarint(&r);
-        if (c->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN ||
-            c->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX) {
-            return DAN_ERR_MALFORMED;
-        }
+    if (ops_get(&r, c, CONFIG_REQ_OPS, NOPS(CONFIG_REQ_OPS)) != DAN_OK) {
+        return DAN_ERR_MALFORMED;
     }
-    if (c->set_mask & DAN_GW_CFG_ARMING_RATE) {
-        c->arming_rate_hz = dan_get_uvarint(&r);
-        if (c->arming_rate_hz < DAN_GW_ARMING_RATE_MIN ||
-            c->arming_rate_hz > DAN_GW_ARMING_RATE_MAX) {
-            return DAN_ERR_MALFORMED;
-        }
+    /* the values given (the others are 0) in their ranges */
+    if (((c->set_mask & DAN_GW_CFG_ESC_TIMEOUT) && (c->esc_timeout_ms < DAN_GW_ESC_TIMEOUT_MIN ||
+                                                    c->esc_timeout_ms > DAN_GW_ESC_TIMEOUT_MAX)) ||
+        ((c->set_mask & DAN_GW_CFG_ARMING_RATE) && (c->arming_rate_hz < DAN_GW_ARMING_RATE_MIN ||
+                                                    c->arming_rate_hz > DAN_GW_ARMING_RATE_MAX)) ||
+        (c->telem_timeout_ms != 0u && (c->telem_timeout_ms < DAN_GW_TELEM_TIMEOUT_MIN ||
+                                       c->telem_timeout_ms > DAN_GW_TELEM_TIMEOUT_MAX)) ||
+        c->dna > 1u) {
+        return DAN_ERR_MALFORMED;
     }
-    if (c->set_mask & DAN_GW_CFG_TELEM_TIMEOUT) {
-        c->telem_timeout_ms = dan_get_uvarint(&r);
-        if (c->telem_timeout_ms != 0u && (c->telem_timeout_ms < DAN_GW_TELEM_TIMEOUT_MIN ||
-                                          c->telem_timeout_ms > DAN_GW_TELEM_TIMEOUT_MAX)) {
-            return DAN_ERR_MALFORMED;
-        }
-    }
-    if (c->set_mask & DAN_GW_CFG_DNA) {
-        c->dna = dan_get_u8(&r);
-        if (c->dna > 1u) {
-            return DAN_ERR_MALFORMED;
-        }
-    }
-    return dan_reader_finish(&r);
+    return DAN_OK;
 }
 
 int dan_gw_msg_config_rsp_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
     dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, c->node_id);
-    dan_put_uvarint(&w, c->esc_timeout_ms);
-    dan_put_uvarint(&w, c->arming_rate_hz);
-    dan_put_u8(&w, c->gw_flags);
-    dan_put_uvarint(&w, c->telem_timeout_ms);
-    dan_put_u8(&w, c->dna);
+    ops_put(&w, c, CONFIG_RSP_OPS, NOPS(CONFIG_RSP_OPS));
     return dan_writer_finish(&w);
 }
 
+/* The last two fields are appended ones: a response without them decodes
+ * with zeros. */
 int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t len)
 {
     dan_reader_t r;
     memset(c, 0, sizeof *c);
+    /* CONFIG_RSP_OPS, written out: the FC links no other ops_get() user */
     dan_reader_init(&r, p, len);
     c->node_id = dan_get_u8(&r);
     c->esc_timeout_ms = dan_get_uvarint(&r);

@@ -111,21 +111,27 @@ void dan_gw_msg_fast_rec_put(dan_writer_t *w, const dan_gw_fast_rec_t *rec)
     dan_put_u8(w, rec->age_4ms);
 }
 
-int dan_gw_msg_fast_rec_get(dan_reader_t *r, dan_gw_fast_rec_t *rec)
+/* The 10 record bytes at q (little endian fields). */
+static void fast_rec_parse(const uint8_t *q, dan_gw_fast_rec_t *rec)
 {
-    uint32_t packed;
-    rec->voltage_f16 = dan_get_u16(r);
-    rec->current_f16 = dan_get_u16(r);
-    rec->temperature_f16 = dan_get_u16(r);
-    packed = dan_get_u8(r);
-    packed |= (uint32_t)dan_get_u16(r) << 8;
-    rec->age_4ms = dan_get_u8(r);
-    rec->rpm = (int32_t)(packed & 0x3FFFFu);
-    if (rec->rpm & 0x20000) {
-        rec->rpm -= 0x40000;
-    }
+    uint32_t packed = (uint32_t)q[6] | (uint32_t)q[7] << 8 | (uint32_t)q[8] << 16;
+    rec->voltage_f16 = (uint16_t)(q[0] | q[1] << 8);
+    rec->current_f16 = (uint16_t)(q[2] | q[3] << 8);
+    rec->temperature_f16 = (uint16_t)(q[4] | q[5] << 8);
+    rec->age_4ms = q[9];
+    rec->rpm = (int32_t)((packed & 0x3FFFFu) ^ 0x20000u) - 0x20000; /* int18 */
     rec->esc_index = (uint8_t)((packed >> 18) & 0x1Fu);
     rec->fresh = (packed >> 23) != 0u;
+}
+
+int dan_gw_msg_fast_rec_get(dan_reader_t *r, dan_gw_fast_rec_t *rec)
+{
+    uint8_t q[DAN_GW_FAST_REC_SIZE];
+    dan_get_raw(r, q, sizeof q);
+    if (dan_reader_finish(r) != DAN_OK) {
+        memset(q, 0, sizeof q); /* as the fields read past the end: zeros */
+    }
+    fast_rec_parse(q, rec);
     return dan_reader_finish(r);
 }
 
@@ -144,15 +150,13 @@ int dan_gw_msg_esc_fast_rsp_encode(uint8_t gw_flags, const dan_gw_fast_rec_t *re
 int dan_gw_msg_esc_fast_rsp_decode(uint8_t *gw_flags, dan_gw_fast_rec_t *rec, bool *has_rec,
                                    const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
     if (len != 1u && len != DAN_GW_FAST_RSP_MAX) {
         return DAN_ERR_MALFORMED;
     }
-    dan_reader_init(&r, p, len);
-    *gw_flags = dan_get_u8(&r);
+    *gw_flags = p[0];
     *has_rec = len == DAN_GW_FAST_RSP_MAX;
-    if (!*has_rec) {
-        return DAN_OK;
+    if (*has_rec) {
+        fast_rec_parse(p + 1, rec); /* the length is exact: no reader */
     }
-    return dan_gw_msg_fast_rec_get(&r, rec);
+    return DAN_OK;
 }

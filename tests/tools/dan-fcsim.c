@@ -105,6 +105,7 @@ static dan_posix_port_t g_port;
 dan_master_t g_m;
 static dan_identity_t g_id; /* the gateway's, reported by discovery */
 dan_gw_t g_gw;
+static uint32_t g_gw_stats[DAN_GW_STAT_COUNT]; /* g_gw.stats */
 
 /* Pumps the port until the operation in flight completes; returns its result. */
 static int run(void)
@@ -1205,6 +1206,7 @@ int main(int argc, char **argv)
     }
     dan_master_set_identities(&g_m, &g_id, 1);
     dan_gw_init(&g_gw, &g_m);
+    dan_gw_set_stats(&g_gw, g_gw_stats);
     for (; i < argc && rc != 2; i++) {
         int r = do_step(argv[i]);
         fflush(stdout);

@@ -191,6 +191,7 @@ int setup(void **state)
                      DAN_OK);
     dan_gw_node_attach(&R->g, &R->p);
     dan_gw_init(&R->gw, &R->m);
+    dan_gw_set_stats(&R->gw, R->gw_stats);
     dan_dc_rx_init(&R->lis, LISTEN_NODE, lis_accept, NULL);
     dan_dc_tid_table_init(&R->tids);
     *state = R;

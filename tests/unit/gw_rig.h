@@ -26,6 +26,7 @@ typedef struct {
     dan_periph_t p;
     sim_node_t *nm, *np;
     dan_gw_t gw;
+    uint32_t gw_stats[DAN_GW_STAT_COUNT]; /* where gw keeps the STATS counters */
     dan_gw_node_t g;
     dan_ptype_t pt;
     dan_dc_rx_t lis;         /* a DroneCAN listener on the far side */

@@ -20,9 +20,10 @@
  * are read straight out of the master's response buffer with the
  * dan_gw_*_get/next functions below; they stay valid until the next
  * transaction starts, so the client itself stays small:
- *   sizeof(dan_gw_t) ~ 100 + 44 * DAN_GW_MAX_ESC + 4 * DAN_GW_STAT_COUNT
- *                      + 24 * DAN_GW_TUNNELS bytes (436 on Cortex-M4 with
- *                      the defaults; `make size` reports it).
+ *   sizeof(dan_gw_t) ~ 92 + 44 * DAN_GW_MAX_ESC + 24 * DAN_GW_TUNNELS
+ *                      bytes (316 on Cortex-M4 with the defaults; `make
+ *                      size` reports it); the STATS counters, if kept, in
+ *                      the caller's storage (dan_gw_set_stats()).
  *
  * Retries: the master retries a transaction whose response was lost. Every
  * gateway message is idempotent under retry (ESC commands and ARM are
@@ -59,34 +60,36 @@ struct dan_gw_s;
 /* Internal: how the response of the call in flight is decoded. */
 typedef int (*dan_gw_done_fn)(struct dan_gw_s *gw, uint32_t code, const uint8_t *p, size_t len);
 
-typedef struct dan_gw_s {
+typedef struct dan_gw_s {   /* ordered by use, small fields first, no padding */
+    uint8_t port;           /* tunnel port of the call in flight */
+    uint8_t can_seq;        /* CAN_SEND sequence number */
+    uint8_t gw_flags;       /* DAN_GW_FLAG_*, from the last response */
+    uint8_t esc_seen;       /* ESCs the gateway knows (ESC_CMD rsp) */
+    uint8_t telem_next;     /* ESC_TELEM: next page (DAN_GW_NONE: end) */
+    uint8_t last_telem;     /* index of the last record received, or DAN_GW_NONE */
+    bool telem_fresh;       /* ESC_FAST_T: that record was a new esc.Status sample */
+    uint8_t can_accepted;   /* of the last CAN_SEND */
+    uint8_t recv_opts;      /* of the last CAN_RECV */
+    uint8_t servo_fs_kept;  /* entries of the last SERVO_FAILSAFE table kept */
+    dan_gw_health_t health; /* last HEALTH response */
     dan_master_t *m;
     uint32_t code;       /* code of the call in flight (0: none) */
     dan_gw_done_fn done; /* its response decoder (internal; NULL: none) */
-    uint8_t port;        /* tunnel port of the call in flight */
-    uint8_t can_seq;     /* CAN_SEND sequence number */
     int result;          /* of the last completed call */
-    uint8_t gw_flags;    /* DAN_GW_FLAG_*, from the last response */
-    uint8_t esc_seen;    /* ESCs the gateway knows (ESC_CMD rsp) */
-    uint8_t telem_next;  /* ESC_TELEM: next page (DAN_GW_NONE: end) */
-    uint8_t last_telem;  /* index of the last record received, or DAN_GW_NONE */
-    bool telem_fresh;    /* ESC_FAST_T: that record was a new esc.Status sample */
-    dan_gw_telem_t esc[DAN_GW_MAX_ESC];
     uint32_t telem_ignored;
+    uint32_t decode_errors; /* responses that did not decode */
+    /* the STATS counters (DAN_GW_STAT_*): caller storage of
+     * DAN_GW_STAT_COUNT entries, dan_gw_set_stats(); NULL: not kept */
+    uint32_t *stats;
+    dan_gw_telem_t esc[DAN_GW_MAX_ESC];
     dan_gw_config_t config; /* last CONFIG response */
-    uint32_t stats[DAN_GW_STAT_COUNT];
     dan_gw_tunnel_t tun[DAN_GW_TUNNELS];
     uint32_t can_rx_next; /* next raw frame sequence number wanted */
     uint32_t can_rx_dropped;
     uint32_t can_rx_lost;    /* frames skipped (dropped at the gateway) */
     uint32_t can_rx_resyncs; /* the gateway's sequence jumped (it restarted) */
-    uint8_t can_accepted;    /* of the last CAN_SEND */
     uint32_t can_queue_free;
-    uint32_t decode_errors;   /* responses that did not decode */
-    uint8_t recv_opts;        /* of the last CAN_RECV */
     dan_gw_call_state_t call; /* last NODE_CALL response */
-    dan_gw_health_t health;   /* last HEALTH response */
-    uint8_t servo_fs_kept;    /* entries of the last SERVO_FAILSAFE table kept */
 } dan_gw_t;
 
 void dan_gw_init(dan_gw_t *gw, dan_master_t *m);
@@ -123,8 +126,13 @@ int dan_gw_arm(dan_gw_t *gw, bool armed, uint64_t now_us);
 /* Reads (set == NULL or set->set_mask == 0) or changes the settings; the
  * response lands in gw->config. */
 int dan_gw_config(dan_gw_t *gw, const dan_gw_config_t *set, uint64_t now_us);
-/* Counters into gw->stats (DAN_GW_STAT_*). */
+/* Counters into gw->stats (DAN_GW_STAT_*), the caller's storage named by
+ * dan_gw_set_stats() (without it the response is checked, not kept). */
 int dan_gw_stats(dan_gw_t *gw, uint64_t now_us);
+/* Where dan_gw_stats() keeps the counters: v[DAN_GW_STAT_COUNT],
+ * caller-owned (issue 17: 144 bytes an FC that never reads them saves);
+ * NULL: not kept (the default). Set it after dan_gw_init(). */
+void dan_gw_set_stats(dan_gw_t *gw, uint32_t *v);
 
 /* Node table page from node id first (1 for the first page). After
  * completion: dan_gw_nodes_begin() then dan_gw_nodes_next() per entry. */
