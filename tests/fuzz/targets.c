@@ -316,6 +316,14 @@ static uint32_t fz_code(uint8_t op)
     return k < 16u ? DAN_TYPE_CAN_GW_FIRST + k : DAN_TYPE_CAN_GW_BLOCK2 + (k - 16u);
 }
 
+/* The end of the link's last transmission as a 64-bit time (the link
+ * keeps 32-bit times; now if it has passed). */
+static uint64_t fz_tx_end(const dan_link_t *l)
+{
+    uint32_t end = l->tx_start_us + (uint32_t)l->tx_len * l->char_us;
+    return dan_link_wait_time(l, dan_link_due_in(l, end));
+}
+
 /* One DAN request to the gateway, sealed as a client would seal it (so the
  * handlers behind the seal are reached) or as is (the seal check). It
  * comes FZ_IDLE_US after the earlier reply has left: as soon as a master
@@ -335,7 +343,7 @@ static void fz_request(uint32_t code, const uint8_t *payload, size_t plen, bool 
     }
     n = dan_frame_encode(code, body, (size_t)bl, frame, sizeof frame);
     FUZZ_CHECK(n > 0);
-    end = dan_link_tx_end_us(&fz_periph.link);
+    end = fz_tx_end(&fz_periph.link);
     *now = (end > *now ? end : *now) + FZ_IDLE_US;
     dan_periph_poll(&fz_periph, *now);
     dan_periph_rx(&fz_periph, frame, (size_t)n, *now);
