@@ -64,9 +64,8 @@ class Stack:
 
     def stop(self):
         """SIGTERM to all first, so they wind down together."""
-        for p in reversed(self.procs):
-            if p.poll() is None:
-                procgroup.signal_group(p, signal.SIGTERM)
+        for p in reversed(self.procs):  # also a group whose leader exited
+            procgroup.signal_group(p, signal.SIGTERM)
         for p in reversed(self.procs):
             procgroup.wait_or_kill(p, 10)
             p.stdout.close()

@@ -7,6 +7,7 @@ fixture and the benchmarks. Standard library only.
 import os
 import signal
 import subprocess
+import time
 
 
 def start(args, log, stdout=subprocess.PIPE, **kw) -> subprocess.Popen:
@@ -29,21 +30,42 @@ def signal_group(p: subprocess.Popen, sig: int):
         pass
 
 
+def group_gone(pgid: int, timeout: float) -> bool:
+    """Waits up to timeout seconds until no process of group pgid is left
+    (a leader that exited may leave children still stopping)."""
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return True
+        except PermissionError:  # only a zombie of another parent is left
+            return True
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.02)
+
+
 def wait_or_kill(p: subprocess.Popen, timeout: float):
-    """Waits for p; after timeout seconds kills its group and waits again."""
+    """Waits for p and the rest of its group; after timeout seconds kills
+    the group and waits again."""
+    end = time.monotonic() + timeout
     try:
         p.wait(timeout)
     except subprocess.TimeoutExpired:
         signal_group(p, signal.SIGKILL)
         p.wait(5)
+    if not group_gone(p.pid, max(0.0, end - time.monotonic())):
+        signal_group(p, signal.SIGKILL)
+        group_gone(p.pid, 5.0)
 
 
 def stop(p: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 10.0) -> int:
-    """Signals a running p's group and waits (killing it after timeout
-    seconds); returns its exit code."""
-    if p.poll() is None:
-        signal_group(p, sig)
-        wait_or_kill(p, timeout)
+    """Signals p's group (also when p itself has exited: its children may
+    not have) and waits for all of it (killing it after timeout seconds);
+    returns p's exit code."""
+    signal_group(p, sig)
+    wait_or_kill(p, timeout)
     return p.returncode
 
 
