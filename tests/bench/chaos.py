@@ -451,6 +451,21 @@ def outputs_summary(c, nodes):
     }
 
 
+def loss_detail(c, x, way, around_s=5.0):
+    """An unexplained tunnel loss for the report: its direction, when
+    (seconds into the soak: the last good record, the loss), what, and
+    the faults that started within around_s of it (the next thing to look
+    at)."""
+    t0, t1, _, what, _ = x
+    base = c.runs[0][0] if c.runs else 0.0
+    near = [
+        f"{name} at {t - base:.1f}"
+        for t, name, _ in c.events
+        if t0 - around_s <= t <= t1 + around_s
+    ]
+    return f"{way}: {what}, {t0 - base:.2f}..{t1 - base:.2f} s; faults near: {near}"
+
+
 def tunnel_summary(c, nodes):
     """Both directions of the tunnel."""
     good, broken = cc.parse_stream(nodes.rx)
@@ -479,7 +494,11 @@ def tunnel_summary(c, nodes):
             "by": sorted({x[4] for x in own_out + own_back}),
         },
         "tunnel_losses_unexplained": len(rest),
-        "tunnel_losses_unexplained_examples": [x[3] for x in rest[:5]],
+        "tunnel_losses_unexplained_examples": [
+            loss_detail(c, x, way)
+            for way, xs in (("to far end", rest_out), ("back", rest_back))
+            for x in xs[:5]
+        ],
     }
 
 
