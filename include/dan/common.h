@@ -187,6 +187,35 @@ int dan_get_fields(dan_reader_t *r, void *m, const dan_field_t *f, size_t n);
 int dan_encode_fields(const void *m, const dan_field_t *f, size_t n, uint8_t *out, size_t cap);
 int dan_decode_fields(void *m, const dan_field_t *f, size_t n, const uint8_t *p, size_t len);
 
+/* Defines NAME_encode and NAME_decode of TYPE from TABLE, the pattern of a
+ * message that is only its table (the file needs <string.h>):
+ *   int NAME_encode(const TYPE *m, uint8_t *out, size_t cap);
+ *   int NAME_decode(TYPE *m, const uint8_t *p, size_t len);
+ * decode clears *m first (members not in the table read 0). */
+#define DAN_FIELDS_CODEC(name, type, table)                               \
+    int name##_encode(const type *m, uint8_t *out, size_t cap)            \
+    {                                                                     \
+        return dan_encode_fields(m, table, DAN_NFIELDS(table), out, cap); \
+    }                                                                     \
+    int name##_decode(type *m, const uint8_t *p, size_t len)              \
+    {                                                                     \
+        memset(m, 0, sizeof *m);                                          \
+        return dan_decode_fields(m, table, DAN_NFIELDS(table), p, len);   \
+    }
+/* Defines NAME_put and NAME_get of TYPE from TABLE (an item or header of a
+ * longer payload):
+ *   void NAME_put(dan_writer_t *w, const TYPE *m);
+ *   int NAME_get(dan_reader_t *r, TYPE *m); */
+#define DAN_FIELDS_ITEM(name, type, table)                      \
+    void name##_put(dan_writer_t *w, const type *m)             \
+    {                                                           \
+        (void)dan_put_fields(w, m, table, DAN_NFIELDS(table));  \
+    }                                                           \
+    int name##_get(dan_reader_t *r, type *m)                    \
+    {                                                           \
+        return dan_get_fields(r, m, table, DAN_NFIELDS(table)); \
+    }
+
 #ifdef __cplusplus
 }
 #endif
