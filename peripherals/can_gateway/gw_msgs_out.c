@@ -133,11 +133,17 @@ int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, siz
     return dan_reader_finish(&r);
 }
 
+/* BEEP's ranges, for both directions. */
+static bool beep_ok(const dan_gw_beep_t *b)
+{
+    return b->frequency_hz >= 1u && b->frequency_hz <= DAN_GW_BEEP_HZ_MAX &&
+           b->duration_ms <= DAN_GW_BEEP_MS_MAX;
+}
+
 int dan_gw_msg_beep_encode(const dan_gw_beep_t *b, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
-    if (b == NULL || b->frequency_hz < 1u || b->frequency_hz > DAN_GW_BEEP_HZ_MAX ||
-        b->duration_ms > DAN_GW_BEEP_MS_MAX) {
+    if (b == NULL || !beep_ok(b)) {
         return DAN_ERR_ARG;
     }
     dan_writer_init(&w, out, cap);
@@ -152,8 +158,7 @@ int dan_gw_msg_beep_decode(dan_gw_beep_t *b, const uint8_t *p, size_t len)
     dan_reader_init(&r, p, len);
     b->frequency_hz = dan_get_uvarint(&r);
     b->duration_ms = dan_get_uvarint(&r);
-    if (b->frequency_hz < 1u || b->frequency_hz > DAN_GW_BEEP_HZ_MAX ||
-        b->duration_ms > DAN_GW_BEEP_MS_MAX) {
+    if (!beep_ok(b)) {
         return DAN_ERR_MALFORMED;
     }
     return dan_reader_finish(&r);
