@@ -166,23 +166,16 @@ $(BUILD)/obj/%.o: %.c
 objects: $(call obj,$(CORE_SRC) $(PORT_SRC) $(GW_CLIENT_SRC) $(GW_NODE_SRC) $(GW_LINUX_SRC) \
                     $(GWD_MAIN) $(TOOL_SRC) $(TOOL_LIB_SRC) $(TTOOL_SRC) $(UNIT_SRC) $(UNIT_HELP))
 
-# $(call archive,objects)
-define archive
-	@mkdir -p $(@D)
-	rm -f $@ && $(AR) rcs $@ $(1)
+# Each library with the variable naming its sources, one rule for all.
+LIB_SOURCES := $(LIB)=CORE_SRC $(LIBPOSIX)=PORT_SRC $(LIBGW)=GW_CLIENT_SRC \
+               $(LIBGWNODE)=GW_NODE_SRC $(LIBGWLINUX)=GW_LINUX_SRC $(LIBTOOL)=TOOL_LIB_SRC
+# $(call archive_rule,library,sources variable)
+define archive_rule
+$(1): $$(call obj,$$($(2)))
+	@mkdir -p $$(@D)
+	rm -f $$@ && $$(AR) rcs $$@ $$^
 endef
-$(LIB): $(call obj,$(CORE_SRC))
-	$(call archive,$^)
-$(LIBPOSIX): $(call obj,$(PORT_SRC))
-	$(call archive,$^)
-$(LIBGW): $(call obj,$(GW_CLIENT_SRC))
-	$(call archive,$^)
-$(LIBGWNODE): $(call obj,$(GW_NODE_SRC))
-	$(call archive,$^)
-$(LIBGWLINUX): $(call obj,$(GW_LINUX_SRC))
-	$(call archive,$^)
-$(LIBTOOL): $(call obj,$(TOOL_LIB_SRC))
-	$(call archive,$^)
+$(foreach l,$(LIB_SOURCES),$(eval $(call archive_rule,$(word 1,$(subst =, ,$(l))),$(word 2,$(subst =, ,$(l))))))
 
 LDLIBS := $(GPIOD_LIBS) -lutil -lm
 $(BUILD)/bin/%: $(BUILD)/obj/host_tools/c/%.o $(ALL_LIBS)

@@ -69,6 +69,19 @@ static void put_key(jbuf_t *b, const char *key)
     put(b, "\":", 2);
 }
 
+/* A member: ,"key":v and ,"key":"s" */
+static void put_num(jbuf_t *b, const char *key, uint32_t v)
+{
+    put_key(b, key);
+    put_u32(b, v);
+}
+
+static void put_text(jbuf_t *b, const char *key, const char *s)
+{
+    put_key(b, key);
+    put_jstr(b, s);
+}
+
 static jbuf_t jbuf(char *out, size_t cap)
 {
     jbuf_t b;
@@ -97,28 +110,19 @@ size_t dan_peer_json(char *out, size_t cap, const dan_peer_t *p, const dan_ident
     put_str(&b, "{\"type\":");
     put_jstr(&b, (t != NULL) ? t->name : "?");
     if (full) {
-        put_key(&b, "first_code");
-        put_u32(&b, p->first_code);
+        put_num(&b, "first_code", p->first_code);
     }
-    put_key(&b, "baud");
-    put_u32(&b, p->baud);
-    put_key(&b, "dan_version");
-    put_u32(&b, id->dan_version);
-    put_key(&b, "manufacturer");
-    put_jstr(&b, id->manufacturer);
-    put_key(&b, "model");
-    put_jstr(&b, id->model);
+    put_num(&b, "baud", p->baud);
+    put_num(&b, "dan_version", id->dan_version);
+    put_text(&b, "manufacturer", id->manufacturer);
+    put_text(&b, "model", id->model);
     if (full) {
-        put_key(&b, "hw_version");
-        put_jstr(&b, id->hw_version);
+        put_text(&b, "hw_version", id->hw_version);
     }
-    put_key(&b, "sw_version");
-    put_jstr(&b, id->sw_version);
-    put_key(&b, "baud_mask");
-    put_u32(&b, id->baud_mask);
+    put_text(&b, "sw_version", id->sw_version);
+    put_num(&b, "baud_mask", id->baud_mask);
     if (full) {
-        put_key(&b, "capabilities");
-        put_u32(&b, id->capabilities);
+        put_num(&b, "capabilities", id->capabilities);
     }
     put(&b, "}", 1);
     return b.len;

@@ -70,6 +70,18 @@ void o_key(const char *k)
     o_str("\":");
 }
 
+void o_key_num(const char *k, uint64_t v)
+{
+    o_key(k);
+    o_u64(v);
+}
+
+void o_key_jstr(const char *k, const char *s)
+{
+    o_key(k);
+    o_jstr(s);
+}
+
 void o_begin(const char *step)
 {
     out_len = 0;

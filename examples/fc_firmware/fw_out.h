@@ -25,6 +25,9 @@ void o_hex(const uint8_t *p, size_t n);
 void o_jstr(const char *s);
 /* ,"key": */
 void o_key(const char *k);
+/* A member, key and value: ,"key":v and ,"key":"s" */
+void o_key_num(const char *k, uint64_t v);
+void o_key_jstr(const char *k, const char *s);
 void o_begin(const char *step);
 void o_end(void);
 /* ,"result":r,"error":"its name" */

@@ -99,10 +99,8 @@ static step_t discover_done(app_t *a, int r, uint64_t now)
     bool first = true;
     o_begin("discover");
     o_result(r);
-    o_key("ms");
-    o_u64((now - a->op_t0) / 1000u);
-    o_key("baud");
-    o_u32(dan_master_baud(&a->m));
+    o_key_num("ms", (now - a->op_t0) / 1000u);
+    o_key_num("baud", dan_master_baud(&a->m));
     o_key("peers");
     o_str("[");
     for (i = 0; i < a->m.ntypes; i++) {
@@ -131,16 +129,11 @@ static step_t configure_done(app_t *a, int r, uint64_t now)
 {
     o_begin("configure");
     o_result(r);
-    o_key("baud");
-    o_u32(dan_master_baud(&a->m));
-    o_key("uart_baud");
-    o_u32(uart_actual_baud(0u)); /* 25 MHz / divisor */
-    o_key("ms");
-    o_u64((now - a->op_t0) / 1000u);
-    o_key("recoveries");
-    o_u32(a->m.stats.recoveries);
-    o_key("fast_refusals");
-    o_u32(a->m.stats.fast_refusals);
+    o_key_num("baud", dan_master_baud(&a->m));
+    o_key_num("uart_baud", uart_actual_baud(0u)); /* 25 MHz / divisor */
+    o_key_num("ms", (now - a->op_t0) / 1000u);
+    o_key_num("recoveries", a->m.stats.recoveries);
+    o_key_num("fast_refusals", a->m.stats.fast_refusals);
     o_end();
     return (r == DAN_OK) ? STEP_NEXT : STEP_FAIL;
 }
@@ -181,20 +174,13 @@ static step_t txn_done(app_t *a, int r, uint64_t now)
         return STEP_AGAIN;
     }
     o_begin("transactions");
-    o_key("code");
-    o_u32(DAN_TYPE_TEST_A_FIRST + 2u);
-    o_key("count");
-    o_u32(TXN_COUNT);
-    o_key("ok");
-    o_u32(a->txn_ok);
-    o_key("bad");
-    o_u32(a->txn_bad);
-    o_key("baud");
-    o_u32(dan_master_baud(&a->m));
-    o_key("avg_us");
-    o_u64(a->txn_sum_us / TXN_COUNT);
-    o_key("max_us");
-    o_u64(a->txn_max_us);
+    o_key_num("code", DAN_TYPE_TEST_A_FIRST + 2u);
+    o_key_num("count", TXN_COUNT);
+    o_key_num("ok", a->txn_ok);
+    o_key_num("bad", a->txn_bad);
+    o_key_num("baud", dan_master_baud(&a->m));
+    o_key_num("avg_us", a->txn_sum_us / TXN_COUNT);
+    o_key_num("max_us", a->txn_max_us);
     o_key("last_payload");
     o_str("\"");
     o_hex(a->m.resp, a->m.resp_len);
@@ -221,14 +207,11 @@ static step_t ident_done(app_t *a, int r, uint64_t now)
         r = dan_identity_decode(&id, a->m.resp, a->m.resp_len);
     }
     o_begin("identify");
-    o_key("type");
-    o_jstr("test-b");
+    o_key_jstr("type", "test-b");
     o_result(r);
-    o_key("baud");
-    o_u32(dan_master_baud(&a->m));
+    o_key_num("baud", dan_master_baud(&a->m));
     if (r == DAN_OK) {
-        o_key("model");
-        o_jstr(id.model);
+        o_key_jstr("model", id.model);
     }
     o_end();
     return (r == DAN_OK) ? STEP_NEXT : STEP_FAIL;
@@ -247,20 +230,16 @@ static void o_telem(const dan_gw_telem_t *t)
 {
     o_str("{\"esc\":");
     o_u32(t->esc_index);
-    o_key("node");
-    o_u32(t->node_id);
-    o_key("flags");
-    o_u32(t->flags);
+    o_key_num("node", t->node_id);
+    o_key_num("flags", t->flags);
     o_key("rpm");
     o_int(t->rpm);
     o_key("mV");
     o_int((int32_t)(dan_f16_to_f32(t->voltage_f16) * 1000.0f));
     o_key("mA");
     o_int((int32_t)(dan_f16_to_f32(t->current_f16) * 1000.0f));
-    o_key("power_pct");
-    o_u32(t->power_pct);
-    o_key("age_ms");
-    o_u32(t->age_ms);
+    o_key_num("power_pct", t->power_pct);
+    o_key_num("age_ms", t->age_ms);
     o_str("}");
 }
 
@@ -271,8 +250,7 @@ static int gw_start(app_t *a, uint64_t now)
     if (a->k == 0u) {
         if (a->gw_mode == GW_OFF || dan_master_peer(&a->m, DAN_TYPE_CAN_GW_FIRST) == NULL) {
             o_begin("gateway");
-            o_key("skipped");
-            o_jstr(a->gw_mode == GW_OFF ? "gw=off" : "no can-gw on the bus");
+            o_key_jstr("skipped", a->gw_mode == GW_OFF ? "gw=off" : "no can-gw on the bus");
             o_end();
             return a->gw_mode == GW_REQUIRE ? DAN_ERR_NOTFOUND : FW_SKIP;
         }
@@ -303,14 +281,11 @@ static step_t gw_finish(app_t *a, int r, const char *at)
     bool first = true;
     o_begin("gateway");
     o_result(r);
-    o_key("at");
-    o_jstr(at);
+    o_key_jstr("at", at);
     o_key("required");
     o_str(a->gw_mode == GW_REQUIRE ? "true" : "false");
-    o_key("esc_commands_ok");
-    o_u32(a->esc_ok);
-    o_key("flags");
-    o_u32(a->gw.gw_flags);
+    o_key_num("esc_commands_ok", a->esc_ok);
+    o_key_num("flags", a->gw.gw_flags);
     o_key("telemetry");
     o_str("[");
     for (i = 0; r == DAN_OK && i < NUM_ESC && i < DAN_GW_MAX_ESC; i++) {
@@ -346,8 +321,7 @@ static step_t gw_done(app_t *a, int r, uint64_t now)
         a->esc_ok++;
         if (a->k % 10u == 0u) {
             o_begin("gw_esc");
-            o_key("k");
-            o_u32(a->k);
+            o_key_num("k", a->k);
             o_key("throttle");
             o_int(ramp_value(a->k));
             o_key("telem");
@@ -380,32 +354,19 @@ static void print_stats(const app_t *a, int code)
     const dan_link_stats_t *l = &a->m.link.stats;
     const dan_decoder_stats_t *d = &a->m.link.dec.stats;
     o_begin("stats");
-    o_key("transactions");
-    o_u32(s->transactions);
-    o_key("ok");
-    o_u32(s->ok);
-    o_key("timeouts");
-    o_u32(s->timeouts);
-    o_key("retries");
-    o_u32(s->retries);
-    o_key("collisions");
-    o_u32(l->collisions);
-    o_key("echo_timeouts");
-    o_u32(l->echo_timeouts);
-    o_key("crc_errors");
-    o_u32(d->crc_errors);
-    o_key("rx_bytes");
-    o_u32(l->rx_bytes);
-    o_key("tx_bytes");
-    o_u32(l->tx_bytes);
-    o_key("rx_irqs");
-    o_u32(uart_stats[0].rx_irqs);
-    o_key("uart_overruns");
-    o_u32(uart_stats[0].rx_overruns);
-    o_key("ring_dropped");
-    o_u32(dan_rxring_dropped(&uart_rx[0]));
-    o_key("baud_changes");
-    o_u32(uart_stats[0].baud_changes);
+    o_key_num("transactions", s->transactions);
+    o_key_num("ok", s->ok);
+    o_key_num("timeouts", s->timeouts);
+    o_key_num("retries", s->retries);
+    o_key_num("collisions", l->collisions);
+    o_key_num("echo_timeouts", l->echo_timeouts);
+    o_key_num("crc_errors", d->crc_errors);
+    o_key_num("rx_bytes", l->rx_bytes);
+    o_key_num("tx_bytes", l->tx_bytes);
+    o_key_num("rx_irqs", uart_stats[0].rx_irqs);
+    o_key_num("uart_overruns", uart_stats[0].rx_overruns);
+    o_key_num("ring_dropped", dan_rxring_dropped(&uart_rx[0]));
+    o_key_num("baud_changes", uart_stats[0].baud_changes);
     o_key("exit");
     o_int(code);
     o_end();
@@ -492,8 +453,7 @@ static int tick(app_t *a, uint64_t deadline)
     if (now > deadline) {
         o_begin(phases[a->phase].name);
         o_result(DAN_ERR_TIMEOUT);
-        o_key("note");
-        o_jstr("run limit");
+        o_key_jstr("note", "run limit");
         o_end();
         return 1;
     }
@@ -524,18 +484,14 @@ static int tick(app_t *a, uint64_t deadline)
 static void print_boot(const app_t *a, const char *cmdline)
 {
     o_begin("boot");
-    o_key("fw");
-    o_jstr("fc_firmware");
-    o_key("cmdline");
-    o_jstr(cmdline);
-    o_key("gw_mode");
-    o_jstr(a->gw_mode == GW_OFF ? "off" : a->gw_mode == GW_REQUIRE ? "require" : "try");
-    o_key("fast_max");
-    o_u32(a->m.cfg.fast_max_baud);
-    o_key("rxring");
-    o_u32(DAN_RXRING_SIZE);
-    o_key("master_bytes");
-    o_u32((uint32_t)sizeof a->m);
+    o_key_jstr("fw", "fc_firmware");
+    o_key_jstr("cmdline", cmdline);
+    o_key_jstr("gw_mode", a->gw_mode == GW_OFF       ? "off"
+                          : a->gw_mode == GW_REQUIRE ? "require"
+                                                     : "try");
+    o_key_num("fast_max", a->m.cfg.fast_max_baud);
+    o_key_num("rxring", DAN_RXRING_SIZE);
+    o_key_num("master_bytes", (uint32_t)sizeof a->m);
     o_end();
 }
 

@@ -115,16 +115,11 @@ static void tb_report(uint64_t t0, uint64_t now)
     for (k = 0; k < BOARD_UARTS; k++) {
         tb_bus_t *b = &tb_bus[k];
         o_begin("bus");
-        o_key("ms");
-        o_u64((now - t0) / 1000u);
-        o_key("bus");
-        o_u32(k);
-        o_key("exchanges");
-        o_u32(b->win_ex);
-        o_key("errors");
-        o_u32(b->win_err);
-        o_key("state");
-        o_jstr(tb_state_name[b->state]);
+        o_key_num("ms", (now - t0) / 1000u);
+        o_key_num("bus", k);
+        o_key_num("exchanges", b->win_ex);
+        o_key_num("errors", b->win_err);
+        o_key_jstr("state", tb_state_name[b->state]);
         o_end();
         b->win_ex = b->win_err = 0;
     }
@@ -137,16 +132,11 @@ static int tb_summary(void)
     for (k = 0; k < BOARD_UARTS; k++) {
         tb_bus_t *b = &tb_bus[k];
         o_begin("bus_summary");
-        o_key("bus");
-        o_u32(k);
-        o_key("exchanges");
-        o_u32(b->exchanges);
-        o_key("errors");
-        o_u32(b->errors);
-        o_key("recoveries");
-        o_u32(b->recoveries);
-        o_key("baud");
-        o_u32(dan_master_baud(&b->m));
+        o_key_num("bus", k);
+        o_key_num("exchanges", b->exchanges);
+        o_key_num("errors", b->errors);
+        o_key_num("recoveries", b->recoveries);
+        o_key_num("baud", dan_master_baud(&b->m));
         o_key("values");
         for (i = 0; i < TB_NESC; i++) {
             o_str(i == 0u ? "[" : ",");
@@ -228,12 +218,9 @@ int twobus_main(const char *cmdline)
 {
     uint64_t t0, end, tick;
     o_begin("boot");
-    o_key("fw");
-    o_jstr("fc_firmware");
-    o_key("cmdline");
-    o_jstr(cmdline);
-    o_key("buses");
-    o_u32(BOARD_UARTS);
+    o_key_jstr("fw", "fc_firmware");
+    o_key_jstr("cmdline", cmdline);
+    o_key_num("buses", BOARD_UARTS);
     o_end();
     if (tb_init() != 0) {
         sh_puts("{\"event\":\"init failed\"}\n");

@@ -187,6 +187,45 @@ int dan_get_fields(dan_reader_t *r, void *m, const dan_field_t *f, size_t n);
 int dan_encode_fields(const void *m, const dan_field_t *f, size_t n, uint8_t *out, size_t cap);
 int dan_decode_fields(void *m, const dan_field_t *f, size_t n, const uint8_t *p, size_t len);
 
+/* Declares the codec of a whole payload, the pattern of the message
+ * headers:
+ *   int NAME_encode(const TYPE *m, uint8_t *out, size_t cap);
+ *   int NAME_decode(TYPE *m, const uint8_t *p, size_t len);
+ * encode returns the length or a negative error, decode DAN_OK or one. */
+#define DAN_CODEC(name, type)                                   \
+    int name##_encode(const type *m, uint8_t *out, size_t cap); \
+    int name##_decode(type *m, const uint8_t *p, size_t len)
+/* Declares the writer and reader of an item or header in a longer payload:
+ *   void NAME_put(dan_writer_t *w, const TYPE *m);
+ *   int NAME_get(dan_reader_t *r, TYPE *m); */
+#define DAN_ITEM(name, type)                         \
+    void name##_put(dan_writer_t *w, const type *m); \
+    int name##_get(dan_reader_t *r, type *m)
+
+/* Defines DAN_CODEC(NAME, TYPE) from TABLE, for a message that is only its
+ * table (the file needs <string.h>); decode clears *m first (members not
+ * in the table read 0). */
+#define DAN_FIELDS_CODEC(name, type, table)                               \
+    int name##_encode(const type *m, uint8_t *out, size_t cap)            \
+    {                                                                     \
+        return dan_encode_fields(m, table, DAN_NFIELDS(table), out, cap); \
+    }                                                                     \
+    int name##_decode(type *m, const uint8_t *p, size_t len)              \
+    {                                                                     \
+        memset(m, 0, sizeof *m);                                          \
+        return dan_decode_fields(m, table, DAN_NFIELDS(table), p, len);   \
+    }
+/* Defines DAN_ITEM(NAME, TYPE) from TABLE. */
+#define DAN_FIELDS_ITEM(name, type, table)                      \
+    void name##_put(dan_writer_t *w, const type *m)             \
+    {                                                           \
+        (void)dan_put_fields(w, m, table, DAN_NFIELDS(table));  \
+    }                                                           \
+    int name##_get(dan_reader_t *r, type *m)                    \
+    {                                                           \
+        return dan_get_fields(r, m, table, DAN_NFIELDS(table)); \
+    }
+
 #ifdef __cplusplus
 }
 #endif

@@ -101,9 +101,6 @@ int dan_gw_file_result(const dan_gw_t *gw, uint8_t *result, uint32_t *value)
 
 int dan_gw_file_list(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_FILE_LIST, NULL, first, 1u, now_us);
 }
 
@@ -122,10 +119,7 @@ int dan_gw_fw_begin(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char 
                     uint64_t now_us)
 {
     dan_gw_call_t c;
-    memset(&c, 0, sizeof c);
-    c.call_id = call_id;
-    c.node_id = node_id;
-    c.op = DAN_GW_CALL_FW_BEGIN;
+    dan_gwc_call_init(&c, call_id, node_id, DAN_GW_CALL_FW_BEGIN);
     c.name = name;
     c.name_len = (uint8_t)name_len(name);
     return dan_gw_node_call(gw, &c, now_us);

@@ -23,6 +23,9 @@ int dan_gwc_start_byte(dan_gw_t *gw, uint32_t code, dan_gw_done_fn done, uint8_t
                        uint64_t now_us);
 /* True when no operation runs on the master. */
 bool dan_gwc_idle(const dan_gw_t *gw);
+/* A NODE_CALL request of op, the rest zero (the calls of gw_client_mgmt.c
+ * and FW_BEGIN). */
+void dan_gwc_call_init(dan_gw_call_t *c, uint16_t call_id, uint8_t node_id, uint8_t op);
 /* A reader over the completed response of code (inner payload). */
 int dan_gwc_resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r);
 /* The response decoders (dan_gw_done_fn), by the calls that use them. */

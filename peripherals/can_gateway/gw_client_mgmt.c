@@ -14,7 +14,7 @@ int dan_gw_node_call(dan_gw_t *gw, const dan_gw_call_t *c, uint64_t now_us)
                          dan_gw_msg_call_encode(c, buf, DAN_GWC_CAP(buf)), sizeof buf, now_us);
 }
 
-static void call_init(dan_gw_call_t *c, uint16_t call_id, uint8_t node_id, uint8_t op)
+void dan_gwc_call_init(dan_gw_call_t *c, uint16_t call_id, uint8_t node_id, uint8_t op)
 {
     memset(c, 0, sizeof *c);
     c->call_id = call_id;
@@ -33,7 +33,7 @@ int dan_gw_param_get_index(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint
                            uint64_t now_us)
 {
     dan_gw_call_t c;
-    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_GET_INDEX);
+    dan_gwc_call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_GET_INDEX);
     c.index = index;
     return dan_gw_node_call(gw, &c, now_us);
 }
@@ -42,7 +42,7 @@ int dan_gw_param_get(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char
                      uint64_t now_us)
 {
     dan_gw_call_t c;
-    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_GET_NAME);
+    dan_gwc_call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_GET_NAME);
     call_name(&c, name);
     return dan_gw_node_call(gw, &c, now_us);
 }
@@ -54,7 +54,7 @@ int dan_gw_param_set(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char
     if (value == NULL) {
         return DAN_ERR_ARG;
     }
-    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_SET);
+    dan_gwc_call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_SET);
     call_name(&c, name);
     c.value = *value;
     return dan_gw_node_call(gw, &c, now_us);
@@ -63,7 +63,7 @@ int dan_gw_param_set(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char
 int dan_gw_param_save(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t now_us)
 {
     dan_gw_call_t c;
-    call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_SAVE);
+    dan_gwc_call_init(&c, call_id, node_id, DAN_GW_CALL_PARAM_SAVE);
     return dan_gw_node_call(gw, &c, now_us);
 }
 
@@ -71,7 +71,7 @@ int dan_gw_restart(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t mag
                    uint64_t now_us)
 {
     dan_gw_call_t c;
-    call_init(&c, call_id, node_id, DAN_GW_CALL_RESTART);
+    dan_gwc_call_init(&c, call_id, node_id, DAN_GW_CALL_RESTART);
     c.magic = magic;
     c.force = force ? 1u : 0u;
     return dan_gw_node_call(gw, &c, now_us);
@@ -103,17 +103,11 @@ int dan_gw_call_result_get(const dan_gw_t *gw, dan_gw_result_t *res)
 
 int dan_gw_health(dan_gw_t *gw, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_HEALTH, dan_gwc_done_health, 0u, 0u, now_us);
 }
 
 int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
 {
-    if (!dan_gwc_idle(gw)) {
-        return DAN_ERR_BUSY;
-    }
     return dan_gwc_start_byte(gw, DAN_GW_CODE_DNA, NULL, first, 1u, now_us);
 }
 

@@ -369,15 +369,7 @@ static const dan_field_t NODES_HDR[] = {
     DAN_FIELD(dan_gw_nodes_hdr_t, count, DAN_F_U8),
 };
 
-void dan_gw_msg_nodes_hdr_put(dan_writer_t *w, const dan_gw_nodes_hdr_t *h)
-{
-    (void)dan_put_fields(w, h, NODES_HDR, DAN_NFIELDS(NODES_HDR));
-}
-
-int dan_gw_msg_nodes_hdr_get(dan_reader_t *r, dan_gw_nodes_hdr_t *h)
-{
-    return dan_get_fields(r, h, NODES_HDR, DAN_NFIELDS(NODES_HDR));
-}
+DAN_FIELDS_ITEM(dan_gw_msg_nodes_hdr, dan_gw_nodes_hdr_t, NODES_HDR)
 
 void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n)
 {
@@ -478,15 +470,7 @@ static const dan_field_t TUN_OPEN[] = {
     DAN_FIELD(dan_gw_tun_open_t, baud, DAN_F_UV),
 };
 
-int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap)
-{
-    return dan_encode_fields(o, TUN_OPEN, DAN_NFIELDS(TUN_OPEN), out, cap);
-}
-
-int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len)
-{
-    return dan_decode_fields(o, TUN_OPEN, DAN_NFIELDS(TUN_OPEN), p, len);
-}
+DAN_FIELDS_CODEC(dan_gw_msg_tun_open, dan_gw_tun_open_t, TUN_OPEN)
 
 static const dan_field_t TUN_XFER_REQ[] = {
     DAN_FIELD(dan_gw_tun_xfer_t, port, DAN_F_U8),
@@ -504,16 +488,7 @@ static const dan_field_t TUN_XFER_RSP[] = {
     DAN_FIELD_VIEW(dan_gw_tun_xfer_t, data, len, DAN_GW_TUN_CHUNK_MAX),
 };
 
-int dan_gw_msg_tun_xfer_req_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
-{
-    return dan_encode_fields(x, TUN_XFER_REQ, DAN_NFIELDS(TUN_XFER_REQ), out, cap);
-}
-
-int dan_gw_msg_tun_xfer_req_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
-{
-    memset(x, 0, sizeof *x);
-    return dan_decode_fields(x, TUN_XFER_REQ, DAN_NFIELDS(TUN_XFER_REQ), p, len);
-}
+DAN_FIELDS_CODEC(dan_gw_msg_tun_xfer_req, dan_gw_tun_xfer_t, TUN_XFER_REQ)
 
 int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
 {

@@ -67,16 +67,7 @@ static const dan_field_t HAVE[] = {
     DAN_FIELD(dan_gw_file_have_t, have, DAN_F_UV),
 };
 
-int dan_gw_msg_file_have_encode(const dan_gw_file_have_t *h, uint8_t *out, size_t cap)
-{
-    return dan_encode_fields(h, HAVE, DAN_NFIELDS(HAVE), out, cap);
-}
-
-int dan_gw_msg_file_have_decode(dan_gw_file_have_t *h, const uint8_t *p, size_t len)
-{
-    memset(h, 0, sizeof *h);
-    return dan_decode_fields(h, HAVE, DAN_NFIELDS(HAVE), p, len);
-}
+DAN_FIELDS_CODEC(dan_gw_msg_file_have, dan_gw_file_have_t, HAVE)
 
 /* ---- FILE_WRITE ---- */
 
@@ -119,31 +110,15 @@ int dan_gw_msg_file_commit_req_decode(dan_gw_file_commit_t *c, const uint8_t *p,
     return dan_decode_fields(c, &COMMIT_RSP[1], 1u, p, len);
 }
 
-int dan_gw_msg_file_commit_rsp_encode(const dan_gw_file_commit_t *c, uint8_t *out, size_t cap)
-{
-    return dan_encode_fields(c, COMMIT_RSP, DAN_NFIELDS(COMMIT_RSP), out, cap);
-}
-
-int dan_gw_msg_file_commit_rsp_decode(dan_gw_file_commit_t *c, const uint8_t *p, size_t len)
-{
-    memset(c, 0, sizeof *c);
-    return dan_decode_fields(c, COMMIT_RSP, DAN_NFIELDS(COMMIT_RSP), p, len);
-}
+DAN_FIELDS_CODEC(dan_gw_msg_file_commit_rsp, dan_gw_file_commit_t, COMMIT_RSP)
 
 /* ---- FILE_LIST ---- */
 
-void dan_gw_msg_file_list_hdr_put(dan_writer_t *w, const dan_gw_file_list_hdr_t *h)
-{
-    dan_put_u8(w, h->next);
-    dan_put_u8(w, h->count);
-}
-
-int dan_gw_msg_file_list_hdr_get(dan_reader_t *r, dan_gw_file_list_hdr_t *h)
-{
-    h->next = dan_get_u8(r);
-    h->count = dan_get_u8(r);
-    return dan_reader_finish(r);
-}
+static const dan_field_t LIST_HDR[] = {
+    DAN_FIELD(dan_gw_file_list_hdr_t, next, DAN_F_U8),
+    DAN_FIELD(dan_gw_file_list_hdr_t, count, DAN_F_U8),
+};
+DAN_FIELDS_ITEM(dan_gw_msg_file_list_hdr, dan_gw_file_list_hdr_t, LIST_HDR)
 
 void dan_gw_msg_file_entry_put(dan_writer_t *w, const dan_gw_file_entry_t *e)
 {

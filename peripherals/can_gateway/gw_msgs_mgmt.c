@@ -201,16 +201,7 @@ static const dan_field_t RESULT_RSP[] = {
     DAN_FIELD_VIEW(dan_gw_result_t, data, len, DAN_GW_RESULT_CHUNK_MAX),
 };
 
-int dan_gw_msg_result_req_encode(const dan_gw_result_t *q, uint8_t *out, size_t cap)
-{
-    return dan_encode_fields(q, RESULT_REQ, DAN_NFIELDS(RESULT_REQ), out, cap);
-}
-
-int dan_gw_msg_result_req_decode(dan_gw_result_t *q, const uint8_t *p, size_t len)
-{
-    memset(q, 0, sizeof *q);
-    return dan_decode_fields(q, RESULT_REQ, DAN_NFIELDS(RESULT_REQ), p, len);
-}
+DAN_FIELDS_CODEC(dan_gw_msg_result_req, dan_gw_result_t, RESULT_REQ)
 
 int dan_gw_msg_result_rsp_encode(const dan_gw_result_t *q, uint8_t *out, size_t cap)
 {
@@ -334,15 +325,7 @@ static const dan_field_t DNA_HDR[] = {
     DAN_FIELD(dan_gw_dna_hdr_t, count, DAN_F_U8),
 };
 
-void dan_gw_msg_dna_hdr_put(dan_writer_t *w, const dan_gw_dna_hdr_t *h)
-{
-    (void)dan_put_fields(w, h, DNA_HDR, DAN_NFIELDS(DNA_HDR));
-}
-
-int dan_gw_msg_dna_hdr_get(dan_reader_t *r, dan_gw_dna_hdr_t *h)
-{
-    return dan_get_fields(r, h, DNA_HDR, DAN_NFIELDS(DNA_HDR));
-}
+DAN_FIELDS_ITEM(dan_gw_msg_dna_hdr, dan_gw_dna_hdr_t, DNA_HDR)
 
 void dan_gw_msg_dna_entry_put(dan_writer_t *w, const dan_gw_dna_entry_t *e)
 {

@@ -18,6 +18,18 @@ static bool servo_get(dan_reader_t *r, dan_gw_servo_t *s)
     return s->command_type <= DAN_GW_SERVO_TYPE_MAX;
 }
 
+/* The lists' count (SERVO, SERVO_FAILSAFE, LIGHTS): u8 n in min..max (one
+ * unsigned compare), n items follow. */
+static bool list_get(dan_reader_t *r, size_t *n, size_t min, size_t max, const uint8_t *p,
+                     size_t len)
+{
+    size_t k;
+    dan_reader_init(r, p, len);
+    k = dan_get_u8(r);
+    *n = k;
+    return k - min <= max - min;
+}
+
 int dan_gw_msg_servo_encode(const dan_gw_servo_t *s, size_t n, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
@@ -40,9 +52,7 @@ int dan_gw_msg_servo_decode(dan_gw_servo_t *s, size_t *n, const uint8_t *p, size
 {
     dan_reader_t r;
     size_t i;
-    dan_reader_init(&r, p, len);
-    *n = dan_get_u8(&r);
-    if (*n == 0u || *n > DAN_GW_SERVO_MAX) {
+    if (!list_get(&r, n, 1u, DAN_GW_SERVO_MAX, p, len)) {
         return DAN_ERR_MALFORMED;
     }
     for (i = 0; i < *n; i++) {
@@ -63,12 +73,12 @@ int dan_gw_msg_servo_fs_encode(const dan_gw_servo_fs_t *s, size_t n, uint8_t *ou
     dan_writer_init(&w, out, cap);
     dan_put_u8(&w, (uint8_t)n);
     for (i = 0; i < n; i++) {
-        if (s[i].mode > DAN_GW_SERVO_VALUE || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
+        dan_gw_servo_t v = s[i].value;
+        if (s[i].mode > DAN_GW_SERVO_VALUE || v.command_type > DAN_GW_SERVO_TYPE_MAX) {
             return DAN_ERR_ARG;
         }
-        dan_put_u8(&w, s[i].value.actuator_id);
-        dan_put_u8(&w, (uint8_t)(s[i].value.command_type | (s[i].mode << 7)));
-        dan_put_u16(&w, s[i].value.value_f16);
+        v.command_type = (uint8_t)(v.command_type | (s[i].mode << 7));
+        servo_put(&w, &v);
     }
     return dan_writer_finish(&w);
 }
@@ -77,16 +87,13 @@ int dan_gw_msg_servo_fs_decode(dan_gw_servo_fs_t *s, size_t *n, const uint8_t *p
 {
     dan_reader_t r;
     size_t i;
-    dan_reader_init(&r, p, len);
-    *n = dan_get_u8(&r);
-    if (*n > DAN_GW_SERVO_MAX) {
+    if (!list_get(&r, n, 0u, DAN_GW_SERVO_MAX, p, len)) {
         return DAN_ERR_MALFORMED;
     }
     for (i = 0; i < *n; i++) {
         uint8_t kind;
-        s[i].value.actuator_id = dan_get_u8(&r);
-        kind = dan_get_u8(&r);
-        s[i].value.value_f16 = dan_get_u16(&r);
+        (void)servo_get(&r, &s[i].value); /* its type byte: kind */
+        kind = s[i].value.command_type;
         s[i].mode = (uint8_t)(kind >> 7);
         s[i].value.command_type = kind & 0x0Fu;
         if ((kind & 0x70u) != 0u || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
@@ -116,9 +123,7 @@ int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, siz
 {
     dan_reader_t r;
     size_t i;
-    dan_reader_init(&r, p, len);
-    *n = dan_get_u8(&r);
-    if (*n == 0u || *n > DAN_GW_LIGHTS_MAX) {
+    if (!list_get(&r, n, 1u, DAN_GW_LIGHTS_MAX, p, len)) {
         return DAN_ERR_MALFORMED;
     }
     for (i = 0; i < *n; i++) {
@@ -128,11 +133,17 @@ int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, siz
     return dan_reader_finish(&r);
 }
 
+/* BEEP's ranges, for both directions. */
+static bool beep_ok(const dan_gw_beep_t *b)
+{
+    return b->frequency_hz >= 1u && b->frequency_hz <= DAN_GW_BEEP_HZ_MAX &&
+           b->duration_ms <= DAN_GW_BEEP_MS_MAX;
+}
+
 int dan_gw_msg_beep_encode(const dan_gw_beep_t *b, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
-    if (b == NULL || b->frequency_hz < 1u || b->frequency_hz > DAN_GW_BEEP_HZ_MAX ||
-        b->duration_ms > DAN_GW_BEEP_MS_MAX) {
+    if (b == NULL || !beep_ok(b)) {
         return DAN_ERR_ARG;
     }
     dan_writer_init(&w, out, cap);
@@ -147,8 +158,7 @@ int dan_gw_msg_beep_decode(dan_gw_beep_t *b, const uint8_t *p, size_t len)
     dan_reader_init(&r, p, len);
     b->frequency_hz = dan_get_uvarint(&r);
     b->duration_ms = dan_get_uvarint(&r);
-    if (b->frequency_hz < 1u || b->frequency_hz > DAN_GW_BEEP_HZ_MAX ||
-        b->duration_ms > DAN_GW_BEEP_MS_MAX) {
+    if (!beep_ok(b)) {
         return DAN_ERR_MALFORMED;
     }
     return dan_reader_finish(&r);

@@ -31,26 +31,27 @@ static service_t service_of(uint8_t op)
     return s;
 }
 
+/* dan_gw_value_t and dan_dc_param_value_t have the same members: one copy
+ * serves both directions. */
+#define VALUE_COPY(dst, src)                                     \
+    do {                                                         \
+        memset((dst), 0, sizeof *(dst));                         \
+        (dst)->tag = (src)->tag;                                 \
+        (dst)->boolean = (src)->boolean;                         \
+        (dst)->integer = (src)->integer;                         \
+        (dst)->real = (src)->real;                               \
+        (dst)->string_len = (src)->string_len;                   \
+        memcpy((dst)->string, (src)->string, (src)->string_len); \
+    } while (0)
+
 static void value_to_dc(dan_dc_param_value_t *d, const dan_gw_value_t *v)
 {
-    memset(d, 0, sizeof *d);
-    d->tag = v->tag;
-    d->boolean = v->boolean;
-    d->integer = v->integer;
-    d->real = v->real;
-    d->string_len = v->string_len;
-    memcpy(d->string, v->string, v->string_len);
+    VALUE_COPY(d, v);
 }
 
 static void value_from_dc(dan_gw_value_t *v, const dan_dc_param_value_t *d)
 {
-    memset(v, 0, sizeof *v);
-    v->tag = d->tag;
-    v->boolean = d->boolean;
-    v->integer = d->integer;
-    v->real = d->real;
-    v->string_len = d->string_len;
-    memcpy(v->string, d->string, d->string_len);
+    VALUE_COPY(v, d);
 }
 
 /* The DroneCAN request of a call, into k->req. */

@@ -185,11 +185,8 @@ DAN_GWN_HANDLER(dan_gwn_h_node_call);
 DAN_GWN_HANDLER(dan_gwn_h_call_result);
 DAN_GWN_HANDLER(dan_gwn_h_health);
 DAN_GWN_HANDLER(dan_gwn_h_dna);
-DAN_GWN_HANDLER(dan_gwn_h_servo);
-DAN_GWN_HANDLER(dan_gwn_h_servo_failsafe);
-DAN_GWN_HANDLER(dan_gwn_h_lights);
+DAN_GWN_HANDLER(dan_gwn_h_output); /* SERVO, SERVO_FAILSAFE, LIGHTS, BEEP */
 DAN_GWN_HANDLER(dan_gwn_h_esc_fast);
-DAN_GWN_HANDLER(dan_gwn_h_beep);
 DAN_GWN_HANDLER(dan_gwn_h_file_open);
 DAN_GWN_HANDLER(dan_gwn_h_file_write);
 DAN_GWN_HANDLER(dan_gwn_h_file_commit);

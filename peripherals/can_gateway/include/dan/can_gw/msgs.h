@@ -109,12 +109,10 @@ typedef struct {
 } dan_gw_telem_hdr_t;
 #define DAN_GW_TELEM_HDR_SIZE 3u
 
-void dan_gw_msg_telem_hdr_put(dan_writer_t *w, const dan_gw_telem_hdr_t *h);
-int dan_gw_msg_telem_hdr_get(dan_reader_t *r, dan_gw_telem_hdr_t *h);
-void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t);
+DAN_ITEM(dan_gw_msg_telem_hdr, dan_gw_telem_hdr_t);
+DAN_ITEM(dan_gw_msg_telem, dan_gw_telem_t);
 /* Bytes of one record (a size-only pass of the put). */
 size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t);
-int dan_gw_msg_telem_get(dan_reader_t *r, dan_gw_telem_t *t);
 
 /* ESC_TELEM request: uint8 first esc_index (records with index >= it). */
 
@@ -155,10 +153,8 @@ typedef struct {
     uint8_t dna;
 } dan_gw_config_t;
 
-int dan_gw_msg_config_req_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap);
-int dan_gw_msg_config_req_decode(dan_gw_config_t *c, const uint8_t *p, size_t len);
-int dan_gw_msg_config_rsp_encode(const dan_gw_config_t *c, uint8_t *out, size_t cap);
-int dan_gw_msg_config_rsp_decode(dan_gw_config_t *c, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_config_req, dan_gw_config_t);
+DAN_CODEC(dan_gw_msg_config_rsp, dan_gw_config_t);
 
 /* ---- STATS (0x46) ----
  * Request: empty. Response: uint8 n, then n uvarint counters in this order
@@ -246,11 +242,9 @@ typedef struct {
 } dan_gw_nodes_hdr_t;
 #define DAN_GW_NODES_HDR_SIZE 2u
 
-void dan_gw_msg_nodes_hdr_put(dan_writer_t *w, const dan_gw_nodes_hdr_t *h);
-int dan_gw_msg_nodes_hdr_get(dan_reader_t *r, dan_gw_nodes_hdr_t *h);
-void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n);
+DAN_ITEM(dan_gw_msg_nodes_hdr, dan_gw_nodes_hdr_t);
+DAN_ITEM(dan_gw_msg_node, dan_gw_node_entry_t);
 size_t dan_gw_msg_node_size(const dan_gw_node_entry_t *n);
-int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n);
 
 /* ---- NODE_INFO (0x48) ----
  * Request: uint8 node_id. Response: uint8 node_id, uint8 info_state, and
@@ -281,8 +275,7 @@ typedef struct {
     uint32_t since_read_ms;
 } dan_gw_node_info_t;
 
-int dan_gw_msg_node_info_encode(const dan_gw_node_info_t *i, uint8_t *out, size_t cap);
-int dan_gw_msg_node_info_decode(dan_gw_node_info_t *i, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_node_info, dan_gw_node_info_t);
 
 /* ---- TUN_OPEN (0x49) ----
  * Request: uint8 port, uint8 mode (DAN_GW_TUN_*), uint8 protocol, uint8
@@ -314,8 +307,7 @@ typedef struct {
 } dan_gw_tun_open_t;
 
 #define DAN_GW_TUN_OPEN_REQ_MAX 11u /* six bytes + a 5-byte uvarint */
-int dan_gw_msg_tun_open_encode(const dan_gw_tun_open_t *o, uint8_t *out, size_t cap);
-int dan_gw_msg_tun_open_decode(dan_gw_tun_open_t *o, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_tun_open, dan_gw_tun_open_t);
 
 /* ---- TUN_XFER (0x4A) ----
  * Request: uint8 port, uvarint wr_offset (stream offset of data[0], modulo
@@ -339,10 +331,8 @@ typedef struct {
     size_t len;
 } dan_gw_tun_xfer_t;
 
-int dan_gw_msg_tun_xfer_req_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap);
-int dan_gw_msg_tun_xfer_req_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len);
-int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap);
-int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_tun_xfer_req, dan_gw_tun_xfer_t);
+DAN_CODEC(dan_gw_msg_tun_xfer_rsp, dan_gw_tun_xfer_t);
 
 /* ---- CAN frame item (CAN_SEND, CAN_RECV) ----
  * uint32 id_flags (bits 0..28 identifier, bit 31 extended, bit 30 RTR),
@@ -353,9 +343,8 @@ int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_
     0x20000000u /* CAN_RECV: sent by the gateway itself;
                                                CAN_FILTER: passes its own frames too */
 
-void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f);
+DAN_ITEM(dan_gw_msg_can_frame, dan_can_frame_t);
 size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f);
-int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f);
 
 /* CAN_SEND request: uint8 seq, uint8 count (<= 11), frames. A request with
  * the seq of the previous accepted one is a retry: not sent again.
@@ -403,20 +392,15 @@ typedef struct {
 
 /* Header of CAN_SEND / CAN_RECV / CAN_FILTER: fixed fields before the
  * items; items follow with dan_gw_msg_can_frame_* / dan_gw_msg_filter_*. */
-void dan_gw_msg_can_send_req_put(dan_writer_t *w, const dan_gw_can_send_t *s);
-int dan_gw_msg_can_send_req_get(dan_reader_t *r, dan_gw_can_send_t *s);
-int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap);
-int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len);
+DAN_ITEM(dan_gw_msg_can_send_req, dan_gw_can_send_t);
+DAN_CODEC(dan_gw_msg_can_send_rsp, dan_gw_can_send_t);
 #define DAN_GW_CAN_RECV_REQ_MAX 7u /* a 5-byte uvarint, max, opts */
-int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap);
-int dan_gw_msg_can_recv_req_decode(dan_gw_can_recv_t *q, const uint8_t *p, size_t len);
-void dan_gw_msg_can_recv_rsp_put(dan_writer_t *w, const dan_gw_can_recv_t *q);
-int dan_gw_msg_can_recv_rsp_get(dan_reader_t *r, dan_gw_can_recv_t *q);
+DAN_CODEC(dan_gw_msg_can_recv_req, dan_gw_can_recv_t);
+DAN_ITEM(dan_gw_msg_can_recv_rsp, dan_gw_can_recv_t);
 /* op/result byte then count */
 void dan_gw_msg_filter_hdr_put(dan_writer_t *w, uint8_t op, uint8_t count);
 int dan_gw_msg_filter_hdr_get(dan_reader_t *r, uint8_t *op, uint8_t *count);
-void dan_gw_msg_filter_put(dan_writer_t *w, const dan_gw_filter_t *f);
-int dan_gw_msg_filter_get(dan_reader_t *r, dan_gw_filter_t *f);
+DAN_ITEM(dan_gw_msg_filter, dan_gw_filter_t);
 /* True if f passes filter e. */
 bool dan_gw_filter_match(const dan_gw_filter_t *e, const dan_can_frame_t *f);
 

@@ -62,8 +62,7 @@ typedef struct {
 
 /* The record of telemetry t (its esc.Status fields and age_ms). */
 dan_gw_fast_rec_t dan_gw_fast_rec_make(const dan_gw_telem_t *t, bool fresh);
-void dan_gw_msg_fast_rec_put(dan_writer_t *w, const dan_gw_fast_rec_t *rec);
-int dan_gw_msg_fast_rec_get(dan_reader_t *r, dan_gw_fast_rec_t *rec);
+DAN_ITEM(dan_gw_msg_fast_rec, dan_gw_fast_rec_t);
 
 /* Response: u8 gw_flags, then for ESC_FAST_T the record when some ESC has
  * sent esc.Status (absent otherwise). rec == NULL encodes flags only.

@@ -53,8 +53,7 @@ typedef struct {
     uint8_t flags;
 } dan_gw_file_open_t;
 
-int dan_gw_msg_file_open_encode(const dan_gw_file_open_t *o, uint8_t *out, size_t cap);
-int dan_gw_msg_file_open_decode(dan_gw_file_open_t *o, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_file_open, dan_gw_file_open_t);
 
 /* FILE_OPEN and FILE_WRITE responses: u8 result, uv have. */
 typedef struct {
@@ -62,8 +61,7 @@ typedef struct {
     uint32_t have;
 } dan_gw_file_have_t;
 
-int dan_gw_msg_file_have_encode(const dan_gw_file_have_t *h, uint8_t *out, size_t cap);
-int dan_gw_msg_file_have_decode(dan_gw_file_have_t *h, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_file_have, dan_gw_file_have_t);
 
 /* ---- FILE_WRITE (0x5C) ----
  * Request: uv offset, array data (1..DAN_GW_FILE_CHUNK_MAX). */
@@ -75,8 +73,7 @@ typedef struct {
     size_t len;
 } dan_gw_file_write_t;
 
-int dan_gw_msg_file_write_encode(const dan_gw_file_write_t *w, uint8_t *out, size_t cap);
-int dan_gw_msg_file_write_decode(dan_gw_file_write_t *w, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_file_write, dan_gw_file_write_t);
 
 /* ---- FILE_COMMIT (0x5D) ----
  * Request: u32 crc32 (of the whole file). Response: u8 result, u32 crc32
@@ -86,10 +83,8 @@ typedef struct {
     uint32_t crc32;
 } dan_gw_file_commit_t;
 
-int dan_gw_msg_file_commit_req_encode(const dan_gw_file_commit_t *c, uint8_t *out, size_t cap);
-int dan_gw_msg_file_commit_req_decode(dan_gw_file_commit_t *c, const uint8_t *p, size_t len);
-int dan_gw_msg_file_commit_rsp_encode(const dan_gw_file_commit_t *c, uint8_t *out, size_t cap);
-int dan_gw_msg_file_commit_rsp_decode(dan_gw_file_commit_t *c, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_file_commit_req, dan_gw_file_commit_t);
+DAN_CODEC(dan_gw_msg_file_commit_rsp, dan_gw_file_commit_t);
 
 /* ---- FILE_LIST (0x5E) ----
  * Request: u8 first index. Response: u8 next (DAN_GW_NONE: end), u8 count,
@@ -107,13 +102,11 @@ typedef struct {
     uint32_t size;
 } dan_gw_file_entry_t;
 
-void dan_gw_msg_file_list_hdr_put(dan_writer_t *w, const dan_gw_file_list_hdr_t *h);
-int dan_gw_msg_file_list_hdr_get(dan_reader_t *r, dan_gw_file_list_hdr_t *h);
-void dan_gw_msg_file_entry_put(dan_writer_t *w, const dan_gw_file_entry_t *e);
+DAN_ITEM(dan_gw_msg_file_list_hdr, dan_gw_file_list_hdr_t);
+/* get: a name of 0 or more than 32 bytes is malformed. */
+DAN_ITEM(dan_gw_msg_file_entry, dan_gw_file_entry_t);
 /* Bytes of one entry. */
 size_t dan_gw_msg_file_entry_size(const dan_gw_file_entry_t *e);
-/* A name of 0 or more than 32 bytes is malformed. */
-int dan_gw_msg_file_entry_get(dan_reader_t *r, dan_gw_file_entry_t *e);
 
 /* ---- FILE_REMOVE (0x5F) ----
  * Request: string name (1..32). Response: u8 result. */
@@ -137,8 +130,7 @@ typedef struct {
     uint8_t message[DAN_GW_FW_MESSAGE_MAX];
 } dan_gw_fw_result_t;
 
-int dan_gw_msg_fw_result_encode(const dan_gw_fw_result_t *r, uint8_t *out, size_t cap);
-int dan_gw_msg_fw_result_decode(dan_gw_fw_result_t *r, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_fw_result, dan_gw_fw_result_t);
 
 #ifdef __cplusplus
 }

@@ -81,8 +81,7 @@ typedef struct {
     dan_gw_value_t value; /* PARAM_SET */
 } dan_gw_call_t;
 
-int dan_gw_msg_call_encode(const dan_gw_call_t *c, uint8_t *out, size_t cap);
-int dan_gw_msg_call_decode(dan_gw_call_t *c, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_call, dan_gw_call_t);
 
 typedef struct {
     uint16_t call_id;
@@ -90,8 +89,7 @@ typedef struct {
     uint32_t result_len; /* DONE */
 } dan_gw_call_state_t;
 
-int dan_gw_msg_call_state_encode(const dan_gw_call_state_t *s, uint8_t *out, size_t cap);
-int dan_gw_msg_call_state_decode(dan_gw_call_state_t *s, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_call_state, dan_gw_call_state_t);
 
 /* ---- CALL_RESULT (0x4F) ----
  * Request: u16 call_id, uv offset, u8 max. Response: u16 call_id, u8
@@ -110,10 +108,8 @@ typedef struct {
     size_t len;
 } dan_gw_result_t;
 
-int dan_gw_msg_result_req_encode(const dan_gw_result_t *q, uint8_t *out, size_t cap);
-int dan_gw_msg_result_req_decode(dan_gw_result_t *q, const uint8_t *p, size_t len);
-int dan_gw_msg_result_rsp_encode(const dan_gw_result_t *q, uint8_t *out, size_t cap);
-int dan_gw_msg_result_rsp_decode(dan_gw_result_t *q, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_result_req, dan_gw_result_t);
+DAN_CODEC(dan_gw_msg_result_rsp, dan_gw_result_t);
 
 /* ---- call results (the bytes CALL_RESULT reads) ---- */
 
@@ -134,8 +130,7 @@ typedef struct {
     char name[DAN_GW_PARAM_NAME_MAX + 1u]; /* decode NUL-terminates */
 } dan_gw_param_t;
 
-int dan_gw_msg_param_encode(const dan_gw_param_t *p, uint8_t *out, size_t cap);
-int dan_gw_msg_param_decode(dan_gw_param_t *p, const uint8_t *b, size_t len);
+DAN_CODEC(dan_gw_msg_param, dan_gw_param_t);
 
 /* PARAM_SAVE, PARAM_ERASE: u8 ok, i48 argument (6 bytes LE). RESTART: u8
  * ok (argument 0, not sent). */
@@ -144,8 +139,7 @@ typedef struct {
     int64_t argument;
 } dan_gw_opcode_result_t;
 
-int dan_gw_msg_opcode_result_encode(const dan_gw_opcode_result_t *r, uint8_t *out, size_t cap);
-int dan_gw_msg_opcode_result_decode(dan_gw_opcode_result_t *r, const uint8_t *b, size_t len);
+DAN_CODEC(dan_gw_msg_opcode_result, dan_gw_opcode_result_t);
 
 /* ---- HEALTH (0x52) ----
  * Request: empty. Response: u8 verdict, u8 reason, u8 subject, u8 detail,
@@ -170,8 +164,7 @@ typedef struct {
     uint8_t problems;
 } dan_gw_health_t;
 
-int dan_gw_msg_health_encode(const dan_gw_health_t *h, uint8_t *out, size_t cap);
-int dan_gw_msg_health_decode(dan_gw_health_t *h, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_health, dan_gw_health_t);
 /* The reason's name ("duplicate", ...), or NULL. */
 const char *dan_gw_reason_name(unsigned reason);
 
@@ -197,10 +190,8 @@ typedef struct {
     uint8_t unique_id[DAN_DC_UNIQUE_ID_SIZE];
 } dan_gw_dna_entry_t;
 
-void dan_gw_msg_dna_hdr_put(dan_writer_t *w, const dan_gw_dna_hdr_t *h);
-int dan_gw_msg_dna_hdr_get(dan_reader_t *r, dan_gw_dna_hdr_t *h);
-void dan_gw_msg_dna_entry_put(dan_writer_t *w, const dan_gw_dna_entry_t *e);
-int dan_gw_msg_dna_entry_get(dan_reader_t *r, dan_gw_dna_entry_t *e);
+DAN_ITEM(dan_gw_msg_dna_hdr, dan_gw_dna_hdr_t);
+DAN_ITEM(dan_gw_msg_dna_entry, dan_gw_dna_entry_t);
 #define DAN_GW_DNA_ENTRY_SIZE (1u + DAN_DC_UNIQUE_ID_SIZE)
 
 #ifdef __cplusplus

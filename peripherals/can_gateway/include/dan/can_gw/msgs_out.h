@@ -19,6 +19,13 @@ extern "C" {
 #define DAN_GW_CODE_LIGHTS         0x57u /* LightsCommand */
 #define DAN_GW_CODE_BEEP           0x58u /* BeepCommand */
 
+/* Declares the codec of a list payload (u8 n, n items of TYPE):
+ *   int NAME_encode(const TYPE *m, size_t n, uint8_t *out, size_t cap);
+ *   int NAME_decode(TYPE *m, size_t *n, const uint8_t *p, size_t len); */
+#define DAN_GW_LIST_CODEC(name, type)                                     \
+    int name##_encode(const type *m, size_t n, uint8_t *out, size_t cap); \
+    int name##_decode(type *m, size_t *n, const uint8_t *p, size_t len)
+
 /* ---- SAFETY (0x54) ----
  * Request: u8 status (DAN_GW_SAFETY_ON 0, DAN_GW_SAFETY_OFF 255; anything
  * else is malformed). Response: u8 gw_flags. */
@@ -38,9 +45,8 @@ typedef struct {
     uint16_t value_f16;
 } dan_gw_servo_t;
 
-int dan_gw_msg_servo_encode(const dan_gw_servo_t *s, size_t n, uint8_t *out, size_t cap);
-/* s must hold DAN_GW_SERVO_MAX entries. */
-int dan_gw_msg_servo_decode(dan_gw_servo_t *s, size_t *n, const uint8_t *p, size_t len);
+/* decode: m must hold DAN_GW_SERVO_MAX entries. */
+DAN_GW_LIST_CODEC(dan_gw_msg_servo, dan_gw_servo_t);
 
 /* ---- SERVO_FAILSAFE (0x56) ----
  * Request: u8 n (0..DAN_GW_SERVO_MAX), n x (u8 actuator_id, u8 kind, u16
@@ -56,8 +62,7 @@ typedef struct {
     dan_gw_servo_t value;
 } dan_gw_servo_fs_t;
 
-int dan_gw_msg_servo_fs_encode(const dan_gw_servo_fs_t *s, size_t n, uint8_t *out, size_t cap);
-int dan_gw_msg_servo_fs_decode(dan_gw_servo_fs_t *s, size_t *n, const uint8_t *p, size_t len);
+DAN_GW_LIST_CODEC(dan_gw_msg_servo_fs, dan_gw_servo_fs_t);
 
 /* ---- LIGHTS (0x57) ----
  * Request: u8 n (1..20), n x (u8 light_id, u16 rgb565: red << 11 | green
@@ -69,8 +74,7 @@ typedef struct {
     uint16_t rgb565;
 } dan_gw_light_t;
 
-int dan_gw_msg_lights_encode(const dan_gw_light_t *l, size_t n, uint8_t *out, size_t cap);
-int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, size_t len);
+DAN_GW_LIST_CODEC(dan_gw_msg_lights, dan_gw_light_t);
 
 /* ---- BEEP (0x58) ----
  * Request: uv frequency_hz (1..65504), uv duration_ms (0..65504000).
@@ -85,8 +89,7 @@ typedef struct {
     uint32_t duration_ms;
 } dan_gw_beep_t;
 
-int dan_gw_msg_beep_encode(const dan_gw_beep_t *b, uint8_t *out, size_t cap);
-int dan_gw_msg_beep_decode(dan_gw_beep_t *b, const uint8_t *p, size_t len);
+DAN_CODEC(dan_gw_msg_beep, dan_gw_beep_t);
 
 #ifdef __cplusplus
 }
