@@ -234,6 +234,30 @@ void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm
            buf, dan_dc_esc_status_encode(&s, buf, sizeof buf));
 }
 
+void three_esc_statuses(int32_t esc1_rpm)
+{
+    esc_status(20, 0, 12.5f, 1.25f, 300.0f, 1000);
+    esc_status(21, 1, 16.8f, -3.14159f, 310.15f, esc1_rpm);
+    esc_status(22, 3, 25.2f, 123.456f, 320.0f, 131071);
+}
+
+void assert_round_robin_013(const uint8_t *order, size_t n)
+{
+    static const uint8_t cycle[3] = {0, 1, 3};
+    size_t i;
+    for (i = 0; i < n; i++) {
+        assert_int_equal(order[i], cycle[i % 3u]);
+    }
+}
+
+void esc_status_ext_from(uint8_t src, const dan_dc_esc_status_extended_t *x)
+{
+    uint8_t buf[DAN_DC_ESC_STATUS_EXTENDED_MAX_SIZE];
+    inject(src, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
+           DAN_DC_TRANSFER_BROADCAST, 0, buf,
+           dan_dc_esc_status_extended_encode(x, buf, sizeof buf));
+}
+
 void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode)
 {
     dan_dc_node_status_t s;

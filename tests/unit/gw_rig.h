@@ -77,6 +77,14 @@ void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode
 void config_set(uint8_t mask, uint32_t value);
 /* An esc.Status from fake node src. */
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm);
+/* esc.Status of ESCs 0, 1 and 3 from nodes 20, 21 and 22 (12.5 V, 16.8 V,
+ * 25.2 V; rpm 1000, esc1_rpm, 131071): the round-robin tests' three ESCs. */
+void three_esc_statuses(int32_t esc1_rpm);
+/* order[0..n-1], the ESC of each telemetry record, is their round robin:
+ * 0, 1, 3, 0, 1, 3, ... */
+void assert_round_robin_013(const uint8_t *order, size_t n);
+/* An esc.StatusExtended from fake node src. */
+void esc_status_ext_from(uint8_t src, const dan_dc_esc_status_extended_t *x);
 int setup(void **state);
 int teardown(void **state);
 

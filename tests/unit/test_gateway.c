@@ -88,11 +88,8 @@ static void test_telemetry_round_robin(void **state)
     size_t i;
     dan_gw_telem_hdr_t h;
     dan_dc_esc_status_extended_t x;
-    uint8_t buf[8];
     (void)state;
-    esc_status(20, 0, 12.5f, 1.25f, 300.0f, 1000);
-    esc_status(21, 1, 16.8f, -3.14159f, 310.15f, -2000);
-    esc_status(22, 3, 25.2f, 123.456f, 320.0f, 131071);
+    three_esc_statuses(-2000);
     memset(&x, 0, sizeof x);
     x.esc_index = 3;
     x.input_pct = 50;
@@ -100,20 +97,13 @@ static void test_telemetry_round_robin(void **state)
     x.motor_temperature_degC = -40;
     x.motor_angle = 359;
     x.status_flags = 370085;
-    inject(22, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
-           DAN_DC_TRANSFER_BROADCAST, 0, buf,
-           dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+    esc_status_ext_from(22, &x);
     for (i = 0; i < 6; i++) {
         call_ok(dan_gw_esc_command(&R->gw, v, 4, R->bus.now));
         assert_int_equal(R->gw.esc_seen, 3);
         order[i] = R->gw.last_telem;
     }
-    assert_int_equal(order[0], 0);
-    assert_int_equal(order[1], 1);
-    assert_int_equal(order[2], 3);
-    assert_int_equal(order[3], 0);
-    assert_int_equal(order[4], 1);
-    assert_int_equal(order[5], 3);
+    assert_round_robin_013(order, 6);
     /* values are the float16 the ESC sent */
     assert_true(dan_f16_to_f32(R->gw.esc[0].voltage_f16) == 12.5f);
     assert_int_equal(R->gw.esc[1].voltage_f16, dan_f16_from_f32(16.8f));
@@ -801,7 +791,6 @@ static void test_stalled_can_latest_throttle_wins(void **state)
  * (found by review: a full page became "response too large"). */
 static void test_full_pages_leave_room_for_the_seal(void **state)
 {
-    uint8_t buf[8];
     size_t i;
     dan_dc_esc_status_extended_t x;
     (void)state;
@@ -815,9 +804,7 @@ static void test_full_pages_leave_room_for_the_seal(void **state)
             memset(&x, 0, sizeof x);
             x.esc_index = (uint8_t)i;
             x.status_flags = 0x7FFFF;
-            inject((uint8_t)(30 + i), DAN_DC_ESC_STATUS_EXTENDED_ID,
-                   DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
-                   dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+            esc_status_ext_from((uint8_t)(30 + i), &x);
         }
         do {
             dan_reader_t r;
