@@ -1046,18 +1046,24 @@ static void dsdl_mgmt(uint16_t dtid, const uint8_t *p, size_t n)
     }
 }
 
-/* A DSDL type's round trip: what decodes re-encodes to at least min_len
- * bytes, which decode again to a value that `same` (over a_ and b_) holds
- * equal to the first. */
-#define DSDL_ROUND_TRIP(T, name, p, n, buf, min_len, same)                                \
+/* A DSDL type's round trip (type name##_t): what decodes re-encodes to at
+ * least min_len bytes, which decode again to a value that `same` (over a_
+ * and b_) holds equal to the first. */
+#define DSDL_ROUND_TRIP(name, min_len, same)                                              \
     do {                                                                                  \
-        T a_, b_;                                                                         \
+        name##_t a_, b_;                                                                  \
         if (name##_decode(&a_, p, n) == DAN_OK) {                                         \
             int r_ = name##_encode(&a_, buf, sizeof buf);                                 \
             FUZZ_CHECK(r_ >= (min_len) && name##_decode(&b_, buf, (size_t)r_) == DAN_OK); \
             FUZZ_CHECK(same);                                                             \
         }                                                                                 \
     } while (0)
+/* ... for the types with no padding or unused bytes: the whole struct. */
+#define DSDL_SAME_STRUCT(name) DSDL_ROUND_TRIP(name, 1, !memcmp(&a_, &b_, sizeof a_))
+/* ... for a counted list (encodes to 0 bytes when empty). */
+#define DSDL_SAME_LIST(name, list) \
+    DSDL_ROUND_TRIP(               \
+        name, 0, a_.count == b_.count && !memcmp(a_.list, b_.list, a_.count * sizeof a_.list[0]))
 
 /* Decodes payload as data type dtid; what decodes must re-encode, and the
  * exact-integer types must come back identical. */
@@ -1067,7 +1073,7 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     int r;
     switch (dtid) {
     case DAN_DC_NODE_STATUS_ID:
-        DSDL_ROUND_TRIP(dan_dc_node_status_t, dan_dc_node_status, p, n, buf, 1,
+        DSDL_ROUND_TRIP(dan_dc_node_status, 1,
                         a_.uptime_sec == b_.uptime_sec && a_.health == b_.health &&
                             a_.mode == b_.mode && a_.sub_mode == b_.sub_mode &&
                             a_.vendor_specific_status_code == b_.vendor_specific_status_code);
@@ -1107,30 +1113,16 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         break;
     }
     case DAN_DC_ESC_STATUS_EXTENDED_ID:
-        DSDL_ROUND_TRIP(dan_dc_esc_status_extended_t, dan_dc_esc_status_extended, p, n, buf, 1,
+        DSDL_ROUND_TRIP(dan_dc_esc_status_extended, 1,
                         a_.input_pct == b_.input_pct && a_.output_pct == b_.output_pct &&
                             a_.motor_temperature_degC == b_.motor_temperature_degC &&
                             a_.motor_angle == b_.motor_angle &&
                             a_.status_flags == b_.status_flags && a_.esc_index == b_.esc_index);
         break;
-    case DAN_DC_ARMING_STATUS_ID:
-        DSDL_ROUND_TRIP(dan_dc_arming_status_t, dan_dc_arming_status, p, n, buf, 1,
-                        !memcmp(&a_, &b_, sizeof a_));
-        break;
-    case DAN_DC_ARRAY_COMMAND_ID:
-        DSDL_ROUND_TRIP(dan_dc_array_command_t, dan_dc_array_command, p, n, buf, 0,
-                        a_.count == b_.count &&
-                            !memcmp(a_.cmd, b_.cmd, a_.count * sizeof a_.cmd[0]));
-        break;
-    case DAN_DC_LIGHTS_COMMAND_ID:
-        DSDL_ROUND_TRIP(dan_dc_lights_command_t, dan_dc_lights_command, p, n, buf, 0,
-                        a_.count == b_.count &&
-                            !memcmp(a_.light, b_.light, a_.count * sizeof a_.light[0]));
-        break;
-    case DAN_DC_BEEP_COMMAND_ID:
-        DSDL_ROUND_TRIP(dan_dc_beep_command_t, dan_dc_beep_command, p, n, buf, 1,
-                        !memcmp(&a_, &b_, sizeof a_));
-        break;
+    case DAN_DC_ARMING_STATUS_ID: DSDL_SAME_STRUCT(dan_dc_arming_status); break;
+    case DAN_DC_ARRAY_COMMAND_ID: DSDL_SAME_LIST(dan_dc_array_command, cmd); break;
+    case DAN_DC_LIGHTS_COMMAND_ID: DSDL_SAME_LIST(dan_dc_lights_command, light); break;
+    case DAN_DC_BEEP_COMMAND_ID: DSDL_SAME_STRUCT(dan_dc_beep_command); break;
     case DAN_DC_SAFETY_STATE_ID: {
         uint8_t a, b;
         if (dan_dc_safety_state_decode(&a, p, n) == DAN_OK) {
@@ -1140,10 +1132,7 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
-    case DAN_DC_TEMPERATURE_ID:
-        DSDL_ROUND_TRIP(dan_dc_temperature_t, dan_dc_temperature, p, n, buf, 1,
-                        !memcmp(&a_, &b_, sizeof a_));
-        break;
+    case DAN_DC_TEMPERATURE_ID: DSDL_SAME_STRUCT(dan_dc_temperature); break;
     case DAN_DC_FILE_READ_ID:
     case DAN_DC_FILE_GETINFO_ID: dsdl_file(dtid, p, n, buf, sizeof buf); break;
     case DAN_DC_PARAM_GETSET_ID:
