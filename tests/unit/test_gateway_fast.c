@@ -67,13 +67,10 @@ static void test_fast_record_round_robin(void **state)
     const int16_t v[4] = {10, 20, 30, 40};
     uint8_t order[7];
     size_t i;
-    dan_dc_esc_status_extended_t x;
     (void)state;
     three_esc_statuses(-131072);
     /* an ESC with StatusExtended only has nothing for the compact record */
-    memset(&x, 0, sizeof x);
-    x.esc_index = 5;
-    esc_status_ext_from(25, &x);
+    esc_status_ext_from(25, &(const dan_dc_esc_status_extended_t){.esc_index = 5});
     advance(10000); /* 10 ms: age 2 units of 4 ms */
     for (i = 0; i < 7; i++) {
         call_ok(dan_gw_esc_fast(&R->gw, v, 4, true, R->bus.now));
