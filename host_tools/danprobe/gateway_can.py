@@ -130,10 +130,7 @@ class CanSendRequest:
             raise ValueError(f"CAN_SEND: at most {CAN_FRAMES_MAX} frames")
         if any(f.own for f in self.frames):
             raise ValueError("CAN_SEND: bit 29 (own) is for received frames only")
-        w = Writer().u8(self.seq).u8(len(self.frames))
-        for f in self.frames:
-            f.put(w)
-        return w.bytes()
+        return Writer().u8(self.seq).items(self.frames).bytes()
 
     @classmethod
     def decode(cls, payload) -> "CanSendRequest":

@@ -428,16 +428,13 @@ class Telemetry:
     records: list[TelemRecord] = field(default_factory=list)
 
     def encode(self) -> bytes:
-        w = Writer().u8(self.flags).u8(self.aux).u8(len(self.records))
-        for t in self.records:
-            t.put(w)
-        return w.bytes()
+        return Writer().u8(self.flags).u8(self.aux).items(self.records).bytes()
 
     @classmethod
     def decode(cls, payload) -> "Telemetry":
         r = Reader(payload)
         t = cls(r.u8("flags"), r.u8("aux"))
-        t.records = [TelemRecord.get(r) for _ in range(r.u8("count"))]
+        t.records = r.items(TelemRecord.get)
         return t
 
     def as_dict(self) -> dict:
@@ -652,16 +649,13 @@ class NodesPage:
     entries: list[NodeEntry] = field(default_factory=list)
 
     def encode(self) -> bytes:
-        w = Writer().u8(self.next).u8(len(self.entries))
-        for e in self.entries:
-            e.put(w)
-        return w.bytes()
+        return Writer().u8(self.next).items(self.entries).bytes()
 
     @classmethod
     def decode(cls, payload) -> "NodesPage":
         r = Reader(payload)
         p = cls(r.u8("next"))
-        p.entries = [NodeEntry.get(r) for _ in range(r.u8("count"))]
+        p.entries = r.items(NodeEntry.get)
         return p
 
     def as_dict(self) -> dict:

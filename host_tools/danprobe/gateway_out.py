@@ -119,10 +119,7 @@ class _ItemList:
         items = getattr(self, self.FIELD)
         if not self.MIN <= len(items) <= self.MAX:
             raise ValueError(f"{self.NAME}: {self.MIN}..{self.MAX} {self.KEY}, not {len(items)}")
-        w = Writer().u8(len(items))
-        for x in items:
-            x.put(w)
-        return w.bytes()
+        return Writer().items(items).bytes()
 
     @classmethod
     def decode(cls, payload):

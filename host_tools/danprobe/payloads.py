@@ -107,6 +107,10 @@ class Reader:
     def string(self, what: str = "string") -> str:
         return self.array(what).decode("utf-8", "backslashreplace")
 
+    def items(self, get, what: str = "count") -> list:
+        """A u8 count, then that many items, each get(reader)."""
+        return [get(self) for _ in range(self.u8(what))]
+
 
 class Writer:
     def __init__(self):
@@ -143,6 +147,13 @@ class Writer:
 
     def string(self, s: str) -> "Writer":
         return self.array(s.encode("utf-8"))
+
+    def items(self, items) -> "Writer":
+        """A u8 count, then each item's put(writer)."""
+        self.u8(len(items))
+        for x in items:
+            x.put(self)
+        return self
 
     def bytes(self) -> bytes:
         return bytes(self.buf)

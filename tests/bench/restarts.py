@@ -137,6 +137,25 @@ def check_values(log, runs):
     return bad
 
 
+def recovery_summary(rec, failed) -> dict:
+    """The report's recovery keys, from recoveries()' result."""
+    return {
+        "recovered": len(rec),
+        "not_recovered": failed,
+        "recovery_worst_s": max(rec) if rec else None,
+        "recovery_median_s": sorted(rec)[len(rec) // 2] if rec else None,
+    }
+
+
+def commands_summary(log, bad) -> dict:
+    """The report's command keys: how many the ESC saw, and check_values()' misses."""
+    return {
+        "commands": len(log.cmds),
+        "wrong_commands": len(bad),
+        "wrong_examples": bad[:5],
+    }
+
+
 def fc_restarts(build, count, baud, rng, early_share=0.3):
     with tempfile.TemporaryDirectory(prefix="danrestart-") as tmp:
         tmp = Path(tmp)
@@ -202,16 +221,11 @@ def fc_restarts(build, count, baud, rng, early_share=0.3):
         "baud": baud,
         "restarts": count,
         "early_kills_besides": early,
-        "recovered": len(rec),
-        "not_recovered": failed,
-        "recovery_worst_s": max(rec) if rec else None,
-        "recovery_median_s": sorted(rec)[len(rec) // 2] if rec else None,
+        **recovery_summary(rec, failed),
         "failsafe_checks": len(failsafe),
         "failsafe_worst_s": max((x for x in failsafe if x is not None), default=None),
         "failsafe_late": len(bad_failsafe),
-        "commands": len(log.cmds),
-        "wrong_commands": len(bad),
-        "wrong_examples": bad[:5],
+        **commands_summary(log, bad),
     }
 
 
@@ -251,13 +265,8 @@ def gateway_restarts(build, count, baud, rng):
         "scenario": "gateway",
         "baud": baud,
         "restarts": count,
-        "recovered": len(rec),
-        "not_recovered": failed,
-        "recovery_worst_s": max(rec) if rec else None,
-        "recovery_median_s": sorted(rec)[len(rec) // 2] if rec else None,
-        "commands": len(log.cmds),
-        "wrong_commands": len(bad),
-        "wrong_examples": bad[:5],
+        **recovery_summary(rec, failed),
+        **commands_summary(log, bad),
     }
 
 

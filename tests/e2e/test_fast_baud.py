@@ -184,11 +184,9 @@ def gw_rig(procs, tmp_path):
     yield from closing_factory(lambda **kw: Rig(procs, tmp_path, **kw))
 
 
-@pytest.mark.parametrize("baud", [1000000, 2000000])
-def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
-    """dan-gatewayd accepts the fast bauds by default; dan-fcsim moves the
-    bus to 1M / 2M; ESC values reach the ESC node exactly, telemetry comes
-    back exactly, and the failsafe (300 ms) still fires on time."""
+def esc_rig(gw_rig):
+    """The gateway (ESC timeout 300 ms) and ESC node 20; raw gets each
+    RawCommand the node receives as (when, values)."""
     r = gw_rig(gw_args=["--esc-timeout-ms", "300"])
     esc = r.node(1, 20, "org.test.esc_a")
     raw = []
@@ -198,6 +196,25 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
         U.equipment.esc.RawCommand,
         lambda e: raw.append((e.transfer.ts_monotonic, list(e.message.cmd))),
     )
+    return r, esc, raw
+
+
+def failsafe_after(raw, n, values):
+    """In what the ESC got since raw[n]: (the last command of values, the
+    first zeros after it, all of it), or None before the zeros. In the order
+    received: an earlier FC's failsafe zeros come before its commands."""
+    got = raw[n:]
+    ours = [i for i, (_, c) in enumerate(got) if c == values]
+    zeros = [t for t, c in got[ours[-1] + 1 :] if c == [0, 0, 0, 0]] if ours else []
+    return (got[ours[-1]][0], zeros[0], got) if zeros else None
+
+
+@pytest.mark.parametrize("baud", [1000000, 2000000])
+def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
+    """dan-gatewayd accepts the fast bauds by default; dan-fcsim moves the
+    bus to 1M / 2M; ESC values reach the ESC node exactly, telemetry comes
+    back exactly, and the failsafe (300 ms) still fires on time."""
+    r, esc, raw = esc_rig(gw_rig)
     tele = {0: (12.5, 1.25, 300.0, 1000), 1: (16.8, -3.14159, 310.15, -2000)}
 
     def publish():
@@ -238,15 +255,11 @@ def test_gateway_esc_loop_and_failsafe(gw_rig, baud):
     rc, out = r.fcsim("discover", "esc:500,500,500,500@500@50", "stop", opts=fast)
     assert rc == 0 and step(out, "discover")[0]["baud"] == baud, out
 
-    def failsafe():
-        """(last command, first zeros after it), in the order received: the
-        earlier FC's failsafe zeros come before its commands."""
-        got = raw[n:]
-        ours = [i for i, (_, c) in enumerate(got) if c == [500, 500, 500, 500]]
-        zeros = [t for t, c in got[ours[-1] + 1 :] if c == [0, 0, 0, 0]] if ours else []
-        return (got[ours[-1]][0], zeros[0]) if zeros else None
-
-    last, zero = wait_for(failsafe, 20, what="zero throttle after the last command")
+    last, zero, _ = wait_for(
+        lambda: failsafe_after(raw, n, [500, 500, 500, 500]),
+        20,
+        what="zero throttle after the last command",
+    )
     print(f"failsafe at {baud}: zeros {1000 * (zero - last):.0f} ms after the last command")
     assert 0.25 <= zero - last <= 2.0
 
@@ -255,13 +268,7 @@ def test_every_fast_baud_exact_values_and_failsafe(gw_rig):
     """At each of the other fast bauds (1M and 2M above): dan-fcsim moves the
     bus there, exactly its values reach the ESC node, and after the FC
     stops the failsafe's zeros come no sooner than the timeout (300 ms)."""
-    r = gw_rig(gw_args=["--esc-timeout-ms", "300"])
-    esc = r.node(1, 20, "org.test.esc_a")
-    raw = []
-    esc.add_handler(
-        U.equipment.esc.RawCommand,
-        lambda e: raw.append((e.transfer.ts_monotonic, list(e.message.cmd))),
-    )
+    r, esc, raw = esc_rig(gw_rig)
     r.spin(esc)
     for k, baud in enumerate(b for b in FAST if b not in (1000000, 2000000)):
         values = [10 + k, -20 - k, 30 + k, 8191 - k]
@@ -275,13 +282,11 @@ def test_every_fast_baud_exact_values_and_failsafe(gw_rig):
         )
         assert rc == 0 and step(out, "configure")[0]["baud"] == baud, out
 
-        def failsafe(n=n, values=values):
-            got = raw[n:]
-            ours = [i for i, (_, c) in enumerate(got) if c == values]
-            zeros = [t for t, c in got[ours[-1] + 1 :] if c == [0, 0, 0, 0]] if ours else []
-            return (got[ours[-1]][0], zeros[0], got) if zeros else None
-
-        last, zero, got = wait_for(failsafe, 20, what=f"the failsafe at {baud}")
+        last, zero, got = wait_for(
+            lambda n=n, values=values: failsafe_after(raw, n, values),
+            20,
+            what=f"the failsafe at {baud}",
+        )
         # nothing but this run's values (and the zeros of the failsafes)
         assert {tuple(c) for _, c in got} <= {tuple(values), (0, 0, 0, 0)}, (baud, got)
         print(f"\n{baud}: exact values, zeros {1000 * (zero - last):.0f} ms after the last")

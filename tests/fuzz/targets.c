@@ -1046,6 +1046,25 @@ static void dsdl_mgmt(uint16_t dtid, const uint8_t *p, size_t n)
     }
 }
 
+/* A DSDL type's round trip (type name##_t): what decodes re-encodes to at
+ * least min_len bytes, which decode again to a value that `same` (over a_
+ * and b_) holds equal to the first. */
+#define DSDL_ROUND_TRIP(name, min_len, same)                                              \
+    do {                                                                                  \
+        name##_t a_, b_;                                                                  \
+        if (name##_decode(&a_, p, n) == DAN_OK) {                                         \
+            int r_ = name##_encode(&a_, buf, sizeof buf);                                 \
+            FUZZ_CHECK(r_ >= (min_len) && name##_decode(&b_, buf, (size_t)r_) == DAN_OK); \
+            FUZZ_CHECK(same);                                                             \
+        }                                                                                 \
+    } while (0)
+/* ... for the types with no padding or unused bytes: the whole struct. */
+#define DSDL_SAME_STRUCT(name) DSDL_ROUND_TRIP(name, 1, !memcmp(&a_, &b_, sizeof a_))
+/* ... for a counted list (encodes to 0 bytes when empty). */
+#define DSDL_SAME_LIST(name, list) \
+    DSDL_ROUND_TRIP(               \
+        name, 0, a_.count == b_.count && !memcmp(a_.list, b_.list, a_.count * sizeof a_.list[0]))
+
 /* Decodes payload as data type dtid; what decodes must re-encode, and the
  * exact-integer types must come back identical. */
 static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
@@ -1053,17 +1072,12 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
     uint8_t buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
     int r;
     switch (dtid) {
-    case DAN_DC_NODE_STATUS_ID: {
-        dan_dc_node_status_t a, b;
-        if (dan_dc_node_status_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_node_status_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r > 0 && dan_dc_node_status_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(a.uptime_sec == b.uptime_sec && a.health == b.health && a.mode == b.mode &&
-                       a.sub_mode == b.sub_mode &&
-                       a.vendor_specific_status_code == b.vendor_specific_status_code);
-        }
+    case DAN_DC_NODE_STATUS_ID:
+        DSDL_ROUND_TRIP(dan_dc_node_status, 1,
+                        a_.uptime_sec == b_.uptime_sec && a_.health == b_.health &&
+                            a_.mode == b_.mode && a_.sub_mode == b_.sub_mode &&
+                            a_.vendor_specific_status_code == b_.vendor_specific_status_code);
         break;
-    }
     case DAN_DC_GET_NODE_INFO_ID: { /* also the Allocation's ID (a broadcast) */
         static dan_dc_get_node_info_rsp_t a, b;
         dsdl_mgmt(DAN_DC_ALLOCATION_ID, p, n);
@@ -1098,55 +1112,17 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
-    case DAN_DC_ESC_STATUS_EXTENDED_ID: {
-        dan_dc_esc_status_extended_t a, b;
-        if (dan_dc_esc_status_extended_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_esc_status_extended_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r > 0 && dan_dc_esc_status_extended_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(a.input_pct == b.input_pct && a.output_pct == b.output_pct &&
-                       a.motor_temperature_degC == b.motor_temperature_degC &&
-                       a.motor_angle == b.motor_angle && a.status_flags == b.status_flags &&
-                       a.esc_index == b.esc_index);
-        }
+    case DAN_DC_ESC_STATUS_EXTENDED_ID:
+        DSDL_ROUND_TRIP(dan_dc_esc_status_extended, 1,
+                        a_.input_pct == b_.input_pct && a_.output_pct == b_.output_pct &&
+                            a_.motor_temperature_degC == b_.motor_temperature_degC &&
+                            a_.motor_angle == b_.motor_angle &&
+                            a_.status_flags == b_.status_flags && a_.esc_index == b_.esc_index);
         break;
-    }
-    case DAN_DC_ARMING_STATUS_ID: {
-        dan_dc_arming_status_t a, b;
-        if (dan_dc_arming_status_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_arming_status_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r > 0 && dan_dc_arming_status_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(!memcmp(&a, &b, sizeof a));
-        }
-        break;
-    }
-    case DAN_DC_ARRAY_COMMAND_ID: {
-        dan_dc_array_command_t a, b;
-        if (dan_dc_array_command_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_array_command_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r >= 0 && dan_dc_array_command_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(a.count == b.count && !memcmp(a.cmd, b.cmd, a.count * sizeof a.cmd[0]));
-        }
-        break;
-    }
-    case DAN_DC_LIGHTS_COMMAND_ID: {
-        dan_dc_lights_command_t a, b;
-        if (dan_dc_lights_command_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_lights_command_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r >= 0 && dan_dc_lights_command_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(a.count == b.count &&
-                       !memcmp(a.light, b.light, a.count * sizeof a.light[0]));
-        }
-        break;
-    }
-    case DAN_DC_BEEP_COMMAND_ID: {
-        dan_dc_beep_command_t a, b;
-        if (dan_dc_beep_command_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_beep_command_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r > 0 && dan_dc_beep_command_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(!memcmp(&a, &b, sizeof a));
-        }
-        break;
-    }
+    case DAN_DC_ARMING_STATUS_ID: DSDL_SAME_STRUCT(dan_dc_arming_status); break;
+    case DAN_DC_ARRAY_COMMAND_ID: DSDL_SAME_LIST(dan_dc_array_command, cmd); break;
+    case DAN_DC_LIGHTS_COMMAND_ID: DSDL_SAME_LIST(dan_dc_lights_command, light); break;
+    case DAN_DC_BEEP_COMMAND_ID: DSDL_SAME_STRUCT(dan_dc_beep_command); break;
     case DAN_DC_SAFETY_STATE_ID: {
         uint8_t a, b;
         if (dan_dc_safety_state_decode(&a, p, n) == DAN_OK) {
@@ -1156,15 +1132,7 @@ static void dsdl_any(uint16_t dtid, const uint8_t *p, size_t n)
         }
         break;
     }
-    case DAN_DC_TEMPERATURE_ID: {
-        dan_dc_temperature_t a, b;
-        if (dan_dc_temperature_decode(&a, p, n) == DAN_OK) {
-            r = dan_dc_temperature_encode(&a, buf, sizeof buf);
-            FUZZ_CHECK(r > 0 && dan_dc_temperature_decode(&b, buf, (size_t)r) == DAN_OK);
-            FUZZ_CHECK(!memcmp(&a, &b, sizeof a));
-        }
-        break;
-    }
+    case DAN_DC_TEMPERATURE_ID: DSDL_SAME_STRUCT(dan_dc_temperature); break;
     case DAN_DC_FILE_READ_ID:
     case DAN_DC_FILE_GETINFO_ID: dsdl_file(dtid, p, n, buf, sizeof buf); break;
     case DAN_DC_PARAM_GETSET_ID:
@@ -1357,6 +1325,19 @@ int dan_fuzz_slcan(const uint8_t *data, size_t len)
 
 static dan_master_t fz_master;
 
+/* A paged response: its header, then each entry the reader gives (at most
+ * the header's count), each through check (a statement over e_, or none). */
+#define FZ_WALK_ENTRIES(H, E, begin, next, check)                       \
+    do {                                                                \
+        H h_;                                                           \
+        E e_;                                                           \
+        if (begin(&gw, &r, &h_) == DAN_OK) {                            \
+            for (i = 0; i < h_.count && next(&r, &e_) == DAN_OK; i++) { \
+                check;                                                  \
+            }                                                           \
+        }                                                               \
+    } while (0)
+
 /* data[0] % 28: response code 0x42 + k up to 0x4F, then 0x52 + (k - 14)
  * up to 0x5F (HEALTH, DNA, the outputs, reserved ones); data[1]: tunnel port and client offsets seed; the rest is
  * the response payload. */
@@ -1401,15 +1382,10 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
     FUZZ_CHECK(gw.code == 0u);
     FUZZ_CHECK(gw.result == DAN_OK || gw.result < 0);
     switch (code) {
-    case DAN_GW_CODE_NODES: {
-        dan_gw_nodes_hdr_t h;
-        dan_gw_node_entry_t e;
-        if (dan_gw_nodes_begin(&gw, &r, &h) == DAN_OK) {
-            for (i = 0; i < h.count && dan_gw_nodes_next(&r, &e) == DAN_OK; i++) {
-            }
-        }
+    case DAN_GW_CODE_NODES:
+        FZ_WALK_ENTRIES(dan_gw_nodes_hdr_t, dan_gw_node_entry_t, dan_gw_nodes_begin,
+                        dan_gw_nodes_next, );
         break;
-    }
     case DAN_GW_CODE_NODE_INFO: {
         dan_gw_node_info_t ni;
         if (dan_gw_node_info_get(&gw, &ni) == DAN_OK) {
@@ -1425,16 +1401,10 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
         }
         break;
     }
-    case DAN_GW_CODE_CAN_RECV: {
-        dan_gw_can_recv_t q;
-        dan_can_frame_t f;
-        if (dan_gw_can_begin(&gw, &r, &q) == DAN_OK) {
-            for (i = 0; i < q.count && dan_gw_can_next(&r, &f) == DAN_OK; i++) {
-                FUZZ_CHECK(f.dlc <= 8u);
-            }
-        }
+    case DAN_GW_CODE_CAN_RECV:
+        FZ_WALK_ENTRIES(dan_gw_can_recv_t, dan_can_frame_t, dan_gw_can_begin, dan_gw_can_next,
+                        FUZZ_CHECK(e_.dlc <= 8u));
         break;
-    }
     case DAN_GW_CODE_CAN_FILTER: {
         uint8_t res, cnt;
         dan_gw_filter_t f;
@@ -1453,25 +1423,14 @@ int dan_fuzz_gw_client(const uint8_t *data, size_t len)
         }
         break;
     }
-    case DAN_GW_CODE_DNA: {
-        dan_gw_dna_hdr_t h;
-        dan_gw_dna_entry_t e;
-        if (dan_gw_dna_begin(&gw, &r, &h) == DAN_OK) {
-            for (i = 0; i < h.count && dan_gw_dna_next(&r, &e) == DAN_OK; i++) {
-            }
-        }
+    case DAN_GW_CODE_DNA:
+        FZ_WALK_ENTRIES(dan_gw_dna_hdr_t, dan_gw_dna_entry_t, dan_gw_dna_begin, dan_gw_dna_next, );
         break;
-    }
-    case DAN_GW_CODE_FILE_LIST: {
-        dan_gw_file_list_hdr_t h;
-        dan_gw_file_entry_t e;
-        if (dan_gw_file_list_begin(&gw, &r, &h) == DAN_OK) {
-            for (i = 0; i < h.count && dan_gw_file_list_next(&r, &e) == DAN_OK; i++) {
-                FUZZ_CHECK(e.name_len >= 1u && strlen(e.name) <= e.name_len);
-            }
-        }
+    case DAN_GW_CODE_FILE_LIST:
+        FZ_WALK_ENTRIES(dan_gw_file_list_hdr_t, dan_gw_file_entry_t, dan_gw_file_list_begin,
+                        dan_gw_file_list_next,
+                        FUZZ_CHECK(e_.name_len >= 1u && strlen(e_.name) <= e_.name_len));
         break;
-    }
     case DAN_GW_CODE_FILE_OPEN:
     case DAN_GW_CODE_FILE_WRITE:
     case DAN_GW_CODE_FILE_COMMIT:

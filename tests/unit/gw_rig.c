@@ -234,6 +234,62 @@ void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm
            buf, dan_dc_esc_status_encode(&s, buf, sizeof buf));
 }
 
+void expect_flag_broadcast(int started, uint8_t flag, uint16_t dtid, uint8_t value, size_t *from)
+{
+    const uint64_t t0 = R->bus.now; /* when the request went out */
+    cap_t *c;
+    int n = 0;
+    assert_int_equal(started, DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_true(R->gw.gw_flags & flag);
+    c = expect_cap(dtid, DAN_DC_TRANSFER_BROADCAST, from);
+    assert_int_equal(c->payload[0], value);
+    assert_true(c->at_us - t0 < 20000u);
+    advance(2000000);
+    while ((c = find_cap(dtid, DAN_DC_TRANSFER_BROADCAST, from)) != NULL) {
+        assert_int_equal(c->payload[0], value);
+        n++;
+    }
+    assert_true(n >= 3 && n <= 5);
+}
+
+int tunnel_open_start(uint8_t port, uint8_t mode, uint8_t protocol, uint8_t target, int8_t serial,
+                      uint8_t options, uint32_t baud)
+{
+    const dan_gw_tun_open_t o = {.port = port,
+                                 .mode = mode,
+                                 .protocol = protocol,
+                                 .target = target,
+                                 .serial_id = serial,
+                                 .options = options,
+                                 .baud = baud};
+    return dan_gw_tunnel_open(&R->gw, &o, R->bus.now);
+}
+
+void three_esc_statuses(int32_t esc1_rpm)
+{
+    esc_status(20, 0, 12.5f, 1.25f, 300.0f, 1000);
+    esc_status(21, 1, 16.8f, -3.14159f, 310.15f, esc1_rpm);
+    esc_status(22, 3, 25.2f, 123.456f, 320.0f, 131071);
+}
+
+void assert_round_robin_013(const uint8_t *order, size_t n)
+{
+    static const uint8_t cycle[3] = {0, 1, 3};
+    size_t i;
+    for (i = 0; i < n; i++) {
+        assert_int_equal(order[i], cycle[i % 3u]);
+    }
+}
+
+void esc_status_ext_from(uint8_t src, const dan_dc_esc_status_extended_t *x)
+{
+    uint8_t buf[DAN_DC_ESC_STATUS_EXTENDED_MAX_SIZE];
+    inject(src, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
+           DAN_DC_TRANSFER_BROADCAST, 0, buf,
+           dan_dc_esc_status_extended_encode(x, buf, sizeof buf));
+}
+
 void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode)
 {
     dan_dc_node_status_t s;
@@ -244,6 +300,20 @@ void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode
     s.mode = mode;
     inject(src, DAN_DC_NODE_STATUS_ID, DAN_DC_NODE_STATUS_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0,
            buf, dan_dc_node_status_encode(&s, buf, sizeof buf));
+}
+
+void tunnel_targetted_from(uint8_t src, int8_t serial, const uint8_t *d, size_t n)
+{
+    dan_dc_tunnel_targetted_t m;
+    uint8_t buf[DAN_DC_TUNNEL_TARGETTED_MAX_SIZE];
+    memset(&m, 0, sizeof m);
+    m.protocol = DAN_DC_TUNNEL_UNDEFINED;
+    m.target_node = 10;
+    m.serial_id = serial;
+    m.buffer_len = (uint8_t)n;
+    memcpy(m.buffer, d, n);
+    inject(src, DAN_DC_TUNNEL_TARGETTED_ID, DAN_DC_TUNNEL_TARGETTED_SIGNATURE,
+           DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_tunnel_targetted_encode(&m, buf, sizeof buf));
 }
 
 void file_read_from(uint8_t src, uint64_t offset, const char *path)

@@ -68,15 +68,35 @@ void inject(uint8_t src, uint16_t dtid, uint64_t sig, uint8_t tt, uint8_t dst,
  * went to, with c's transfer ID. */
 void answer_cap(const cap_t *c, uint16_t dtid, uint64_t sig, uint8_t prio, const uint8_t *payload,
                 int len);
+/* tunnel.Targetted from the far end of a tunnel (fake node src, its
+ * serial port serial) to the gateway (node 10): n bytes of d. */
+void tunnel_targetted_from(uint8_t src, int8_t serial, const uint8_t *d, size_t n);
 /* A file.Read request from fake node src to the gateway. */
 void file_read_from(uint8_t src, uint64_t offset, const char *path);
 /* A NodeStatus from fake node src. */
 void node_status_from(uint8_t src, uint32_t uptime, uint8_t health, uint8_t mode);
+/* The client call that started (started == DAN_OK) completes and sets
+ * gateway flag `flag`; broadcast dtid carries payload byte `value` at once
+ * (within 20 ms, not at the next period), then steadily at the arming
+ * rate (2 Hz: 3 to 5 times in the next 2 s). from: as for expect_cap(). */
+void expect_flag_broadcast(int started, uint8_t flag, uint16_t dtid, uint8_t value, size_t *from);
+/* Starts TUN_OPEN of a tunnel port through the client (what
+ * dan_gw_tunnel_open() returned; complete it with finish() or call_ok()). */
+int tunnel_open_start(uint8_t port, uint8_t mode, uint8_t protocol, uint8_t target, int8_t serial,
+                      uint8_t options, uint32_t baud);
 /* CONFIG of one setting (mask: one DAN_GW_CFG_* bit) to value through the
  * client, completed. */
 void config_set(uint8_t mask, uint32_t value);
 /* An esc.Status from fake node src. */
 void esc_status(uint8_t src, uint8_t idx, float v, float c, float t, int32_t rpm);
+/* esc.Status of ESCs 0, 1 and 3 from nodes 20, 21 and 22 (12.5 V, 16.8 V,
+ * 25.2 V; rpm 1000, esc1_rpm, 131071): the round-robin tests' three ESCs. */
+void three_esc_statuses(int32_t esc1_rpm);
+/* order[0..n-1], the ESC of each telemetry record, is their round robin:
+ * 0, 1, 3, 0, 1, 3, ... */
+void assert_round_robin_013(const uint8_t *order, size_t n);
+/* An esc.StatusExtended from fake node src. */
+void esc_status_ext_from(uint8_t src, const dan_dc_esc_status_extended_t *x);
 int setup(void **state);
 int teardown(void **state);
 

@@ -201,6 +201,18 @@ static void test_uvarint_vectors(void **state)
 
 /* ---- writer / reader ---- */
 
+/* The round trip's mix of every writer call (the reads below expect it). */
+static void put_sample(dan_writer_t *w)
+{
+    dan_put_u8(w, 0xAB);
+    dan_put_u16(w, 0x1234);
+    dan_put_u32(w, 0xDEADBEEFu);
+    dan_put_uvarint(w, 300);
+    dan_put_array(w, "\x01\x02\x03", 3);
+    dan_put_string(w, "hello");
+    dan_put_string(w, NULL);
+}
+
 static void test_writer_reader_roundtrip(void **state)
 {
     uint8_t buf[64];
@@ -214,13 +226,7 @@ static void test_writer_reader_roundtrip(void **state)
     (void)state;
 
     dan_writer_init(&w, buf, sizeof buf);
-    dan_put_u8(&w, 0xAB);
-    dan_put_u16(&w, 0x1234);
-    dan_put_u32(&w, 0xDEADBEEFu);
-    dan_put_uvarint(&w, 300);
-    dan_put_array(&w, "\x01\x02\x03", 3);
-    dan_put_string(&w, "hello");
-    dan_put_string(&w, NULL);
+    put_sample(&w);
     n = dan_writer_finish(&w);
     assert_int_equal(n, 1 + 2 + 4 + 2 + 4 + 6 + 1);
     assert_int_equal(buf[1], 0x34); /* little endian */
@@ -228,13 +234,7 @@ static void test_writer_reader_roundtrip(void **state)
 
     /* size-only pass gives the same length */
     dan_writer_init(&w, NULL, 0);
-    dan_put_u8(&w, 0xAB);
-    dan_put_u16(&w, 0x1234);
-    dan_put_u32(&w, 0xDEADBEEFu);
-    dan_put_uvarint(&w, 300);
-    dan_put_array(&w, "\x01\x02\x03", 3);
-    dan_put_string(&w, "hello");
-    dan_put_string(&w, NULL);
+    put_sample(&w);
     assert_int_equal(dan_writer_finish(&w), n);
 
     dan_reader_init(&r, buf, (size_t)n);

@@ -382,25 +382,19 @@ typedef int (*enc_fn)(const any_msg_t *m, uint8_t *buf, size_t cap);
 typedef int (*dec_fn)(any_msg_t *m, const uint8_t *p, size_t len);
 
 /* enc_<type> and dec_<type> for dan_dc_<type>_encode/_decode of member f:
- * by pointer (CODEC) or, for the one-value types, by value (CODEC_VALUE). */
-#define CODEC(type, f)                                                  \
+ * encode takes arg, &m->f (CODEC) or, for the one-value types, m->f
+ * (CODEC_VALUE). */
+#define CODEC_AS(type, f, arg)                                          \
     static int enc_##type(const any_msg_t *m, uint8_t *buf, size_t cap) \
     {                                                                   \
-        return dan_dc_##type##_encode(&m->f, buf, cap);                 \
+        return dan_dc_##type##_encode(arg, buf, cap);                   \
     }                                                                   \
     static int dec_##type(any_msg_t *m, const uint8_t *p, size_t len)   \
     {                                                                   \
         return dan_dc_##type##_decode(&m->f, p, len);                   \
     }
-#define CODEC_VALUE(type, f)                                            \
-    static int enc_##type(const any_msg_t *m, uint8_t *buf, size_t cap) \
-    {                                                                   \
-        return dan_dc_##type##_encode(m->f, buf, cap);                  \
-    }                                                                   \
-    static int dec_##type(any_msg_t *m, const uint8_t *p, size_t len)   \
-    {                                                                   \
-        return dan_dc_##type##_decode(&m->f, p, len);                   \
-    }
+#define CODEC(type, f)       CODEC_AS(type, f, &m->f)
+#define CODEC_VALUE(type, f) CODEC_AS(type, f, m->f)
 CODEC(node_status, ns)
 CODEC(esc_raw_command, rc)
 CODEC(esc_status, es)

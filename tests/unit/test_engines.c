@@ -70,6 +70,13 @@ static int discover(void)
     return sim_run_master(&rig.bus, &rig.m, 20000000u);
 }
 
+/* The rig with echo, discovery done: what most tests start from. */
+static void rig_discovered(void)
+{
+    rig_setup(true);
+    assert_int_equal(discover(), DAN_OK);
+}
+
 static int configure(uint32_t baud)
 {
     int r = dan_master_configure(&rig.m, baud, rig.bus.now);
@@ -118,8 +125,7 @@ static void test_configure_best_baud(void **state)
 {
     uint8_t out[3];
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     assert_int_equal(dan_master_best_baud(&rig.m), 115200);
     assert_int_equal(configure(0), DAN_OK);
     assert_int_equal(dan_master_baud(&rig.m), 115200);
@@ -146,8 +152,7 @@ static void test_baud_switch_after_ack(void **state)
     size_t i;
     int acks_at_9600 = 0;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     rig.bus.nlog = 0;
     assert_int_equal(configure(115200), DAN_OK);
     for (i = 0; i + 3 < rig.bus.nlog; i++) {
@@ -169,8 +174,7 @@ static void test_turnaround_gap(void **state)
     size_t i;
     int checked = 0;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     for (i = 1; i < rig.bus.nlog; i++) {
         const sim_byte_t *prev = &rig.bus.log[i - 1], *e = &rig.bus.log[i];
         if (prev->src == rig.nm->idx && e->src != rig.nm->idx) {
@@ -189,8 +193,7 @@ static void test_unknown_malformed_silent(void **state)
     uint32_t unknown0;
     dan_error_msg_t e;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     unknown0 = rig.dev1.stats.unknown;
     assert_int_equal(request(0x64, NULL, 0), DAN_ERR_TIMEOUT); /* in A's block, not served */
     assert_int_equal(rig.dev1.stats.unknown - unknown0, 3);    /* every attempt ignored */
@@ -226,8 +229,7 @@ static void test_master_restart_recovery(void **state)
     dan_master_config_t cfg;
     const dan_peer_t *g;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     assert_int_equal(configure(0), DAN_OK);
     /* the firmware resets: fresh master state, UART back at 9600 */
     dan_master_config_default(&cfg);
@@ -251,8 +253,7 @@ static void test_master_restart_recovery(void **state)
 static void test_configure_verify_failure_recovers(void **state)
 {
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     rig.n2->ignore_baud = true; /* device 2's UART stays at 9600 */
     assert_int_equal(configure(115200), DAN_ERR_TIMEOUT);
     assert_int_equal(rig.m.stats.recoveries, 1);
@@ -268,8 +269,7 @@ static void test_configure_verify_failure_recovers(void **state)
 static void test_configure_peer_vanishes(void **state)
 {
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     rig.n2->mute = true;
     assert_true(configure(115200) < 0);
     assert_null(dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST));
@@ -284,8 +284,7 @@ static void test_collision_detected_and_retried(void **state)
     static const uint8_t junk[] = {0x13, 0x37, 0x00, 0xFF, 0x55};
     int r;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"hello", 5, rig.bus.now),
                      DAN_OK);
     /* let the master start, then talk over it */
@@ -308,8 +307,7 @@ static void test_listen_before_talk(void **state)
     size_t i;
     uint64_t noise_end;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     for (i = 0; i < sizeof noise; i++) {
         noise[i] = (uint8_t)(0x10 + i); /* no sync byte */
     }
@@ -334,8 +332,7 @@ static void test_busy_line_times_out(void **state)
 {
     uint8_t noise[400];
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     memset(noise, 0x11, sizeof noise); /* 400 chars = 417 ms at 9600 */
     sim_inject(&rig.bus, rig.n2, noise, sizeof noise);
     sim_step(&rig.bus);
@@ -348,8 +345,7 @@ static void test_noise_no_wrong_data(void **state)
 {
     int i, ok = 0, failed = 0;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     assert_int_equal(configure(0), DAN_OK);
     rig.bus.noise_ppm = 20000; /* 2 % of bytes get a flipped bit */
     for (i = 0; i < 200; i++) {
@@ -412,8 +408,7 @@ static void test_late_echo_is_not_a_reply(void **state)
     uint32_t sent, stray;
     int n;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     assert_int_equal(request(0x62, "aba", 3), DAN_OK); /* reversed = itself: fine */
     /* The master's echo goes missing (a stalled adapter) and the peripheral
      * stays silent: echo timeout. */
@@ -481,8 +476,7 @@ static void test_peripheral_ignores_own_reply_after_collision(void **state)
     uint32_t requests, replies;
     int n;
     (void)state;
-    rig_setup(true);
-    assert_int_equal(discover(), DAN_OK);
+    rig_discovered();
     assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"abc", 3, rig.bus.now),
                      DAN_OK);
     while (rig.dev1.link.state != DAN_LINK_TX && rig.bus.now < 10000000u) {

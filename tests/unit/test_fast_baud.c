@@ -98,6 +98,14 @@ static int configure(uint32_t baud)
     return (r != DAN_OK) ? r : run();
 }
 
+/* Discovery, then CONFIGURE at the best baud everyone takes (the
+ * negotiation most tests look at), both completing. */
+static void discover_configure_best(void)
+{
+    assert_int_equal(discover(), DAN_OK);
+    assert_int_equal(configure(0), DAN_OK);
+}
+
 static int request(uint32_t code, const void *p, size_t len)
 {
     assert_int_equal(dan_master_request(&rig.m, code, p, len, rig.bus.now), DAN_OK);
@@ -145,8 +153,7 @@ static void test_refusal_moves_back(void **state)
 {
     (void)state;
     rig_setup(up_to_1m, 4, false);
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     assert_int_equal(dan_master_baud(&rig.m), 1000000u);
     assert_int_equal(rig.n1->baud, 1000000u);
     assert_int_equal(rig.n2->baud, 1000000u);
@@ -165,8 +172,7 @@ static void test_v1_peer_best_common(void **state)
 {
     (void)state;
     rig_setup(dan_fast_bauds, DAN_NFAST_BAUDS, true);
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     assert_int_equal(dan_master_baud(&rig.m), 115200u);
     assert_int_equal(rig.n1->baud, 115200u);
     assert_int_equal(rig.n2->baud, 115200u);
@@ -190,8 +196,7 @@ static void test_ack_without_switch_recovered(void **state)
     (void)state;
     rig_setup(dan_fast_bauds, DAN_NFAST_BAUDS, false);
     rig.n2->ignore_above = 115200u;
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     assert_int_equal(rig.m.stats.recoveries, 1);
     assert_int_equal(dan_master_baud(&rig.m), 115200u);
     assert_int_equal(rig.n1->baud, 115200u);
@@ -244,8 +249,7 @@ static void test_named_baud(void **state)
     (void)state;
     rig_setup(up_to_1m, 4, false);
     master_init(0, 7); /* v1 master: offers nothing by itself */
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     assert_int_equal(dan_master_baud(&rig.m), 115200u);
     assert_int_equal(configure(921600u), DAN_OK);
     assert_int_equal(rig.n2->baud, 921600u);
@@ -265,8 +269,7 @@ static void test_restart_finds_fast_bus(void **state)
 {
     (void)state;
     rig_setup(dan_fast_bauds, DAN_NFAST_BAUDS, false);
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     rig.nm->baud = 9600;
     master_init(2000000u, 42);
     assert_int_equal(discover(), DAN_OK);
@@ -292,8 +295,7 @@ static void test_timing_1m(void **state)
     assert_int_equal(c, 10u);
     rig_setup(dan_fast_bauds, DAN_NFAST_BAUDS, false);
     master_init(1000000u, 5);
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     assert_int_equal(dan_master_baud(&rig.m), 1000000u);
     rig.bus.nlog = 0;
     for (i = 0; i < 20; i++) {
@@ -322,8 +324,7 @@ static void test_backoff_1m(void **state)
     (void)state;
     rig_setup(dan_fast_bauds, DAN_NFAST_BAUDS, false);
     master_init(1000000u, 9);
-    assert_int_equal(discover(), DAN_OK);
-    assert_int_equal(configure(0), DAN_OK);
+    discover_configure_best();
     rig.n1->mute = true;
     assert_int_equal(dan_master_request(&rig.m, 0x62, (const uint8_t *)"x", 1, rig.bus.now),
                      DAN_OK);

@@ -88,11 +88,8 @@ static void test_telemetry_round_robin(void **state)
     size_t i;
     dan_gw_telem_hdr_t h;
     dan_dc_esc_status_extended_t x;
-    uint8_t buf[8];
     (void)state;
-    esc_status(20, 0, 12.5f, 1.25f, 300.0f, 1000);
-    esc_status(21, 1, 16.8f, -3.14159f, 310.15f, -2000);
-    esc_status(22, 3, 25.2f, 123.456f, 320.0f, 131071);
+    three_esc_statuses(-2000);
     memset(&x, 0, sizeof x);
     x.esc_index = 3;
     x.input_pct = 50;
@@ -100,20 +97,13 @@ static void test_telemetry_round_robin(void **state)
     x.motor_temperature_degC = -40;
     x.motor_angle = 359;
     x.status_flags = 370085;
-    inject(22, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
-           DAN_DC_TRANSFER_BROADCAST, 0, buf,
-           dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+    esc_status_ext_from(22, &x);
     for (i = 0; i < 6; i++) {
         call_ok(dan_gw_esc_command(&R->gw, v, 4, R->bus.now));
         assert_int_equal(R->gw.esc_seen, 3);
         order[i] = R->gw.last_telem;
     }
-    assert_int_equal(order[0], 0);
-    assert_int_equal(order[1], 1);
-    assert_int_equal(order[2], 3);
-    assert_int_equal(order[3], 0);
-    assert_int_equal(order[4], 1);
-    assert_int_equal(order[5], 3);
+    assert_round_robin_013(order, 6);
     /* values are the float16 the ESC sent */
     assert_true(dan_f16_to_f32(R->gw.esc[0].voltage_f16) == 12.5f);
     assert_int_equal(R->gw.esc[1].voltage_f16, dan_f16_from_f32(16.8f));
@@ -169,25 +159,11 @@ static void test_arming(void **state)
 {
     size_t from = 0;
     cap_t *c;
-    uint64_t t0;
-    int n = 0;
     (void)state;
     advance(10000);
     from = R->ncap;
-    assert_int_equal(dan_gw_arm(&R->gw, true, R->bus.now), DAN_OK);
-    t0 = R->bus.now;
-    assert_int_equal(finish(), DAN_OK);
-    assert_true(R->gw.gw_flags & DAN_GW_FLAG_ARMED);
-    c = expect_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_int_equal(c->payload[0], 255);
-    assert_true(c->at_us - t0 < 20000u); /* at once, not at the next period */
-    /* then steadily at 2 Hz */
-    advance(2000000);
-    while ((c = find_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
-        assert_int_equal(c->payload[0], 255);
-        n++;
-    }
-    assert_true(n >= 3 && n <= 5);
+    expect_flag_broadcast(dan_gw_arm(&R->gw, true, R->bus.now), DAN_GW_FLAG_ARMED,
+                          DAN_DC_ARMING_STATUS_ID, 255, &from);
     call_ok(dan_gw_arm(&R->gw, false, R->bus.now));
     c = expect_cap(DAN_DC_ARMING_STATUS_ID, DAN_DC_TRANSFER_BROADCAST, &from);
     assert_int_equal(c->payload[0], 0);
@@ -239,26 +215,10 @@ static void test_failsafe(void **state)
     assert_int_equal(rc.cmd[5], 0);
 }
 
-/* Far end of a Targetted tunnel: node 20, serial 2. */
-static void far_send(uint8_t src, int8_t serial, const uint8_t *d, size_t n)
-{
-    dan_dc_tunnel_targetted_t m;
-    uint8_t buf[DAN_DC_TUNNEL_TARGETTED_MAX_SIZE];
-    memset(&m, 0, sizeof m);
-    m.protocol = DAN_DC_TUNNEL_UNDEFINED;
-    m.target_node = 10;
-    m.serial_id = serial;
-    m.buffer_len = (uint8_t)n;
-    memcpy(m.buffer, d, n);
-    inject(src, DAN_DC_TUNNEL_TARGETTED_ID, DAN_DC_TUNNEL_TARGETTED_SIGNATURE,
-           DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_tunnel_targetted_encode(&m, buf, sizeof buf));
-}
-
 static void test_tunnel_targetted_retries(void **state)
 {
     static uint8_t out[3000], got_far[3000], in[3000], got[3000];
     size_t sent = 0, nfar = 0, nin = 0, i, from;
-    dan_gw_tun_open_t o;
     dan_dc_tunnel_targetted_t m;
     cap_t *c;
     int rounds = 0;
@@ -267,23 +227,16 @@ static void test_tunnel_targetted_retries(void **state)
         out[i] = (uint8_t)(i * 7 + 3);
         in[i] = (uint8_t)(i * 13 + 1);
     }
-    memset(&o, 0, sizeof o);
-    o.port = 1;
-    o.mode = DAN_GW_TUN_TARGETTED;
-    o.protocol = DAN_DC_TUNNEL_UNDEFINED;
-    o.target = 20;
-    o.serial_id = 2;
-    o.options = DAN_DC_TUNNEL_OPTION_LOCK_PORT;
-    o.baud = 57600;
-    call_ok(dan_gw_tunnel_open(&R->gw, &o, R->bus.now));
+    call_ok(tunnel_open_start(1, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 2,
+                              DAN_DC_TUNNEL_OPTION_LOCK_PORT, 57600));
     from = R->ncap;
     /* the far end sends 3000 bytes in 120-byte chunks; one from another
      * node and one for another serial port must be ignored */
     for (i = 0; i < sizeof in; i += 120) {
-        far_send(20, 2, in + i, 120);
+        tunnel_targetted_from(20, 2, in + i, 120);
     }
-    far_send(21, 2, in, 50);
-    far_send(20, 3, in, 50);
+    tunnel_targetted_from(21, 2, in, 50);
+    tunnel_targetted_from(20, 3, in, 50);
     while ((sent < sizeof out || nin < sizeof in) && rounds < 400) {
         const uint8_t *d;
         size_t n = sizeof out - sent > 100 ? 100 : sizeof out - sent;
@@ -347,7 +300,6 @@ static void test_tunnel_targetted_retries(void **state)
 
 static void test_tunnel_broadcast_and_drops(void **state)
 {
-    dan_gw_tun_open_t o;
     dan_dc_tunnel_broadcast_t m;
     uint8_t buf[DAN_DC_TUNNEL_BROADCAST_MAX_SIZE];
     uint8_t data[60];
@@ -355,12 +307,7 @@ static void test_tunnel_broadcast_and_drops(void **state)
     size_t n, from, i;
     cap_t *c;
     (void)state;
-    memset(&o, 0, sizeof o);
-    o.port = 0;
-    o.mode = DAN_GW_TUN_BROADCAST;
-    o.protocol = DAN_DC_TUNNEL_GPS_GENERIC;
-    o.target = 7;
-    call_ok(dan_gw_tunnel_open(&R->gw, &o, R->bus.now));
+    call_ok(tunnel_open_start(0, DAN_GW_TUN_BROADCAST, DAN_DC_TUNNEL_GPS_GENERIC, 7, 0, 0, 0));
     from = R->ncap;
     assert_int_equal(
         dan_gw_tunnel_xfer(&R->gw, 0, (const uint8_t *)"hello broadcast", 15, 128, R->bus.now),
@@ -398,6 +345,18 @@ static void test_tunnel_broadcast_and_drops(void **state)
     /* closed port: error frame */
     assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 1, NULL, 0, 128, R->bus.now), DAN_OK);
     assert_int_equal(finish(), DAN_ERR_REMOTE);
+}
+
+/* The raw-send tests' two frames: extended 0x1ABCDE with 8 bytes of 0x11,
+ * standard 0x7FF with none. */
+static void two_frames_to_send(dan_can_frame_t fr[2])
+{
+    memset(fr, 0, 2 * sizeof fr[0]);
+    fr[0].id = 0x1ABCDE;
+    fr[0].flags = DAN_CAN_EXT;
+    fr[0].dlc = 8;
+    memset(fr[0].data, 0x11, 8);
+    fr[1].id = 0x7FF;
 }
 
 static void test_raw_frames_and_filters(void **state)
@@ -454,13 +413,7 @@ static void test_raw_frames_and_filters(void **state)
     assert_int_equal(h.count, 0);
     assert_int_equal(h.seq, 4);
     /* send: frames go out as given; a retried request is not sent twice */
-    memset(fr, 0, sizeof fr);
-    fr[0].id = 0x1ABCDE;
-    fr[0].flags = DAN_CAN_EXT;
-    fr[0].dlc = 8;
-    memset(fr[0].data, 0x11, 8);
-    fr[1].id = 0x7FF;
-    fr[1].dlc = 0;
+    two_frames_to_send(fr);
     nf = R->nframes;
     assert_int_equal(dan_gw_can_send(&R->gw, fr, 2, R->bus.now), DAN_OK);
     lose_response(); /* a retried CAN_SEND is not sent twice */
@@ -486,12 +439,7 @@ static void test_raw_send_exact(void **state)
     size_t seen = 0;
     (void)state;
     advance(2000);
-    memset(fr, 0, sizeof fr);
-    fr[0].id = 0x1ABCDE;
-    fr[0].flags = DAN_CAN_EXT;
-    fr[0].dlc = 8;
-    memset(fr[0].data, 0x11, 8);
-    fr[1].id = 0x7FF;
+    two_frames_to_send(fr);
     assert_int_equal(dan_gw_can_send(&R->gw, fr, 2, R->bus.now), DAN_OK);
     assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK);
     assert_int_equal(dan_gw_complete(&R->gw, R->bus.now), DAN_OK);
@@ -801,7 +749,6 @@ static void test_stalled_can_latest_throttle_wins(void **state)
  * (found by review: a full page became "response too large"). */
 static void test_full_pages_leave_room_for_the_seal(void **state)
 {
-    uint8_t buf[8];
     size_t i;
     dan_dc_esc_status_extended_t x;
     (void)state;
@@ -815,9 +762,7 @@ static void test_full_pages_leave_room_for_the_seal(void **state)
             memset(&x, 0, sizeof x);
             x.esc_index = (uint8_t)i;
             x.status_flags = 0x7FFFF;
-            inject((uint8_t)(30 + i), DAN_DC_ESC_STATUS_EXTENDED_ID,
-                   DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
-                   dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+            esc_status_ext_from((uint8_t)(30 + i), &x);
         }
         do {
             dan_reader_t r;

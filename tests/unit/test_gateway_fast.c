@@ -67,18 +67,10 @@ static void test_fast_record_round_robin(void **state)
     const int16_t v[4] = {10, 20, 30, 40};
     uint8_t order[7];
     size_t i;
-    dan_dc_esc_status_extended_t x;
-    uint8_t buf[8];
     (void)state;
-    esc_status(20, 0, 12.5f, 1.25f, 300.0f, 1000);
-    esc_status(21, 1, 16.8f, -3.14159f, 310.15f, -131072);
-    esc_status(22, 3, 25.2f, 123.456f, 320.0f, 131071);
+    three_esc_statuses(-131072);
     /* an ESC with StatusExtended only has nothing for the compact record */
-    memset(&x, 0, sizeof x);
-    x.esc_index = 5;
-    inject(25, DAN_DC_ESC_STATUS_EXTENDED_ID, DAN_DC_ESC_STATUS_EXTENDED_SIGNATURE,
-           DAN_DC_TRANSFER_BROADCAST, 0, buf,
-           dan_dc_esc_status_extended_encode(&x, buf, sizeof buf));
+    esc_status_ext_from(25, &(const dan_dc_esc_status_extended_t){.esc_index = 5});
     advance(10000); /* 10 ms: age 2 units of 4 ms */
     for (i = 0; i < 7; i++) {
         call_ok(dan_gw_esc_fast(&R->gw, v, 4, true, R->bus.now));
@@ -91,10 +83,7 @@ static void test_fast_record_round_robin(void **state)
         assert_int_equal(R->m.resp_len, 1u + DAN_GW_FAST_REC_SIZE + DAN_GW_SEAL_SIZE);
     }
     assert_int_equal(dan_frame_size(DAN_GW_CODE_ESC_FAST_T, R->m.resp_len), 17);
-    assert_int_equal(order[0], 0);
-    assert_int_equal(order[1], 1);
-    assert_int_equal(order[2], 3);
-    assert_int_equal(order[3], 0);
+    assert_round_robin_013(order, 4);
     assert_int_equal(order[6], 0);
     /* the binary16 the ESC sent, the int18 rpm at both ends of its range */
     assert_true(dan_f16_to_f32(R->gw.esc[0].voltage_f16) == 12.5f);

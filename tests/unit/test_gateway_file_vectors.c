@@ -49,8 +49,6 @@ static int vec_list(bool req, const uint8_t *p, size_t len, char *txt, size_t ca
 {
     dan_reader_t r;
     dan_writer_t w;
-    dan_gw_file_list_hdr_t h;
-    dan_gw_file_entry_t e;
     size_t i;
     if (req) {
         assert_int_equal(len, 1);
@@ -60,17 +58,13 @@ static int vec_list(bool req, const uint8_t *p, size_t len, char *txt, size_t ca
     }
     dan_reader_init(&r, p, len);
     dan_writer_init(&w, enc, ecap);
-    assert_int_equal(dan_gw_msg_file_list_hdr_get(&r, &h), DAN_OK);
-    dan_gw_msg_file_list_hdr_put(&w, &h);
-    vec_cat(txt, cap, "next=%u", h.next);
-    for (i = 0; i < h.count; i++) {
-        assert_int_equal(dan_gw_msg_file_entry_get(&r, &e), DAN_OK);
-        assert_int_equal(strlen(e.name), e.name_len);
-        dan_gw_msg_file_entry_put(&w, &e);
-        vec_cat(txt, cap, " entry=");
-        vec_cat_hex(txt, cap, (const uint8_t *)e.name, e.name_len);
-        vec_cat(txt, cap, "/%lu", (unsigned long)e.size);
-    }
+    VEC_PAGE(dan_gw_file_list_hdr_t, dan_gw_file_entry_t, file_list, file_entry,
+             vec_cat(txt, cap, "next=%u", h.next), {
+                 assert_int_equal(strlen(e.name), e.name_len);
+                 vec_cat(txt, cap, " entry=");
+                 vec_cat_hex(txt, cap, (const uint8_t *)e.name, e.name_len);
+                 vec_cat(txt, cap, "/%lu", (unsigned long)e.size);
+             });
     return dan_writer_finish(&w);
 }
 

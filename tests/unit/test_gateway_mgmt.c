@@ -324,6 +324,16 @@ static void test_dna_storage(void **state)
     assert_int_equal(R->g.dna.n, 0);
 }
 
+/* Nothing stored, the gateway restarted: UID_A's allocation is the
+ * table's first entry, ID 125. */
+static void first_allocation(void)
+{
+    stored_len = 0;
+    restart_node();
+    advance(1000);
+    assert_int_equal(allocate(UID_A, 0), 125);
+}
+
 /* Each way a stored table can fail to check has its reason; none is
  * taken. */
 static void test_dna_blob_reasons(void **state)
@@ -332,10 +342,7 @@ static void test_dna_blob_reasons(void **state)
     size_t len;
     uint16_t crc;
     (void)state;
-    stored_len = 0;
-    restart_node();
-    advance(1000);
-    assert_int_equal(allocate(UID_A, 0), 125);
+    first_allocation();
     assert_int_equal(allocate(UID_B, 0), 124);
     advance(1000);
     len = (size_t)stored_len;
@@ -382,10 +389,7 @@ static void test_dna_table_id_taken(void **state)
     uint8_t buf[DAN_DC_GET_NODE_INFO_RSP_MAX_SIZE];
     dan_gw_node_config_t gc;
     (void)state;
-    stored_len = 0;
-    restart_node();
-    advance(1000);
-    assert_int_equal(allocate(UID_A, 0), 125);
+    first_allocation();
     advance(1000);
     gc = R->g.cfg; /* the gateway restarts as node 125 */
     gc.node_id = 125;

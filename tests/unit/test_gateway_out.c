@@ -35,28 +35,13 @@ static void test_safety_state(void **state)
 {
     const int16_t v[4] = {100, 200, 300, 400};
     size_t from = 0;
-    cap_t *c;
-    uint64_t t0;
-    int n = 0;
     (void)state;
     advance(1200000);
     assert_int_equal(last_safety(&from), DAN_DC_SAFETY_ON); /* from the start: ON */
     assert_false(R->gw.gw_flags & DAN_GW_FLAG_SAFETY_OFF);
     config_set(DAN_GW_CFG_ESC_TIMEOUT, 200);
-    assert_int_equal(dan_gw_safety(&R->gw, true, R->bus.now), DAN_OK);
-    t0 = R->bus.now;
-    assert_int_equal(finish(), DAN_OK);
-    assert_true(R->gw.gw_flags & DAN_GW_FLAG_SAFETY_OFF);
-    c = expect_cap(DAN_DC_SAFETY_STATE_ID, DAN_DC_TRANSFER_BROADCAST, &from);
-    assert_int_equal(c->payload[0], DAN_DC_SAFETY_OFF);
-    assert_true(c->at_us - t0 < 20000u); /* at once, not at the next period */
-    /* then at the arming rate (2 Hz) */
-    advance(2000000);
-    while ((c = find_cap(DAN_DC_SAFETY_STATE_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
-        assert_int_equal(c->payload[0], DAN_DC_SAFETY_OFF);
-        n++;
-    }
-    assert_true(n >= 3 && n <= 5);
+    expect_flag_broadcast(dan_gw_safety(&R->gw, true, R->bus.now), DAN_GW_FLAG_SAFETY_OFF,
+                          DAN_DC_SAFETY_STATE_ID, DAN_DC_SAFETY_OFF, &from);
     /* armed and driving; then the master goes silent: the failsafe sends
      * DISARMED and safety ON together */
     call_ok(dan_gw_arm(&R->gw, true, R->bus.now));
@@ -273,29 +258,14 @@ static void test_temperature_in_telemetry(void **state)
 
 static void tun_open(uint8_t mode, uint8_t target, int8_t serial, uint8_t options, int want)
 {
-    dan_gw_tun_open_t o;
-    memset(&o, 0, sizeof o);
-    o.mode = mode;
-    o.protocol = DAN_DC_TUNNEL_UNDEFINED;
-    o.target = target;
-    o.serial_id = serial;
-    o.options = options;
-    assert_int_equal(dan_gw_tunnel_open(&R->gw, &o, R->bus.now), DAN_OK);
+    assert_int_equal(
+        tunnel_open_start(0, mode, DAN_DC_TUNNEL_UNDEFINED, target, serial, options, 0), DAN_OK);
     assert_int_equal(finish(), want);
 }
 
 static void targetted_from(uint8_t src, int8_t serial, const char *text)
 {
-    dan_dc_tunnel_targetted_t m;
-    uint8_t buf[DAN_DC_TUNNEL_TARGETTED_MAX_SIZE];
-    memset(&m, 0, sizeof m);
-    m.protocol = DAN_DC_TUNNEL_UNDEFINED;
-    m.target_node = 10;
-    m.serial_id = serial;
-    m.buffer_len = (uint8_t)strlen(text);
-    memcpy(m.buffer, text, m.buffer_len);
-    inject(src, DAN_DC_TUNNEL_TARGETTED_ID, DAN_DC_TUNNEL_TARGETTED_SIGNATURE,
-           DAN_DC_TRANSFER_BROADCAST, 0, buf, dan_dc_tunnel_targetted_encode(&m, buf, sizeof buf));
+    tunnel_targetted_from(src, serial, (const uint8_t *)text, strlen(text));
 }
 
 static void broadcast_on(uint8_t channel, const char *text)

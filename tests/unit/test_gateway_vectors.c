@@ -208,6 +208,17 @@ static int vec_out(const char *msg, const char *dir, const uint8_t *p, size_t le
     return -1;
 }
 
+/* A one-byte payload (a first index to ask, a status or flags): its text
+ * from fmt, and the byte again. */
+static int vec_byte(char *txt, size_t cap, const char *fmt, uint8_t b, uint8_t *enc, size_t ecap)
+{
+    dan_writer_t w;
+    vec_cat(txt, cap, fmt, b);
+    dan_writer_init(&w, enc, ecap);
+    dan_put_u8(&w, b);
+    return dan_writer_finish(&w);
+}
+
 static int vec_mgmt(const char *msg, const char *dir, const uint8_t *p, size_t len, char *txt,
                     size_t cap, uint8_t *enc, size_t ecap)
 {
@@ -234,23 +245,16 @@ static int vec_mgmt(const char *msg, const char *dir, const uint8_t *p, size_t l
         return dan_gw_msg_health_encode(&h, enc, ecap);
     }
     if (!strcmp(msg, "dna")) {
-        dan_gw_dna_hdr_t h;
-        dan_gw_dna_entry_t e;
         if (!strcmp(dir, "req")) {
-            vec_cat(txt, cap, "first=%u", p[0]);
-            dan_put_u8(&w, p[0]);
-            return dan_writer_finish(&w);
+            return vec_byte(txt, cap, "first=%u", p[0], enc, ecap);
         }
-        assert_int_equal(dan_gw_msg_dna_hdr_get(&r, &h), DAN_OK);
-        dan_gw_msg_dna_hdr_put(&w, &h);
-        vec_cat(txt, cap, "flags=%u entries=%u capacity=%u next=%u", h.flags, h.entries, h.capacity,
-                h.next);
-        for (i = 0; i < h.count; i++) {
-            assert_int_equal(dan_gw_msg_dna_entry_get(&r, &e), DAN_OK);
-            dan_gw_msg_dna_entry_put(&w, &e);
-            vec_cat(txt, cap, " entry=%u/", e.node_id);
-            vec_cat_hex(txt, cap, e.unique_id, sizeof e.unique_id);
-        }
+        VEC_PAGE(dan_gw_dna_hdr_t, dan_gw_dna_entry_t, dna, dna_entry,
+                 vec_cat(txt, cap, "flags=%u entries=%u capacity=%u next=%u", h.flags, h.entries,
+                         h.capacity, h.next),
+                 {
+                     vec_cat(txt, cap, " entry=%u/", e.node_id);
+                     vec_cat_hex(txt, cap, e.unique_id, sizeof e.unique_id);
+                 });
         return dan_writer_finish(&w);
     }
     return vec_out(msg, dir, p, len, txt, cap, enc, ecap);
@@ -282,34 +286,24 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         return dan_gw_msg_esc_cmd_encode(v, n, enc, ecap);
     }
     if (!strcmp(msg, "telem")) {
-        dan_gw_telem_hdr_t h;
-        dan_gw_telem_t t;
-        assert_int_equal(dan_gw_msg_telem_hdr_get(&r, &h), DAN_OK);
-        dan_gw_msg_telem_hdr_put(&w, &h);
-        vec_cat(txt, cap, "flags=%u aux=%u", h.gw_flags, h.aux);
-        for (i = 0; i < h.count; i++) {
-            assert_int_equal(dan_gw_msg_telem_get(&r, &t), DAN_OK);
-            dan_gw_msg_telem_put(&w, &t);
-            vec_cat(txt, cap, " rec=%u/%u/%u/%lu/%u/%u/%u/%ld/%u/%lu/%lu/%u/%u/%d/%u/%lu/%lu/%u/%u",
-                    t.esc_index, t.node_id, t.flags, (unsigned long)t.age_ms, t.voltage_f16,
-                    t.current_f16, t.temperature_f16, (long)t.rpm, t.power_pct,
-                    (unsigned long)t.error_count, (unsigned long)t.ext_age_ms, t.input_pct,
-                    t.output_pct, t.motor_temp_c, t.motor_angle, (unsigned long)t.status_flags,
-                    (unsigned long)t.dev_age_ms, t.dev_temp_f16, t.dev_flags);
-        }
+        VEC_PAGE(dan_gw_telem_hdr_t, dan_gw_telem_t, telem, telem,
+                 vec_cat(txt, cap, "flags=%u aux=%u", h.gw_flags, h.aux),
+                 vec_cat(txt, cap,
+                         " rec=%u/%u/%u/%lu/%u/%u/%u/%ld/%u/%lu/%lu/%u/%u/%d/%u/%lu/%lu/%u/%u",
+                         e.esc_index, e.node_id, e.flags, (unsigned long)e.age_ms, e.voltage_f16,
+                         e.current_f16, e.temperature_f16, (long)e.rpm, e.power_pct,
+                         (unsigned long)e.error_count, (unsigned long)e.ext_age_ms, e.input_pct,
+                         e.output_pct, e.motor_temp_c, e.motor_angle, (unsigned long)e.status_flags,
+                         (unsigned long)e.dev_age_ms, e.dev_temp_f16, e.dev_flags));
         return dan_writer_finish(&w);
     }
     if (!strcmp(msg, "esc_telem") || (!strcmp(msg, "nodes") && !strcmp(dir, "req"))) {
         assert_true(len >= 1u);
-        vec_cat(txt, cap, "first=%u", p[0]);
-        dan_put_u8(&w, p[0]);
-        return dan_writer_finish(&w);
+        return vec_byte(txt, cap, "first=%u", p[0], enc, ecap);
     }
     if (!strcmp(msg, "arm")) {
         assert_true(len >= 1u);
-        vec_cat(txt, cap, !strcmp(dir, "req") ? "status=%u" : "flags=%u", p[0]);
-        dan_put_u8(&w, p[0]);
-        return dan_writer_finish(&w);
+        return vec_byte(txt, cap, !strcmp(dir, "req") ? "status=%u" : "flags=%u", p[0], enc, ecap);
     }
     if (!strcmp(msg, "config")) {
         dan_gw_config_t c;
@@ -337,26 +331,17 @@ static int vec_one(const char *msg, const char *dir, const uint8_t *p, size_t le
         return dan_gw_msg_stats_encode(v, n, enc, ecap);
     }
     if (!strcmp(msg, "nodes")) {
-        dan_gw_nodes_hdr_t h;
-        dan_gw_node_entry_t e;
-        assert_int_equal(dan_gw_msg_nodes_hdr_get(&r, &h), DAN_OK);
-        dan_gw_msg_nodes_hdr_put(&w, &h);
-        vec_cat(txt, cap, "next=%u", h.next);
-        for (i = 0; i < h.count; i++) {
-            assert_int_equal(dan_gw_msg_node_get(&r, &e), DAN_OK);
-            dan_gw_msg_node_put(&w, &e);
-            vec_cat(txt, cap, " node=%u/%u/%u/%u/%lu/%u/%lu/%u", e.node_id, e.health, e.mode,
-                    e.sub_mode, (unsigned long)e.uptime_sec, e.vendor_status,
-                    (unsigned long)e.age_ms, e.info_state);
-        }
+        VEC_PAGE(dan_gw_nodes_hdr_t, dan_gw_node_entry_t, nodes, node,
+                 vec_cat(txt, cap, "next=%u", h.next),
+                 vec_cat(txt, cap, " node=%u/%u/%u/%u/%lu/%u/%lu/%u", e.node_id, e.health, e.mode,
+                         e.sub_mode, (unsigned long)e.uptime_sec, e.vendor_status,
+                         (unsigned long)e.age_ms, e.info_state));
         return dan_writer_finish(&w);
     }
     if (!strcmp(msg, "node_info")) {
         dan_gw_node_info_t ni;
         if (!strcmp(dir, "req")) {
-            vec_cat(txt, cap, "node=%u", p[0]);
-            dan_put_u8(&w, p[0]);
-            return dan_writer_finish(&w);
+            return vec_byte(txt, cap, "node=%u", p[0], enc, ecap);
         }
         assert_int_equal(dan_gw_msg_node_info_decode(&ni, p, len), DAN_OK);
         vec_cat_node_info(txt, cap, &ni);

@@ -13,6 +13,15 @@
 
 static dan_rxring_t ring;
 
+/* Puts n bytes first, first + 1, ... (mod 256), each accepted. */
+static void put_run(uint8_t first, unsigned n)
+{
+    unsigned i;
+    for (i = 0; i < n; i++) {
+        assert_true(dan_rxring_put(&ring, (uint8_t)(first + i)));
+    }
+}
+
 static void test_empty(void **state)
 {
     uint8_t buf[8];
@@ -27,12 +36,9 @@ static void test_empty(void **state)
 static void test_order_and_partial_reads(void **state)
 {
     uint8_t buf[8];
-    unsigned i;
     (void)state;
     dan_rxring_init(&ring);
-    for (i = 0; i < 10; i++) {
-        assert_true(dan_rxring_put(&ring, (uint8_t)(0xA0 + i)));
-    }
+    put_run(0xA0, 10);
     assert_int_equal(dan_rxring_count(&ring), 10);
     assert_int_equal(dan_rxring_get_many(&ring, buf, 4), 4);
     assert_memory_equal(buf, "\xA0\xA1\xA2\xA3", 4);
@@ -49,9 +55,7 @@ static void test_full_counts_drops(void **state)
     (void)state;
     dan_rxring_init(&ring);
     /* The whole buffer is usable (free-running indices: no spare slot). */
-    for (i = 0; i < DAN_RXRING_SIZE; i++) {
-        assert_true(dan_rxring_put(&ring, (uint8_t)i));
-    }
+    put_run(0, DAN_RXRING_SIZE);
     assert_int_equal(dan_rxring_count(&ring), DAN_RXRING_SIZE);
     assert_false(dan_rxring_put(&ring, 0x55));
     assert_false(dan_rxring_put(&ring, 0x66));
@@ -104,9 +108,7 @@ static void test_index_counter_overflow(void **state)
      * stay right across it. */
     dan_rxring_init(&ring);
     ring.head = ring.tail = (dan_rxring_index_t)(0u - 5u);
-    for (i = 0; i < 12; i++) {
-        assert_true(dan_rxring_put(&ring, (uint8_t)i));
-    }
+    put_run(0, 12);
     assert_true(ring.head < ring.tail); /* wrapped */
     assert_int_equal(dan_rxring_count(&ring), 12);
     assert_int_equal(dan_rxring_get_many(&ring, buf, sizeof buf), 12);

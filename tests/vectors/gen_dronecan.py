@@ -56,17 +56,17 @@ def line(name, payload, fields, src=10, prio=20, tid=0, kind="msg", dst=None):
     )
 
 
+def fields_line(name, cls, fields, attrs=None, **kw):
+    """A message built straight from its vector fields: each (key, value) sets
+    the pydronecan field of that name (attrs: where the two names differ)."""
+    attrs = attrs or {}
+    line(name, cls(**{attrs.get(k, k): v for k, v in fields}), fields, **kw)
+
+
 def node_status(uptime, health, mode, sub_mode, vendor, **kw):
-    m = U.protocol.NodeStatus(
-        uptime_sec=uptime,
-        health=health,
-        mode=mode,
-        sub_mode=sub_mode,
-        vendor_specific_status_code=vendor,
-    )
-    line(
+    fields_line(
         "node_status",
-        m,
+        U.protocol.NodeStatus,
         [
             ("uptime_sec", uptime),
             ("health", health),
@@ -74,6 +74,7 @@ def node_status(uptime, health, mode, sub_mode, vendor, **kw):
             ("sub_mode", sub_mode),
             ("vendor", vendor),
         ],
+        attrs={"vendor": "vendor_specific_status_code"},
         **kw,
     )
 
@@ -83,23 +84,15 @@ def raw_command(cmd, **kw):
 
 
 def esc_status(ec, v, c, t, rpm, pwr, idx, **kw):
-    m = U.equipment.esc.Status(
-        error_count=ec,
-        voltage=v,
-        current=c,
-        temperature=t,
-        rpm=rpm,
-        power_rating_pct=pwr,
-        esc_index=idx,
-    )
-    line(
+    # (fmt() prints a float with str(), which is its repr())
+    fields_line(
         "esc_status",
-        m,
+        U.equipment.esc.Status,
         [
             ("error_count", ec),
-            ("voltage", repr(v)),
-            ("current", repr(c)),
-            ("temperature", repr(t)),
+            ("voltage", v),
+            ("current", c),
+            ("temperature", t),
             ("rpm", rpm),
             ("power_rating_pct", pwr),
             ("esc_index", idx),
@@ -109,17 +102,9 @@ def esc_status(ec, v, c, t, rpm, pwr, idx, **kw):
 
 
 def esc_status_ext(inp, outp, temp, angle, flags, idx, **kw):
-    m = U.equipment.esc.StatusExtended(
-        input_pct=inp,
-        output_pct=outp,
-        motor_temperature_degC=temp,
-        motor_angle=angle,
-        status_flags=flags,
-        esc_index=idx,
-    )
-    line(
+    fields_line(
         "esc_status_extended",
-        m,
+        U.equipment.esc.StatusExtended,
         [
             ("input_pct", inp),
             ("output_pct", outp),

@@ -15,20 +15,18 @@ EXAMPLES = ("danprobe beep --port /dev/ttyUSB0 --baud 115200 --hz 2000 --ms 100"
 
 def add_arguments(p):
     g = add_gateway_options(p, own="beep")
-    g.add_argument(
-        "--hz",
-        type=int_range(1, O.BEEP_HZ_MAX, "--hz"),
-        default=2000,
-        metavar="N",
-        help=f"frequency, 1..{O.BEEP_HZ_MAX} Hz (default 2000)",
-    )
-    g.add_argument(
-        "--ms",
-        type=int_range(0, O.BEEP_MS_MAX, "--ms"),
-        default=100,
-        metavar="N",
-        help=f"duration, 0..{O.BEEP_MS_MAX} ms (default 100)",
-    )
+    # (option, what, unit, lo, hi, default): whole numbers the message carries as float16
+    for flag, what, unit, lo, hi, default in (
+        ("--hz", "frequency", "Hz", 1, O.BEEP_HZ_MAX, 2000),
+        ("--ms", "duration", "ms", 0, O.BEEP_MS_MAX, 100),
+    ):
+        g.add_argument(
+            flag,
+            type=int_range(lo, hi, flag),
+            default=default,
+            metavar="N",
+            help=f"{what}, {lo}..{hi} {unit} (default {default})",
+        )
 
 
 def run(ctx) -> int:
