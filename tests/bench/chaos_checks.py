@@ -171,13 +171,16 @@ def stream_losses(good, broken, tags):
 
 
 def explain(losses, timeline, slack_s=1.0, counted=None, keys=()):
-    """Splits losses into those a lossy fault (LOSSY) between the last good
-    record and the loss explains, those a counter owns up to (counted(t0,
+    """Splits losses into those a lossy fault (LOSSY) whose span meets the
+    time from the last good record to the loss explains, those a counter owns up to (counted(t0,
     t1, keys): the counter that rose around then, or None) and the rest."""
-    faults = [(t, name) for t, name, _ in timeline if name in LOSSY]
+    # a fault's span, not only its start: an FC run killed loses its tunnel
+    # when the next run opens it, up to the end of the fault (that run's
+    # values at the ESCs)
+    faults = [(t, t + dur, name) for t, name, dur in timeline if name in LOSSY]
     ok, owned, rest = [], [], []
     for t0, t1, n, what in losses:
-        hit = next((name for t, name in faults if t0 - slack_s <= t <= t1 + slack_s), None)
+        hit = next((name for a, b, name in faults if a <= t1 + slack_s and t0 - slack_s <= b), None)
         if hit:
             ok.append((t0, t1, n, what, hit))
             continue
