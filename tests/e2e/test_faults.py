@@ -89,6 +89,11 @@ class Rig:
         self.start_gw(*gw_args)
 
     def start_gw(self, *extra):
+        # the gateway's reply window as generous as the FC's (fcsim below):
+        # a loaded test host can stall the daemon past the default 50 ms, and
+        # a reply the master would still take must not be dropped as late
+        if "--reply-window-ms" not in extra:
+            extra = ("--reply-window-ms", "200", *extra)
         env = None
         if self.gw_env:
             env = dict(os.environ, **self.gw_env)

@@ -185,7 +185,8 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
     )
     assert hub.stdout.readline().decode().startswith("READY")
     procs.start(
-        [BIN / "dan-gatewayd", "--uart", eps[1], "--can", f"slcan:{tmp_path / 'can0'}"],
+        [BIN / "dan-gatewayd", "--uart", eps[1], "--can", f"slcan:{tmp_path / 'can0'}"]
+        + ["--reply-window-ms", "200"],  # a loaded test host stalls replies past 50 ms
         name="dan-gatewayd",
         stdout=subprocess.DEVNULL,
     )
