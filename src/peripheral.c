@@ -202,16 +202,18 @@ void dan_periph_poll(dan_periph_t *p, uint64_t now64)
     uint32_t now_us = (uint32_t)now64;
     if (ls == DAN_LINK_TX_DONE || ls == DAN_LINK_TX_FAILED) {
         dan_link_ack(&p->link);
-        if (p->sending_ack && p->next_baud != 0u) {
+        if (p->tx_baud != 0u) {
             /* The ACK has left the wire (echo seen or UART drained). A
              * failed send (collision) still switches: the master cannot
              * know whether the ACK reached it and will verify. */
-            if (dan_link_set_baud(&p->link, p->next_baud, now_us) == DAN_OK) {
+            if (dan_link_set_baud(&p->link, p->tx_baud, now_us) == DAN_OK) {
                 p->stats.baud_changes++;
             }
         }
-        p->next_baud = 0;
-        p->sending_ack = false;
+        /* Only the frame that left: a CONFIGURE that came in while an
+         * earlier reply was still on the wire (its echo not read yet, as
+         * on a loaded host or behind a fast master) keeps its switch. */
+        p->tx_baud = 0;
         ls = DAN_LINK_IDLE;
     }
     if (!p->pending || ls != DAN_LINK_IDLE) {
@@ -228,12 +230,12 @@ void dan_periph_poll(dan_periph_t *p, uint64_t now64)
         return;
     }
     p->pending = false;
-    p->sending_ack = (p->next_baud != 0u);
+    p->tx_baud = p->next_baud; /* the switch goes with this frame */
+    p->next_baud = 0;
     if (dan_link_send(&p->link, p->reply_code, p->reply, p->reply_len, now_us) == DAN_OK) {
         p->stats.replies++;
     } else {
-        p->next_baud = 0;
-        p->sending_ack = false;
+        p->tx_baud = 0;
     }
 }
 

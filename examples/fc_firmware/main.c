@@ -40,7 +40,7 @@
 #define NUM_ESC          4u
 #define NUM_TYPES        3u      /* bus_types */
 #define DAN_START_BAUD   9600u   /* DAN starts at 9600 */
-#define REPLY_LATENCY_US 250000u /* a reply may start this late: QEMU on a loaded host */
+#define REPLY_LATENCY_US 400000u /* a reply may start this late: QEMU on a loaded host */
 #define GAP_US           20000u  /* bytes may come in bursts this far apart */
 #define RETRIES          2u      /* extra attempts per transaction */
 #define BACKOFF_SEED     0x5EEDu /* any value: the backoff jitter's seed */

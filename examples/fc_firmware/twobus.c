@@ -28,7 +28,7 @@
 #define TB_RECOVER_IN  3u       /* failures in a row that send a bus back to discovery */
 #define TB_PERIOD_US   10000u   /* 100 Hz: the Python ESCs behind the hub keep up */
 #define TB_REPORT_US   1000000u /* a line per bus per second */
-#define TB_LATENCY_US  250000u  /* a reply may start this late: QEMU on a loaded host */
+#define TB_LATENCY_US  400000u  /* a reply may start this late: QEMU on a loaded host */
 #define TB_GAP_US      20000u   /* bytes may come in bursts this far apart */
 #define TB_RETRIES     2u       /* extra attempts per transaction */
 #define TB_START_BAUD  9600u    /* DAN starts at 9600 */

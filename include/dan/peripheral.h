@@ -120,8 +120,8 @@ typedef struct {
     size_t reply_len;
     uint32_t reply_after_us; /* low 32 bits of now_us (see dan/link.h) */
     uint32_t reply_before_us;
-    uint32_t next_baud; /* switch after the ACK has left (0: none) */
-    bool sending_ack;
+    uint32_t next_baud; /* the queued ACK's switch (0: none) */
+    uint32_t tx_baud;   /* the switch once the frame on the wire has left (0: none) */
     dan_periph_stats_t stats;
 } dan_periph_t;
 

@@ -5,7 +5,7 @@ import socket
 import subprocess
 import sys
 
-from conftest import BIN
+from conftest import BIN, PERIPH_WINDOW_MS
 
 
 def ready(p, what):
@@ -73,8 +73,8 @@ def read_capture(tmp):
 
 
 def start_periph(procs, port, types, mask="0x0F", *extra):
-    if "--window-ms" not in extra:  # a loaded test host stalls replies past 50 ms
-        extra = ("--window-ms", "200", *extra)
+    if "--window-ms" not in extra:  # a loaded test host stalls replies (conftest)
+        extra = ("--window-ms", PERIPH_WINDOW_MS, *extra)
     p = procs.start(
         [BIN / "dan-testperiph", "--port", port, "--types", types, "--mask", mask, *extra],
         name="dan-testperiph",

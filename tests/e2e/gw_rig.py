@@ -19,7 +19,7 @@ import pytest
 
 import pydronecan_nodes
 from bus_util import control, danprobe, ready
-from conftest import BIN, ROOT, wait_for
+from conftest import BIN, MASTER_WAIT_MS, PERIPH_WINDOW_MS, ROOT, wait_for
 
 U = dronecan.uavcan
 
@@ -44,6 +44,24 @@ def step(lines, name):
     return [line for line in lines if line["step"] == name]
 
 
+def gatewayd_cmd(tmp, *extra):
+    """dan-gatewayd on tmp/dan1 (the vbus's endpoint 1) and tmp/can0 (the
+    hub's port 0). The reply window is PERIPH_WINDOW_MS, not the 50 ms
+    default: a loaded 2-core host stalls a process that long (conftest),
+    and a reply dropped as late is a failure the master would not have seen
+    (these tests check behaviour, not speed)."""
+    return [
+        BIN / "dan-gatewayd",
+        "--uart",
+        tmp / "dan1",
+        "--can",
+        f"slcan:{tmp / 'can0'}",
+        "--reply-window-ms",
+        PERIPH_WINDOW_MS,
+        *extra,
+    ]
+
+
 class Rig:
     def __init__(self, procs, tmp, ncan=3, gw_args=()):
         for b in ("dan-vbus", "dan-gatewayd", "dan-fcsim", "dan-cantool"):
@@ -51,22 +69,7 @@ class Rig:
                 pytest.fail(f"{b} not built: run make test (it builds everything)")
         self.procs, self.tmp = procs, tmp
         self.start_wires(ncan)
-        # Generous reply windows (here and in fcsim): a loaded 2-core host
-        # can stall a process that long; these tests check behaviour, not speed.
-        self.gwd = procs.start(
-            [
-                BIN / "dan-gatewayd",
-                "--uart",
-                tmp / "dan1",
-                "--can",
-                f"slcan:{tmp / 'can0'}",
-                "--verbose",
-                "--reply-window-ms",
-                "200",
-                *gw_args,
-            ],
-            stdout=None,
-        )
+        self.gwd = procs.start(gatewayd_cmd(tmp, "--verbose", *gw_args), stdout=None)
         self.nodes = []
         self.stop = threading.Event()
         self.threads = []
@@ -113,7 +116,15 @@ class Rig:
 
     def fcsim(self, *steps, timeout=120, opts=()):
         p = self.procs.start(
-            [BIN / "dan-fcsim", "--port", self.tmp / "dan0", "--latency-ms", "250", *opts, *steps]
+            [
+                BIN / "dan-fcsim",
+                "--port",
+                self.tmp / "dan0",
+                "--latency-ms",
+                MASTER_WAIT_MS,
+                *opts,
+                *steps,
+            ]
         )
         out, _ = p.communicate(timeout=timeout)
         lines = [json.loads(line) for line in out.decode().splitlines() if line.strip()]
@@ -196,7 +207,7 @@ def start_danprobe(procs, *args, name="danprobe"):
     group; returns (proc, its "ready" event)."""
     args = [*map(str, args)]
     if "--latency-ms" not in args:  # generous: a loaded test host stalls replies
-        args += ["--latency-ms", "200"]
+        args += ["--latency-ms", MASTER_WAIT_MS]
     p = procs.start([sys.executable, "-m", "danprobe", *args, "--json"], name=name)
     line = p.stdout.readline().decode()
     assert line, f"{name} ended: {p.log_path.read_text()}"
@@ -253,10 +264,7 @@ class Stack(Rig):
             vbus_extra=("--capture", tmp / "bus.cap", *vbus_extra),
             hub_extra=("--log", self.hub_log, "--control", self.ctl),
         )
-        self.gwd = procs.start(
-            [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can", f"slcan:{tmp / 'can0'}"],
-            stdout=None,
-        )
+        self.gwd = procs.start(gatewayd_cmd(tmp), stdout=None)
         self.esc_log = tmp / "esc.log"
         if escs:
             ports = sum((["--port", tmp / f"can{1 + i}"] for i in range(escs)), [])

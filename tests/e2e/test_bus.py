@@ -17,15 +17,15 @@ from bus_util import (
     start_vbus,
     vbus_stats,
 )
-from conftest import BIN
+from conftest import BIN, MASTER_WAIT_MS
 
 TYPES = "test-a,test-b,can-gw,vtx"
 
 
 def master(port, *steps, types=TYPES, timeout=120, check=True, opts=()):
     """Runs dan-master with --json; returns (exit code, list of step results).
-    The reply window is generous (250 ms): a loaded 2-core host can stall a
-    process that long, and these tests check behaviour, not speed."""
+    The reply window is generous (MASTER_WAIT_MS): a loaded 2-core host can
+    stall a process that long, and these tests check behaviour, not speed."""
     r = subprocess.run(
         [
             str(BIN / "dan-master"),
@@ -35,7 +35,7 @@ def master(port, *steps, types=TYPES, timeout=120, check=True, opts=()):
             types,
             "--json",
             "--latency-ms",
-            "250",
+            MASTER_WAIT_MS,
             *opts,
             *steps,
         ],

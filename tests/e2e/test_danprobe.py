@@ -12,7 +12,7 @@ import pytest
 import serial
 
 from bus_util import danprobe, start_mixed_periphs, start_vbus
-from conftest import BIN, VECTORS, wait_for
+from conftest import BIN, MASTER_WAIT_MS, VECTORS, wait_for
 from danprobe import registry
 from danprobe.codec import (
     MAX_FRAME,
@@ -264,7 +264,8 @@ def danprobe_json(*args):
 
 def dan_master(port, *steps, types=TYPES):
     r = subprocess.run(
-        [str(BIN / "dan-master"), "--port", port, "--types", types, "--json", *steps],
+        [str(BIN / "dan-master"), "--port", port, "--types", types, "--json"]
+        + ["--latency-ms", MASTER_WAIT_MS, *steps],
         stdin=subprocess.DEVNULL,
         capture_output=True,
         timeout=120,

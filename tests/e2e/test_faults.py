@@ -20,7 +20,7 @@ import pytest
 import serial
 
 from bus_util import control, ready, vbus_stats
-from conftest import BIN, ROOT, wait_for
+from conftest import BIN, MASTER_WAIT_MS, PERIPH_WINDOW_MS, ROOT, wait_for
 
 ASAN_BIN = ROOT / "build" / "asan" / "bin"
 CAN_FLOOD = ROOT / "tests" / "tools" / "can_flood.py"
@@ -93,7 +93,7 @@ class Rig:
         # a loaded test host can stall the daemon past the default 50 ms, and
         # a reply the master would still take must not be dropped as late
         if "--reply-window-ms" not in extra:
-            extra = ("--reply-window-ms", "200", *extra)
+            extra = ("--reply-window-ms", PERIPH_WINDOW_MS, *extra)
         env = None
         if self.gw_env:
             env = dict(os.environ, **self.gw_env)
@@ -130,7 +130,7 @@ class Rig:
         # discovery at 9600 finding nothing). A lost reply then costs more
         # time; no test here counts on how fast a failure is noticed.
         if "--latency-ms" not in opts:
-            opts = ("--latency-ms", "250", *opts)
+            opts = ("--latency-ms", MASTER_WAIT_MS, *opts)
         p = self.procs.start(
             [BIN / "dan-fcsim", "--port", self.tmp / "dan0", *self.fc_opts, *opts, *steps],
             name="dan-fcsim",
@@ -227,7 +227,9 @@ def test_noise_levels_and_recovery(rig, baud):
         after = vbus_stats(r.tmp / "vbus.ctl")
         e = state["esc"]
         st = steps_of(out, "stats")
-        retries = st[0]["master_retries"] if st else None
+        # (the stats step may itself fail: the noise goes off as its step
+        # line is read, and the FC goes on meanwhile)
+        retries = st[0].get("master_retries") if st else None
         rows.append(
             (
                 ber,
@@ -259,6 +261,7 @@ def test_noise_levels_and_recovery(rig, baud):
         lambda: any(ev["cmd"] == [7, 8, 9, 10] for ev in r.esc_events(since=t0)),
         30,
         what="the ESCs hear the commands after the noise",
+        explain=lambda: f"last heard {r.esc_events()[-4:]}, gateway {r.gw_stats()}",
     )
 
 
@@ -340,16 +343,23 @@ def test_gateway_restart_back_at_9600(rig):
     rc, out = r.fcsim(
         "discover",
         "configure",
-        # 12 s: five failed exchanges with the rig's 250 ms reply window,
-        # then discovery and configure, well before the step ends
-        "esc:55,66,77,88@12000@100",
+        # 20 s: five failed exchanges with the rig's reply allowance
+        # (MASTER_WAIT_MS each), then discovery and configure, well before
+        # the step ends
+        "esc:55,66,77,88@20000@100",
         on_line=in_thread_after("configure", restart, unless=lambda: "t" in restarted),
         opts=("--recover", "5"),
     )
     e = steps_of(out, "esc")[0]
     wrong = r.wrong_values()
     assert "t" in restarted
-    after = [ev for ev in r.esc_events(since=restarted["t"]) if ev["cmd"] == [55, 66, 77, 88]]
+    # (the Python ESCs log what they heard late on a loaded host)
+    after = wait_for(
+        lambda: [ev for ev in r.esc_events(since=restarted["t"]) if ev["cmd"] == [55, 66, 77, 88]],
+        30,
+        what="commands at the ESCs after the restart",
+        explain=lambda: f"fcsim: {e}",
+    )
     report_esc(
         "gateway restart",
         e,
@@ -360,7 +370,6 @@ def test_gateway_restart_back_at_9600(rig):
     assert e["errors"] > 0  # the FC noticed
     assert e["recoveries"] >= 1  # and found the gateway again by itself
     assert e["baud"] == 115200  # configured again
-    assert len(after) > 0  # commands reach the ESCs again
     assert not wrong, wrong[:5]
 
 
@@ -457,13 +466,20 @@ def test_can_flood_while_esc_commands_flow(rig):
     assert not wrong, wrong[:5]
 
 
+def last_at_all_escs(r, event, good):
+    """The four ESCs' last `event` events if good(event) holds for each."""
+    last = {ev["esc"]: ev for ev in r.esc_events(event)}
+    if set(last) == {0, 1, 2, 3} and all(map(good, last.values())):
+        return list(last.values())
+    return None
+
+
 def test_sigterm_during_esc_commands(rig):
     r = rig()
     killed = {}
 
     def kill_gateway():
         time.sleep(1.0)
-        killed["t"] = time.monotonic()
         killed["rc"] = r.procs.stop(r.gwd)
 
     rc, out = r.fcsim(
@@ -475,15 +491,20 @@ def test_sigterm_during_esc_commands(rig):
     )
     e = steps_of(out, "esc")[0]
     assert killed.get("rc") == 0
+    # Every ESC's last command is the zeros, its last ArmingStatus DISARMED
+    # (the FC armed them). Not "zeros after killed['t']":
+    # pydronecan stamps a frame with the time its I/O process woke for the
+    # read that got it, and the last throttle frame and the zeros (100 us
+    # apart on the bus) can come in one read stamped before the kill.
     zero = wait_for(
-        lambda: [ev for ev in r.esc_events(since=killed["t"]) if ev["cmd"] == ZERO],
+        lambda: last_at_all_escs(r, "cmd", lambda ev: ev["cmd"] == ZERO),
         10,
-        what="zero throttle at the ESCs",
+        what="zero throttle last at all four ESCs",
     )
     disarm = wait_for(
-        lambda: [ev for ev in r.esc_events("arming", since=killed["t"]) if ev["status"] == 0],
+        lambda: last_at_all_escs(r, "arming", lambda ev: ev["status"] == 0),
         10,
-        what="DISARMED at the ESCs",
+        what="DISARMED last at all four ESCs",
     )
     wrong = r.wrong_values()
     report_esc(
@@ -511,7 +532,6 @@ def test_no_leak_asan_gateway(rig):
             "ASAN_OPTIONS": "detect_leaks=1:abort_on_error=0:exitcode=23",
             "UBSAN_OPTIONS": "print_stacktrace=1:halt_on_error=1",
         },
-        gw_args=("--reply-window-ms", "200"),
     )
     data = r.tmp / "tun.bin"
     data.write_bytes(os.urandom(2000))
@@ -530,7 +550,6 @@ def test_no_leak_asan_gateway(rig):
         "config:timeout=400",
         "stats",
         "disarm",
-        opts=("--latency-ms", "250"),
     )
     assert rc == 0, out
     code = r.procs.stop(r.gwd)

@@ -24,7 +24,7 @@ from bus_util import (
     start_vbus,
     vbus_stats,
 )
-from conftest import ROOT
+from conftest import PERIPH_WINDOW_MS, ROOT, wait_for
 
 FW_ELF = os.environ.get("DAN_FW_ELF", str(ROOT / "build" / "fw" / "fc_firmware.elf"))
 QEMU = shutil.which("qemu-system-arm")
@@ -186,7 +186,7 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
     assert hub.stdout.readline().decode().startswith("READY")
     procs.start(
         [BIN / "dan-gatewayd", "--uart", eps[1], "--can", f"slcan:{tmp_path / 'can0'}"]
-        + ["--reply-window-ms", "200"],  # a loaded test host stalls replies past 50 ms
+        + ["--reply-window-ms", PERIPH_WINDOW_MS],  # a loaded test host stalls (conftest)
         name="dan-gatewayd",
         stdout=subprocess.DEVNULL,
     )
@@ -224,6 +224,9 @@ def test_firmware_gateway_arm_esc_ramp_telemetry(procs, tmp_path):
     try:
         time.sleep(0.5)  # the gateway sees the ESC node before the FC boots
         rc, steps, text = run_firmware(procs, tmp_path, eps[0], append="gw=require")
+        # the disarm's ArmingStatus may still be on its way to this node (a
+        # loaded host): keep listening until it came (the gateway repeats it)
+        wait_for(lambda: arming and arming[-1] == 0, 10, what="DISARMED after the run")
     finally:
         stop.set()
         t.join(5)

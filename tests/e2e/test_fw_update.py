@@ -18,7 +18,7 @@ import time
 import pytest
 
 from bus_util import danprobe, ready
-from conftest import BIN, ROOT, wait_for
+from conftest import BIN, MASTER_WAIT_MS, ROOT, wait_for
 from danprobe import file_update as U
 from danprobe import gateway_file as F
 from danprobe import gateway_msgs as G
@@ -28,11 +28,12 @@ from danprobe.gateway_mgmt import CALL_FW_BEGIN
 from danprobe.master import Master, MasterConfig, RemoteError
 from danprobe.payloads import Writer
 from danprobe.port import SerialPort
+from gw_rig import gatewayd_cmd
 
 BOOTLOADER = ROOT / "tests" / "e2e" / "fw_bootloader.py"
 FAST = ("--max-baud", "2000000", "--configure")  # danprobe: the bus at 2 Mbit/s
-# a generous reply window: a loaded test host stalls replies past the default 50 ms
-WINDOW = ("--latency-ms", "200")
+# a generous reply window: a loaded test host stalls replies (conftest)
+WINDOW = ("--latency-ms", MASTER_WAIT_MS)
 NODE_A, NODE_B = 30, 31
 
 
@@ -58,8 +59,7 @@ class FwRig:
         )
         ready(self.hub, "slcan_hub")
         self.gwd = procs.start(
-            [BIN / "dan-gatewayd", "--uart", tmp / "dan1", "--can", f"slcan:{tmp / 'can0'}"]
-            + ["--file-dir", self.store, "--reply-window-ms", "200"],
+            gatewayd_cmd(tmp, "--file-dir", self.store),
             stdout=None,
         )
 

@@ -244,7 +244,6 @@ def test_hostile_can_node(procs, tmp_path):
             f"esc:{','.join(map(str, CLEAN_AFTER))}@{ESC_MS}@{ESC_HZ}",
             on_line=on_line,
             timeout=180,
-            opts=("--latency-ms", "250"),  # a loaded host may stall a reply that long
         )
     finally:
         hostile.stop.set()
@@ -322,6 +321,10 @@ def test_hostile_can_node(procs, tmp_path):
     assert all(hostile.sent[k] > 0 for k in Hostile.KINDS), hostile.sent
     # what the gateway dropped is counted
     assert d["dc_crc_errors"] > 0 and d["dc_errors"] > 0, d
-    assert d["tun_dropped"] > 0 and d["dna_allocations"] > 0, d
+    # The hostile allocations are granted, or refused while the gateway
+    # still asks nodes for GetNodeInfo (an allocator waits for "all nodes
+    # discovered"; the forged traffic keeps adding some): then stages 2 and
+    # 3, sent back to back, come out of sequence and count as dna_bad.
+    assert d["tun_dropped"] > 0 and d["dna_allocations"] + d["dna_bad"] > 0, d
     assert d["duplicates"] >= 1, d  # the node claiming our ID is flagged
     assert d["can_tx_dropped"] == 0, d

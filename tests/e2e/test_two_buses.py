@@ -11,8 +11,8 @@ import time
 
 import pytest
 
-from conftest import BIN, closing_factory, wait_for
-from gw_rig import GW_NODE, Stack
+from conftest import BIN, MASTER_WAIT_MS, closing_factory, wait_for
+from gw_rig import GW_NODE, Stack, gatewayd_cmd
 
 
 @pytest.fixture
@@ -30,7 +30,7 @@ def test_one_bus_failing_leaves_the_other_unaffected(stack, procs):
     b.wait_gateway_sees(4)
     fc = procs.start(
         [BIN / "dan-fc2bus", "--port", a.dan, "--port", b.dan, "--seconds", "300"]
-        + ["--latency-ms", "250", "--values", "10,20,30,40"],
+        + ["--latency-ms", MASTER_WAIT_MS, "--values", "10,20,30,40"],
         stdout=subprocess.PIPE,
     )
 
@@ -59,7 +59,7 @@ def restart_gateway_midflight(procs, b, values, timeout=30):
     time.sleep(3.0)
     restart_t = time.monotonic()
     g = procs.start(  # ... and its gateway comes back (at 9600)
-        [BIN / "dan-gatewayd", "--uart", b.tmp / "dan1", "--can", f"slcan:{b.tmp / 'can0'}"],
+        gatewayd_cmd(b.tmp),
         name="gwd-b-again",
         stdout=None,
     )

@@ -13,8 +13,8 @@ import time
 
 import pytest
 
-from conftest import BIN, closing_factory, wait_for
-from gw_rig import GW_NODE, Stack
+from conftest import BIN, MASTER_WAIT_MS, closing_factory, wait_for
+from gw_rig import GW_NODE, Stack, gatewayd_cmd
 
 PING_US = 200_000  # WATCHDOG_USEC: a ping every 100 ms
 
@@ -43,7 +43,7 @@ def messages(sock, seconds):
 
 def gateway(s, procs, env, name):
     return procs.start(
-        [BIN / "dan-gatewayd", "--uart", s.tmp / "dan1", "--can", f"slcan:{s.tmp / 'can0'}"],
+        gatewayd_cmd(s.tmp),
         name=name,
         env={**os.environ, **env},
         stdout=None,
@@ -91,7 +91,7 @@ def test_sigkill_mid_flight_what_the_escs_see(stack, procs):
     s.wait_gateway_sees(4)
     # the FC recovers a gateway that came back at 9600 (--recover)
     p = procs.start(
-        [BIN / "dan-fcsim", "--port", s.dan, "--latency-ms", "250", "--recover", "3"]
+        [BIN / "dan-fcsim", "--port", s.dan, "--latency-ms", MASTER_WAIT_MS, "--recover", "3"]
         + ["discover", "configure:115200", "esc:300,300,300,300@120000@100"],
         stdout=subprocess.DEVNULL,
     )

@@ -466,6 +466,57 @@ static void test_reply_in_same_read_as_echo(void **state)
     assert_int_equal(m.stats.stray, 0);
 }
 
+/* Polls p every 100 us from *now until it has written something. */
+static void periph_wait_tx(sim_cap_t *cap, dan_periph_t *p, uint64_t *now)
+{
+    while (cap->len == 0u && *now < 10000000u) {
+        *now += 100u;
+        dan_periph_poll(p, *now);
+    }
+}
+
+/* A loaded peripheral reads the echo of its IDENTIFY reply and the
+ * master's CONFIGURE in one go: the end of that reply must not cancel the
+ * switch the CONFIGURE asked for (it did: the ACK went out, the baud
+ * stayed, the master's verification failed; seen in make test). */
+static void test_configure_in_same_read_as_echo(void **state)
+{
+    static sim_cap_t cap;
+    static dan_periph_t p;
+    dan_port_t port;
+    uint8_t rx[128], pl[8];
+    uint64_t now = 1000;
+    size_t len;
+    int n;
+    (void)state;
+    rig_setup(true); /* for types_dev1 */
+    sim_cap_port(&cap, &port);
+    assert_int_equal(dan_periph_init(&p, &port, types_dev1, 2, NULL, 9600, now), DAN_OK);
+    n = dan_frame_encode(DAN_TYPE_IDENTIFY(DAN_TYPE_TEST_A_FIRST), NULL, 0, rx, sizeof rx);
+    dan_periph_rx(&p, rx, (size_t)n, now);
+    periph_wait_tx(&cap, &p, &now);
+    assert_true(cap.len > 0u);
+    /* one read: the echo of the identity, then CONFIGURE(115200) */
+    memcpy(rx, cap.buf, cap.len);
+    len = cap.len;
+    pl[0] = DAN_CONFIGURE_BPS;
+    n = dan_frame_encode(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_A_FIRST), pl,
+                         1u + dan_uvarint_put(115200u, pl + 1), rx + len, sizeof rx - len);
+    len += (size_t)n;
+    cap.len = 0;
+    now += 20000u;
+    dan_periph_rx(&p, rx, len, now);
+    periph_wait_tx(&cap, &p, &now);
+    assert_int_equal(p.stats.configures, 1);
+    assert_int_equal(p.stats.nacks, 0);
+    assert_int_equal(dan_periph_baud(&p), 9600); /* the ACK goes out at the old baud */
+    /* the ACK's echo: it has left, the switch follows */
+    dan_periph_rx(&p, cap.buf, cap.len, now + 10000u);
+    dan_periph_poll(&p, now + 10001u);
+    assert_int_equal(dan_periph_baud(&p), 115200);
+    assert_int_equal(p.stats.baud_changes, 1);
+}
+
 /* A collision breaks a peripheral's reply; the rest of that reply (it has
  * the request's code) later reaches the peripheral's decoder whole. It must
  * not be served as a request: that is how telemetry once became throttle. */
@@ -537,5 +588,6 @@ int main(void)
                     test_listen_before_talk, test_busy_line_times_out, test_noise_no_wrong_data,
                     test_direction_pin, test_discovery_configure_time,
                     test_late_echo_is_not_a_reply, test_reply_in_same_read_as_echo,
+                    test_configure_in_same_read_as_echo,
                     test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }

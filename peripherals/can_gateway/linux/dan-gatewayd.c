@@ -140,8 +140,9 @@ typedef struct {
     const char *stats_file;
     uint64_t stats_due_us;
     uint32_t failsafes_logged;
-    uint32_t baud_logged; /* the DAN baud last logged */
-    const char *dna_db;   /* --dna-db, or NULL */
+    uint32_t baud_logged;        /* the DAN baud last logged */
+    uint32_t port_errors_logged; /* the link's port errors last logged */
+    const char *dna_db;          /* --dna-db, or NULL */
     dan_dna_file_t dna_file;
     uint32_t fast[DAN_NFAST_BAUDS]; /* the fast bauds CONFIGURE may ask for */
     size_t nfast;
@@ -250,6 +251,16 @@ static void write_stats(gwd_t *d)
     for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
         fprintf(f, "\"%s\": %u, ", dan_gw_stat_name(i), v[i]);
     }
+    /* the DAN engine's own counters: a reply dropped as late or a request
+     * that overran the last reply is what a stalled host looks like */
+    fprintf(f,
+            "\"periph_late\": %u, \"periph_overruns\": %u, \"periph_configures\": %u, "
+            "\"periph_nacks\": %u, \"periph_baud_changes\": %u, ",
+            d->periph.stats.late, d->periph.stats.overruns, d->periph.stats.configures,
+            d->periph.stats.nacks, d->periph.stats.baud_changes);
+    fprintf(f, "\"link_collisions\": %u, \"link_echo_timeouts\": %u, \"link_port_errors\": %u, ",
+            d->periph.link.stats.collisions, d->periph.link.stats.echo_timeouts,
+            d->periph.link.stats.port_errors);
     fprintf(f, "\"can_up\": %d, \"baud\": %u}\n", d->can_up ? 1 : 0, dan_periph_baud(&d->periph));
     fclose(f);
     (void)rename(tmp, d->stats_file); /* readers never see a half-written file */
@@ -681,6 +692,11 @@ static void housekeeping(gwd_t *d, uint64_t now)
         /* a CONFIGURE moved us (or a recovery asked at another baud) */
         d->baud_logged = dan_periph_baud(&d->periph);
         logmsg(LOG_INFO, "DAN at %u baud", d->baud_logged);
+    }
+    if (d->periph.link.stats.port_errors != d->port_errors_logged) {
+        /* a reply not written or a CONFIGURE's baud not set: else silent */
+        d->port_errors_logged = d->periph.link.stats.port_errors;
+        logmsg(LOG_WARNING, "UART write or baud change failed (%u so far)", d->port_errors_logged);
     }
     if (d->node.stats.failsafes != d->failsafes_logged) {
         d->failsafes_logged = d->node.stats.failsafes;
