@@ -240,6 +240,97 @@ def file_server_scripts():
     )
 
 
+CAN_OP = {"node_status": 4, "esc_status": 5, "esc_ext": 6, "targetted": 7, "bcast": 8}
+CAN_OP.update({"node_info_rsp": 11})
+WAIT_25MS, WAIT_1S5 = bytes([0x07]), bytes([0xFF])  # gw_handlers op 3: time passes
+
+
+def can_transfer(kind, src, tid, payload):
+    """gw_handlers op 2: a whole transfer of fz_transfers[CAN_OP[kind]] from
+    node src (built with its CRC and toggles by the target)."""
+    return bytes([2 | CAN_OP[kind] << 2, src, tid & 31, len(payload)]) + payload
+
+
+def node_status(uptime, health=0, mode=0, sub_mode=0, vendor=0):
+    """uavcan.protocol.NodeStatus: uint32 uptime, 2+3+3 bits, uint16."""
+    return struct.pack("<IBH", uptime, health << 6 | mode << 3 | sub_mode, vendor)
+
+
+def sealed_session(requests):
+    """gw_handlers: the vectors' requests sealed, around CAN traffic from
+    nodes and ESCs and time passing, so the handlers see a populated
+    gateway (the node table, ESC telemetry, raw frames)."""
+    traffic = b"".join(
+        can_transfer("node_status", n, 0, node_status(100 + n)) for n in (20, 21, 33)
+    )
+    traffic += can_transfer("node_info_rsp", 20, 0, dc_payload("get_node_info_rsp", 20))
+    for k, (name, tid) in enumerate((("esc_status", 6), ("esc_status", 8))):
+        traffic += can_transfer("esc_status", 10 + k, tid, dc_payload(name, tid))
+    traffic += can_transfer("esc_ext", 10, 9, dc_payload("esc_status_extended", 9))
+    raw = b"".join(b"\x02" + can_record(i, e, d) for (i, e, d) in dc_vector("esc_status", 6))
+    body = b"".join(gw_req(c, p) for (c, p) in requests)
+    yield traffic + raw + body + WAIT_25MS + traffic + body
+    yield traffic + WAIT_1S5 * 3 + body
+
+
+def tunnel_scripts():
+    """gw_handlers: serial tunnels both ways: a Targetted port to node 20
+    (serial_id -1: any of its ports) and two Broadcast ports (channel 0,
+    any channel), the nodes' data read back (acknowledged, retried), data
+    written and sent as chunks and keepalives, a flood past the receive
+    buffer, a transfer on a closed port and one behind the stream."""
+    opens = gw_req(0x49, bytes([0, 1, 1, 20, 0xFF, 0, 0]))
+    opens += gw_req(0x49, bytes([1, 2, 1, 0, 0, 0, 0]))
+    opens += gw_req(0x49, bytes([2, 2, 1, 5, 0, 1, 0]))
+
+    def xfer(port, wr, rd, mx, data):
+        return gw_req(
+            0x4A,
+            bytes([port]) + uvarint(wr) + uvarint(rd) + uvarint(mx) + bytes([len(data)]) + data,
+        )
+
+    tgt = can_transfer("targetted", 20, 1, dc_payload("tunnel_targetted", 14))
+    bc = can_transfer("bcast", 30, 2, dc_payload("tunnel_broadcast", 18))
+    hello = b"hello"
+    yield (
+        opens
+        + tgt
+        + bc
+        + xfer(0, 0, 0, 128, hello)
+        + xfer(0, 0, 0, 128, hello)
+        + xfer(1, 0, 0, 16, hello)
+        + xfer(2, 0, 10, 255, b"")
+        + xfer(0, 5, 60, 200, b"")
+        + WAIT_25MS
+        + xfer(0, 1000, 0, 8, hello)
+        + xfer(3, 0, 0, 8, hello)
+        + WAIT_1S5
+        + WAIT_25MS
+    )
+    big = bytes(range(120))
+    yield opens + b"".join(xfer(0, 120 * k, 0, 0, big) for k in range(10)) + WAIT_25MS * 8
+    yield opens + (tgt + bc) * 45 + xfer(0, 0, 4096, 128, b"") + xfer(1, 0, 0, 128, b"")
+
+
+def node_table_scripts():
+    """gw_handlers: the node table: more nodes than slots, a node that
+    restarts three times (a duplicate), one leaving a software update, the
+    GetNodeInfo retries running out, nodes going offline and their slots
+    reused, NODES and NODE_INFO of all that."""
+    ns = b"".join(can_transfer("node_status", n, 0, node_status(100)) for n in range(1, 41))
+    flap = b"".join(
+        can_transfer("node_status", 5, t, node_status(100 - 10 * t)) for t in range(1, 4)
+    )
+    upd = can_transfer("node_status", 6, 1, node_status(200, mode=3))
+    upd += can_transfer("node_status", 6, 2, node_status(201, mode=0))
+    info = can_transfer("node_info_rsp", 1, 0, dc_payload("get_node_info_rsp", 20))
+    info += can_transfer("node_info_rsp", 2, 0, dc_payload("get_node_info_rsp", 31))
+    query = b"".join(gw_req(0x47, bytes([k])) for k in (0, 1, 20, 0x80))
+    query += b"".join(gw_req(0x48, bytes([n])) for n in (1, 2, 5, 99))
+    late = can_transfer("node_status", 50, 0, node_status(1))
+    yield ns + flap + upd + info + WAIT_25MS + query + WAIT_1S5 * 3 + late + query + ns
+
+
 def file_dir_scripts():
     """file_dir: store calls (targets_files.c dan_fuzz_file_dir)."""
 
@@ -343,6 +434,64 @@ def dna_scripts(calls):
     yield stages(2) + bytes([7, 0, 0]) + stages(5) + bytes([7, 3, 42]) + health + stages(4)
 
 
+def dc_vector(name, tid):
+    """The frames [(id, ext, data)] of dronecan.txt's vector name with tid."""
+    for line in lines("dronecan.txt"):
+        if line.split()[0] == name and f" tid={tid} " in line:
+            return can_frames(line.split(" : ")[1])
+    raise KeyError((name, tid))
+
+
+def dc_payload(name, tid):
+    """A vector's transfer payload (tail bytes, and a multi-frame CRC, off)."""
+    fr = dc_vector(name, tid)
+    payload = b"".join(d[:-1] for (_, _, d) in fr)
+    return payload[2:] if len(fr) > 1 else payload
+
+
+def dronecan_rx_scripts():
+    """dronecan_rx: the reassembly's error paths, from a four-frame vector
+    (tunnel.Broadcast from node 10, tid 18) bent one way at a time: a start
+    with the toggle set, a short or anonymous start, a continuation with no
+    start, another transfer ID, a skipped frame (toggle), a short middle
+    frame, a corrupted byte (CRC), an overlong transfer, a restart and a
+    continuation after the 2 s timeout, a duplicate, every session slot
+    taken (no free slot, then an expired one taken over), the cleanup."""
+    fr = [(i, d) for (i, _, d) in dc_vector("tunnel_broadcast", 18)]
+    (i0, d0), (i1, d1), (i2, d2), (i3, d3) = fr
+
+    def rec(fid, data, hi=0):
+        return can_record(fid, True, data, hi)
+
+    def tail(data, t):
+        return data[:-1] + bytes([t])
+
+    idle = can_record(0x123, False, b"", 0x70)  # 700 ms pass, a frame nobody takes
+    late = idle * 3  # past DAN_DC_TRANSFER_TIMEOUT_US (2 s)
+    whole = b"".join(rec(i, d) for (i, d) in fr)
+    anon = i0 & ~0x7F | 0x55 << 10  # node 0, a discriminator
+    yield b"\x0a" + rec(i0, tail(d0, d0[-1] | 0x20)) + rec(i1, d1)
+    yield b"\x0a" + rec(i0, d0[:5] + d0[-1:]) + rec(anon, d0) + rec(i1, d1) + rec(i3, d3)
+    yield b"\x0a" + rec(i0, d0) + rec(i1, tail(d1, d1[-1] ^ 1)) + rec(i0, d0) + rec(i2, d2)
+    yield b"\x0a" + rec(i0, d0) + rec(i1, d1[:4] + d1[-1:]) + rec(i2, d2)
+    yield (
+        b"\x0a" + rec(i0, d0) + rec(i1, bytes([d1[0] ^ 0xFF]) + d1[1:]) + rec(i2, d2) + rec(i3, d3)
+    )
+    yield b"\x0a" + whole + whole + rec(i0, d0) + rec(i0, tail(d0, d0[-1] ^ 3)) + rec(i1, d1)
+    yield b"\x0a" + rec(i0, d0) + late + rec(i1, d1) + rec(i0, d0) + late + rec(i0, d0)
+    mids = b"".join(rec(i1, tail(d1, d1[-1] ^ (0x20 if k % 2 else 0))) for k in range(60))
+    yield b"\x0a" + rec(i0, d0) + mids
+    # every slot held by a transfer in progress (nodes 1..64), one more
+    starts = b"".join(rec(i0 & ~0x7F | n, d0) for n in range(1, 66))
+    single = rec(i0 & ~0x7F | 66, dc_vector("tunnel_broadcast", 19)[0][2])
+    yield b"\x0a" + starts + single + late + rec(i0 & ~0x7F | 67, d0) + rec(i0, d0, 0x80)
+    # service frames: to another node, from node 0, to node 0
+    svc = dc_vector("get_node_info_req", 20)[0]
+    yield (
+        b"\x2a" + rec(svc[0], svc[2]) + rec(svc[0] & ~0x7F, svc[2]) + rec(svc[0] & ~0x7F00, svc[2])
+    )
+
+
 def main():
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "tests" / "fuzz" / "corpus"
     seeds = {}
@@ -377,6 +526,7 @@ def main():
         add("payloads", bytes([sel[f[0]]]) + (b"" if hx == "-" else bytes.fromhex(hx)))
     # gateway requests (handlers) and responses (client)
     script = bytearray()
+    requests = []
     for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
         head, hx = line.split(" : ")
         msg, d = head.split()[:2]
@@ -395,6 +545,7 @@ def main():
             add("gw_handlers", req)
             add("gw_handlers", bytes([req[0] | SEALED_OP]) + req[1:])
             script += req
+            requests.append((code, payload))
         else:
             add("gw_client", bytes([client_sel(code), 0]) + payload)
             add("gw_client", bytes([client_sel(code), SEALED_SEED]) + payload)
@@ -404,6 +555,8 @@ def main():
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
     add("gw_handlers", upload_script())
+    for script_ in [*sealed_session(requests), *tunnel_scripts(), *node_table_scripts()]:
+        add("gw_handlers", script_)
     for script_ in file_server_scripts():
         add("gw_handlers", script_)
     # file names and DroneCAN paths; the directory store
@@ -448,6 +601,8 @@ def main():
         "dronecan_rx",
         b"\x0a" + b"".join(can_record(i, e, d, 0x10) for fr in dc for (i, e, d) in fr),
     )
+    for script_ in dronecan_rx_scripts():
+        add("dronecan_rx", script_)
     # DSDL payloads (transfer CRC and tail bytes removed)
     for line in lines("dronecan.txt"):
         name = line.split()[0]
