@@ -492,6 +492,18 @@ def dronecan_rx_scripts():
     )
 
 
+JUNK = (b"", b"\xff", b"\xff" * 12, b"\x7f" * 60)  # too short, counts and values too large
+
+
+def bent(payload):
+    """A vector's payload one byte short and one byte long: the decoders'
+    length checks."""
+    out = [payload + b"\x00"]
+    if payload:
+        out.append(payload[:-1])
+    return out
+
+
 def main():
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "tests" / "fuzz" / "corpus"
     seeds = {}
@@ -549,6 +561,21 @@ def main():
         else:
             add("gw_client", bytes([client_sel(code), 0]) + payload)
             add("gw_client", bytes([client_sel(code), SEALED_SEED]) + payload)
+    # every code with payloads no decoder takes (sealed: the handlers and
+    # the client's decoders see them), the vectors bent by a byte
+    for code in sorted(set(GW_CODES.values()) | {0x5A}):
+        add("gw_handlers", b"".join(gw_req(code, j) for j in JUNK))
+        for j in JUNK:
+            add("gw_client", bytes([client_sel(code), SEALED_SEED]) + j)
+    for sel_ in range(32):
+        for j in JUNK:
+            add("gw_msgs", bytes([sel_]) + j)
+    for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
+        head, hx = line.split(" : ")
+        msg, d = head.split()[:2]
+        if (msg, d) in MSGS_SEL and hx.strip() != "-":
+            for b in bent(bytes.fromhex(hx.strip())):
+                add("gw_msgs", bytes([MSGS_SEL[(msg, d)]]) + b)
     # a session: identify, configure, the requests, CAN traffic, time passing
     dc = [can_frames(line.split(" : ")[1]) for line in lines("dronecan.txt")]
     can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
@@ -613,6 +640,11 @@ def main():
         if len(fr) > 1:
             payload = payload[2:]
         add("dsdl", bytes([DSDL_SEL[name]]) + payload)
+        for b in bent(payload):
+            add("dsdl", bytes([DSDL_SEL[name]]) + b)
+    for sel_ in range(20):
+        for j in JUNK:
+            add("dsdl", bytes([sel_]) + j)
     # SLCAN lines
     for fr in dc[:6]:
         for i, e, d in fr:
