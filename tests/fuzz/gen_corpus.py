@@ -241,7 +241,7 @@ def file_server_scripts():
 
 
 CAN_OP = {"node_status": 4, "esc_status": 5, "esc_ext": 6, "targetted": 7, "bcast": 8}
-CAN_OP.update({"node_info_rsp": 11})
+CAN_OP.update({"node_info_rsp": 11, "getset_rsp": 12, "opcode_rsp": 13, "fw_begin_rsp": 15})
 WAIT_25MS, WAIT_1S5 = bytes([0x07]), bytes([0xFF])  # gw_handlers op 3: time passes
 
 
@@ -329,6 +329,86 @@ def node_table_scripts():
     query += b"".join(gw_req(0x48, bytes([n])) for n in (1, 2, 5, 99))
     late = can_transfer("node_status", 50, 0, node_status(1))
     yield ns + flap + upd + info + WAIT_25MS + query + WAIT_1S5 * 3 + late + query + ns
+
+
+def raw_can_scripts():
+    """gw_handlers: raw CAN both ways: filters (all extended frames, a full
+    table, one removed), more frames than the receive ring, CAN_RECV that
+    acknowledges, with and without times, CAN_SEND past the bulk queue."""
+
+    def filt(fid, mask):
+        return struct.pack("<II", fid, mask)
+
+    every = gw_req(0x4D, bytes([0, 1]) + filt(0x80000000, 0))
+    full = gw_req(0x4D, bytes([1, 16]) + b"".join(filt(0x80000000 | k, 0x7FF) for k in range(16)))
+    full += gw_req(0x4D, bytes([2, 1]) + filt(0x80000000 | 3, 0x7FF))
+    full += gw_req(
+        0x4D, bytes([1, 2]) + filt(0x80000000 | 20, 0x7FF) + filt(0x80000000 | 21, 0x7FF)
+    )
+    full += gw_req(0x4D, bytes([3, 0]))
+    frames = b"".join(
+        b"\x02" + can_record(0x1401550A | k << 16, True, bytes([k] * (k % 9))) for k in range(70)
+    )
+
+    def recv(seq, mx, opts):
+        return gw_req(0x4C, uvarint(seq) + bytes([mx, opts]))
+
+    reads = recv(0, 11, 0) + recv(5, 11, 1) + recv(5, 11, 1) + recv(70, 4, 0) + recv(1000, 4, 0)
+    yield every + frames + reads + full + frames[:200] + recv(64, 11, 1)
+    frame = struct.pack("<IB", 0x9401550A, 8) + bytes(8)
+    sends = b"".join(gw_req(0x4B, bytes([k, 11]) + frame * 11) for k in range(14))
+    yield every + sends + gw_req(0x4B, bytes([13, 11]) + frame * 11) + WAIT_25MS + sends[:60]
+
+
+def call_scripts():
+    """gw_handlers: node calls answered by the node: a parameter read and
+    write (GetSet), a save (ExecuteOpcode), BeginFirmwareUpdate of an
+    uploaded file (accepted, refused), a malformed answer, and their
+    results read through CALL_RESULT (whole, from an offset, an unknown
+    call)."""
+    ns = b"".join(can_transfer("node_status", n, 0, node_status(100)) for n in (20, 21, 22, 23))
+    up = upload_script()[: -len(gw_req(0x5F, file_name(b"fw.bin")))]
+
+    def call(cid, node, op, rest=b""):
+        return gw_req(0x4E, struct.pack("<HBB", cid, node, op) + rest)
+
+    def result(cid, off=0, mx=128):
+        return gw_req(0x4F, struct.pack("<H", cid) + uvarint(off) + bytes([mx]))
+
+    name = file_name(b"esc_index")
+    yield (
+        ns
+        + call(2, 20, 1, name)
+        + can_transfer("getset_rsp", 20, 0, dc_payload("getset_rsp", 3))
+        + call(3, 21, 2, name + b"\x01" + struct.pack("<q", -5))
+        + can_transfer("getset_rsp", 21, 0, dc_payload("getset_rsp", 6))
+        + call(4, 22, 3)
+        + can_transfer("opcode_rsp", 22, 0, dc_payload("opcode_rsp", 12))
+        + call(5, 23, 1, name)
+        + can_transfer("getset_rsp", 23, 0, b"\xff\xff\xff")
+        + WAIT_25MS
+        + result(2)
+        + result(2, 20, 10)
+        + result(3)
+        + result(3, 200, 100)
+        + result(4)
+        + result(5)
+        + result(9)
+    )
+    yield (
+        ns
+        + up
+        + call(1, 20, 6, file_name(b"fw.bin"))
+        + can_transfer("fw_begin_rsp", 20, 0, b"\x00")
+        + call(6, 21, 6, file_name(b"fw.bin"))
+        + can_transfer("fw_begin_rsp", 21, 0, b"\x01armed")
+        + result(1)
+        + result(6)
+        + WAIT_1S5
+        + file_request("read", b"fw.bin", 0, tid=1, src=20)
+        + WAIT_25MS
+        + gw_req(0x48, bytes([20]))
+    )
 
 
 def file_dir_scripts():
@@ -583,6 +663,8 @@ def main():
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
     add("gw_handlers", upload_script())
     for script_ in [*sealed_session(requests), *tunnel_scripts(), *node_table_scripts()]:
+        add("gw_handlers", script_)
+    for script_ in [*raw_can_scripts(), *call_scripts()]:
         add("gw_handlers", script_)
     for script_ in file_server_scripts():
         add("gw_handlers", script_)
