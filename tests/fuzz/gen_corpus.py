@@ -240,7 +240,7 @@ def file_server_scripts():
     )
 
 
-CAN_OP = {"node_status": 4, "esc_status": 5, "esc_ext": 6, "targetted": 7, "bcast": 8}
+CAN_OP = {"node_status": 4, "esc_status": 5, "esc_ext": 6, "targetted": 7, "bcast": 8, "temp": 10}
 CAN_OP.update({"node_info_rsp": 11, "getset_rsp": 12, "opcode_rsp": 13, "fw_begin_rsp": 15})
 WAIT_25MS, WAIT_1S5 = bytes([0x07]), bytes([0xFF])  # gw_handlers op 3: time passes
 
@@ -408,6 +408,83 @@ def call_scripts():
         + file_request("read", b"fw.bin", 0, tid=1, src=20)
         + WAIT_25MS
         + gw_req(0x48, bytes([20]))
+    )
+
+
+def esc_scripts():
+    """gw_handlers: ESC telemetry in (esc.Status, StatusExtended and a
+    device.Temperature of the same node, and malformed ones), read by
+    ESC_CMD, ESC_TELEM, ESC_FAST and ESC_FAST_T, and HEALTH; CAN error
+    frames: bus-off (CAN down in HEALTH) and the restart."""
+    telem = can_transfer("esc_status", 10, 6, dc_payload("esc_status", 6))
+    telem += can_transfer("esc_status", 11, 8, dc_payload("esc_status", 8))
+    telem += can_transfer("esc_ext", 10, 9, dc_payload("esc_status_extended", 9))
+    telem += can_transfer("temp", 10, 2, dc_payload("temperature", 2))
+    bad = b"".join(can_transfer(k, 12, 0, b"") for k in ("esc_status", "esc_ext", "temp"))
+    cmd = gw_req(0x42, bytes([4]) + bytes(6)) + gw_req(0x59, bytes.fromhex("000019800cb004"))
+    reads = gw_req(0x5A, bytes.fromhex("000019800cb004")) * 3 + gw_req(0x43, b"\x00")
+    health = gw_req(0x52, b"")
+    busoff = b"\x02" + can_record(0x40, False, bytes(8), 4)
+    restarted = b"\x02" + can_record(0x100, False, bytes(8), 4)
+    yield cmd + telem + bad + reads + health + busoff + health + restarted + health + cmd
+    yield telem * 3 + cmd + WAIT_1S5 * 2 + reads + health
+
+
+def file_error_scripts():
+    """gw_handlers: the upload's error paths: a COMMIT before the last
+    byte, a late COMMIT retry after the file was removed, names that are
+    not names, a resume of a partial kept while another upload ran (and of
+    one longer than the new size), and every step while the store fails
+    (op 3 toggles it)."""
+    img = bytes(range(100))
+
+    def fopen(name, size, resume=0):
+        return gw_req(0x5B, file_name(name) + struct.pack("<IB", size, resume))
+
+    def write(off, data):
+        return gw_req(0x5C, uvarint(off) + uvarint(len(data)) + data)
+
+    commit = gw_req(0x5D, struct.pack("<I", zlib.crc32(img)))
+    rm, fail = gw_req(0x5F, file_name(b"a.bin")), b"\x03"
+    yield (
+        fopen(b"a.bin", 100)
+        + write(0, img[:50])
+        + commit
+        + write(50, img[50:])
+        + commit
+        + rm
+        + commit
+        + fopen(b"../a", 10)
+        + fopen(b"a/b", 10)
+        + gw_req(0x5F, file_name(b".x"))
+    )
+    yield (
+        fopen(b"p.bin", 100)
+        + write(0, img[:60])
+        + fopen(b"q.bin", 100)
+        + fopen(b"p.bin", 100, 1)
+        + write(60, img[60:])
+        + commit
+        + fopen(b"q.bin", 100)
+        + write(0, img[:70])
+        + fopen(b"r.bin", 10)
+        + fopen(b"q.bin", 50, 1)
+    )
+    yield (
+        fopen(b"a.bin", 100)
+        + fail
+        + write(0, img)
+        + fail
+        + write(0, img)
+        + fail
+        + commit
+        + fail
+        + commit
+        + fail
+        + gw_req(0x5E, b"\x00")
+        + rm
+        + fopen(b"b.bin", 10)
+        + fail
     )
 
 
@@ -664,7 +741,7 @@ def main():
     add("gw_handlers", upload_script())
     for script_ in [*sealed_session(requests), *tunnel_scripts(), *node_table_scripts()]:
         add("gw_handlers", script_)
-    for script_ in [*raw_can_scripts(), *call_scripts()]:
+    for script_ in [*raw_can_scripts(), *call_scripts(), *esc_scripts(), *file_error_scripts()]:
         add("gw_handlers", script_)
     for script_ in file_server_scripts():
         add("gw_handlers", script_)
