@@ -241,7 +241,8 @@ def file_server_scripts():
 
 
 CAN_OP = {"node_status": 4, "esc_status": 5, "esc_ext": 6, "targetted": 7, "bcast": 8, "temp": 10}
-CAN_OP.update({"node_info_rsp": 11, "getset_rsp": 12, "opcode_rsp": 13, "fw_begin_rsp": 15})
+CAN_OP.update({"node_info_rsp": 11, "getset_rsp": 12, "opcode_rsp": 13, "restart_rsp": 14})
+CAN_OP.update({"fw_begin_rsp": 15})
 WAIT_25MS, WAIT_1S5 = bytes([0x07]), bytes([0xFF])  # gw_handlers op 3: time passes
 
 
@@ -309,7 +310,16 @@ def tunnel_scripts():
     )
     big = bytes(range(120))
     yield opens + b"".join(xfer(0, 120 * k, 0, 0, big) for k in range(10)) + WAIT_25MS * 8
-    yield opens + (tgt + bc) * 45 + xfer(0, 0, 4096, 128, b"") + xfer(1, 0, 0, 128, b"")
+    tp, bp = dc_payload("tunnel_targetted", 14), dc_payload("tunnel_broadcast", 18)
+    flood = b"".join(can_transfer("targetted", 20, k, tp) for k in range(45))
+    flood += can_transfer("bcast", 30, 3, b"") + can_transfer("bcast", 30, 4, bp)
+    yield (
+        opens
+        + flood
+        + xfer(0, 0, 0, 1000, b"")
+        + xfer(0, 0, 4096, 128, b"")
+        + xfer(1, 0, 0, 128, b"")
+    )
 
 
 def node_table_scripts():
@@ -354,7 +364,9 @@ def raw_can_scripts():
         return gw_req(0x4C, uvarint(seq) + bytes([mx, opts]))
 
     reads = recv(0, 11, 0) + recv(5, 11, 1) + recv(5, 11, 1) + recv(70, 4, 0) + recv(1000, 4, 0)
+    rtr = b"\x02" + can_record(0x1401550A, True, b"", 2)
     yield every + frames + reads + full + frames[:200] + recv(64, 11, 1)
+    yield every + rtr + recv(0, 11, 0)
     frame = struct.pack("<IB", 0x9401550A, 8) + bytes(8)
     sends = b"".join(gw_req(0x4B, bytes([k, 11]) + frame * 11) for k in range(14))
     yield every + sends + gw_req(0x4B, bytes([13, 11]) + frame * 11) + WAIT_25MS + sends[:60]
@@ -408,6 +420,28 @@ def call_scripts():
         + file_request("read", b"fw.bin", 0, tid=1, src=20)
         + WAIT_25MS
         + gw_req(0x48, bytes([20]))
+    )
+
+
+def call_error_scripts():
+    """gw_handlers: node calls refused or answered badly: RestartNode with
+    another magic (not forced), BeginFirmwareUpdate of a name that is no
+    name, more calls than slots, malformed Restart and firmware answers."""
+    ns = b"".join(can_transfer("node_status", n, 0, node_status(100)) for n in (20, 21, 22, 23))
+
+    def call(cid, node, op, rest=b""):
+        return gw_req(0x4E, struct.pack("<HBB", cid, node, op) + rest)
+
+    magic = (0xACCE551B1E).to_bytes(5, "little")
+    yield (
+        ns
+        + call(1, 23, 5, (0x1234).to_bytes(5, "little") + b"\x00")
+        + call(2, 20, 6, file_name(b"../x"))
+        + call(3, 21, 5, magic + b"\x00")
+        + can_transfer("restart_rsp", 21, 0, b"")
+        + call(4, 22, 6, file_name(b"fw.bin"))
+        + can_transfer("fw_begin_rsp", 22, 0, b"")
+        + b"".join(call(10 + k, 20 + k % 4, 3) for k in range(10))
     )
 
 
@@ -589,6 +623,9 @@ def dna_scripts(calls):
             + b"\x00\x40"
         )
     yield stages(2) + bytes([7, 0, 0]) + stages(5) + bytes([7, 3, 42]) + health + stages(4)
+    # the stored table with a bit flipped (magic, count, an entry, the CRC)
+    for b2 in (0x01, 0x0D, 0x11, 0x21, 0x53, 0xFF):
+        yield stages(0) + stages(1, 10) + bytes([6, 0, b2]) + dna + health
 
 
 def dc_vector(name, tid):
@@ -743,6 +780,8 @@ def main():
         add("gw_handlers", script_)
     for script_ in [*raw_can_scripts(), *call_scripts(), *esc_scripts(), *file_error_scripts()]:
         add("gw_handlers", script_)
+    for script_ in call_error_scripts():
+        add("gw_handlers", script_)
     for script_ in file_server_scripts():
         add("gw_handlers", script_)
     # file names and DroneCAN paths; the directory store
@@ -839,6 +878,26 @@ def main():
         b"x",
     ):
         add("slcan", s)
+    # lines and cansend arguments each parser refuses: bad hex in the ID,
+    # the data or the timestamp, an ID too large, a DLC past 8
+    for s in (
+        b"tX230",
+        b"t8000",
+        b"T200000000",
+        b"t1239",
+        b"t1230ZZZZ",
+        b"t1231ZZ",
+        b"r1239",
+        b"12#00",
+        b"800#00",
+        b"2FFFFFFF#00",
+        b"123#R9",
+        b"123#001122334455667788",
+        b"123#GG",
+    ):
+        add("slcan", s)
+    # 4 reads of garbage (the backend's read limit per call), a frame in the last
+    add("slcan", b"x" * 1017 + b"\rt1230\r")
 
     for target, items in sorted(seeds.items()):
         d = out / target
