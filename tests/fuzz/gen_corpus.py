@@ -443,6 +443,10 @@ def call_error_scripts():
         + can_transfer("fw_begin_rsp", 22, 0, b"")
         + b"".join(call(10 + k, 20 + k % 4, 3) for k in range(10))
     )
+    # GetSet calls to 20 nodes, one after another: the transfer-ID table
+    # (DAN_DC_TX_TIDS) fills, then the calls and broadcasts find no ID
+    many = b"".join(call(100 + k, 30 + k, 0, b"\x00\x00") + WAIT_1S5 for k in range(20))
+    yield many + gw_req(0x44, b"\xff") + call(200, 60, 0, b"\x00\x00") + WAIT_1S5
 
 
 def esc_scripts():
@@ -672,6 +676,7 @@ def dronecan_rx_scripts():
         b"\x0a" + rec(i0, d0) + rec(i1, bytes([d1[0] ^ 0xFF]) + d1[1:]) + rec(i2, d2) + rec(i3, d3)
     )
     yield b"\x0a" + whole + whole + rec(i0, d0) + rec(i0, tail(d0, d0[-1] ^ 3)) + rec(i1, d1)
+    yield b"\x0a" + rec(i0, d0) + rec(i1, d1) + rec(i0, tail(d0, d0[-1] ^ 3))
     yield b"\x0a" + rec(i0, d0) + late + rec(i1, d1) + rec(i0, d0) + late + rec(i0, d0)
     mids = b"".join(rec(i1, tail(d1, d1[-1] ^ (0x20 if k % 2 else 0))) for k in range(60))
     yield b"\x0a" + rec(i0, d0) + mids
@@ -710,6 +715,7 @@ def main():
         wire = bytes.fromhex(line.split()[-1])
         add("frame", b"\x10\x00" + wire)
         add("frame", b"\x00\x80" + wire)
+    add("frame", b"\x10\x00D\x42" + b"\xff" * 6 + b"\x00")  # a length varint past 5 bytes
     for line in lines("streams.txt"):
         stream = bytes.fromhex(line.split()[1])
         add("frame", b"\x10\x00" + stream)
