@@ -365,6 +365,7 @@ def raw_can_scripts():
 
     reads = recv(0, 11, 0) + recv(5, 11, 1) + recv(5, 11, 1) + recv(70, 4, 0) + recv(1000, 4, 0)
     rtr = b"\x02" + can_record(0x1401550A, True, b"", 2)
+    yield gw_req(0x4D, bytes([0, 2]) + filt(0x80000000, 0) + filt(0x40000000, 0))
     yield every + frames + reads + full + frames[:200] + recv(64, 11, 1)
     yield every + rtr + recv(0, 11, 0)
     frame = struct.pack("<IB", 0x9401550A, 8) + bytes(8)
@@ -398,6 +399,8 @@ def call_scripts():
         + can_transfer("opcode_rsp", 22, 0, dc_payload("opcode_rsp", 12))
         + call(5, 23, 1, name)
         + can_transfer("getset_rsp", 23, 0, b"\xff\xff\xff")
+        + can_transfer("getset_rsp", 20, 9, dc_payload("getset_rsp", 3))
+        + can_transfer("node_status", 21, 1, b"")
         + WAIT_25MS
         + result(2)
         + result(2, 20, 10)
@@ -684,6 +687,12 @@ def dronecan_rx_scripts():
     starts = b"".join(rec(i0 & ~0x7F | n, d0) for n in range(1, 66))
     single = rec(i0 & ~0x7F | 66, dc_vector("tunnel_broadcast", 19)[0][2])
     yield b"\x0a" + starts + single + late + rec(i0 & ~0x7F | 67, d0) + rec(i0, d0, 0x80)
+    # types nobody knows: a broadcast (even ID: taken), a service request
+    unknown = rec(20 << 24 | 0x7FF0 << 8 | 10, b"\x01\xc0") + rec(
+        20 << 24 | 0x7FF1 << 8 | 10, b"\xc1"
+    )
+    unknown += rec(20 << 24 | 0xEE << 16 | 0x8000 | 10 << 8 | 0x80 | 20, b"\xc2")
+    yield b"\x0a" + unknown
     # service frames: to another node, from node 0, to node 0
     svc = dc_vector("get_node_info_req", 20)[0]
     yield (
@@ -767,6 +776,8 @@ def main():
         add("gw_handlers", b"".join(gw_req(code, j) for j in JUNK))
         for j in JUNK:
             add("gw_client", bytes([client_sel(code), SEALED_SEED]) + j)
+    big = bytes([0]) + uvarint(0) * 4 + uvarint(200) + bytes(200)  # TUN_XFER data past 128
+    add("gw_client", bytes([client_sel(0x4A), SEALED_SEED]) + big)
     for sel_ in range(32):
         for j in JUNK:
             add("gw_msgs", bytes([sel_]) + j)
