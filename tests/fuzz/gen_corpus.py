@@ -597,6 +597,12 @@ def file_dir_scripts():
     yield op(4) + nm(b"d") + op(5, 31) + off0 + data * 4 + op(5, 2) + b"\x50\x00" + data
     yield op(4) + nm(b"e") + w + op(7) + nm(b"e") + op(3) + nm(b"e") + op(0) + nm(b"e") + off0
     yield op(4) + nm(b"x" * 33) + op(4) + nm(b".hidden") + op(4) + nm(b"a/b") + op(4) + nm(b"~a")
+    # the upload calls with no upload open, a write past the end (a gap), a
+    # read at the end
+    yield (
+        w + op(6, 31) + off0 + op(7) + nm(b"a") + op(4) + nm(b"g") + op(5, 10) + b"\x64\x00" + data
+    )
+    yield op(4) + nm(b"h") + w + op(6, 31) + b"\x1e\x00" + op(6, 31) + b"\x64\x00"
 
 
 def dna_scripts(calls):
