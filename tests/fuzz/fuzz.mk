@@ -1,6 +1,6 @@
 # Fuzzing with libFuzzer + ASan + UBSan (Debian clang 14). Included by the
 # Makefile; uses its BUILD, WARN, INCLUDES, the source lists and ensure_debs.
-# What each target covers and checks: tests/fuzz/README.md.
+# What each target covers and checks: docs/FUZZING.md.
 #
 #   make fuzz                    every target for FUZZ_SECONDS (default 30) each
 #   make fuzz FUZZ_TARGETS=frame FUZZ_SECONDS=300

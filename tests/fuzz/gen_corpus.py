@@ -240,6 +240,295 @@ def file_server_scripts():
     )
 
 
+CAN_OP = {"node_status": 4, "esc_status": 5, "esc_ext": 6, "targetted": 7, "bcast": 8, "temp": 10}
+CAN_OP.update({"node_info_rsp": 11, "getset_rsp": 12, "opcode_rsp": 13, "restart_rsp": 14})
+CAN_OP.update({"fw_begin_rsp": 15})
+WAIT_25MS, WAIT_1S5 = bytes([0x07]), bytes([0xFF])  # gw_handlers op 3: time passes
+
+
+def can_transfer(kind, src, tid, payload):
+    """gw_handlers op 2: a whole transfer of fz_transfers[CAN_OP[kind]] from
+    node src (built with its CRC and toggles by the target)."""
+    return bytes([2 | CAN_OP[kind] << 2, src, tid & 31, len(payload)]) + payload
+
+
+def node_status(uptime, health=0, mode=0, sub_mode=0, vendor=0):
+    """uavcan.protocol.NodeStatus: uint32 uptime, 2+3+3 bits, uint16."""
+    return struct.pack("<IBH", uptime, health << 6 | mode << 3 | sub_mode, vendor)
+
+
+def sealed_session(requests):
+    """gw_handlers: the vectors' requests sealed, around CAN traffic from
+    nodes and ESCs and time passing, so the handlers see a populated
+    gateway (the node table, ESC telemetry, raw frames)."""
+    traffic = b"".join(
+        can_transfer("node_status", n, 0, node_status(100 + n)) for n in (20, 21, 33)
+    )
+    traffic += can_transfer("node_info_rsp", 20, 0, dc_payload("get_node_info_rsp", 20))
+    for k, (name, tid) in enumerate((("esc_status", 6), ("esc_status", 8))):
+        traffic += can_transfer("esc_status", 10 + k, tid, dc_payload(name, tid))
+    traffic += can_transfer("esc_ext", 10, 9, dc_payload("esc_status_extended", 9))
+    raw = b"".join(b"\x02" + can_record(i, e, d) for (i, e, d) in dc_vector("esc_status", 6))
+    body = b"".join(gw_req(c, p) for (c, p) in requests)
+    yield traffic + raw + body + WAIT_25MS + traffic + body
+    yield traffic + WAIT_1S5 * 3 + body
+
+
+def tunnel_scripts():
+    """gw_handlers: serial tunnels both ways: a Targetted port to node 20
+    (serial_id -1: any of its ports) and two Broadcast ports (channel 0,
+    any channel), the nodes' data read back (acknowledged, retried), data
+    written and sent as chunks and keepalives, a flood past the receive
+    buffer, a transfer on a closed port and one behind the stream."""
+    opens = gw_req(0x49, bytes([0, 1, 1, 20, 0xFF, 0, 0]))
+    opens += gw_req(0x49, bytes([1, 2, 1, 0, 0, 0, 0]))
+    opens += gw_req(0x49, bytes([2, 2, 1, 5, 0, 1, 0]))
+
+    def xfer(port, wr, rd, mx, data):
+        return gw_req(
+            0x4A,
+            bytes([port]) + uvarint(wr) + uvarint(rd) + uvarint(mx) + bytes([len(data)]) + data,
+        )
+
+    tgt = can_transfer("targetted", 20, 1, dc_payload("tunnel_targetted", 14))
+    bc = can_transfer("bcast", 30, 2, dc_payload("tunnel_broadcast", 18))
+    hello = b"hello"
+    yield (
+        opens
+        + tgt
+        + bc
+        + xfer(0, 0, 0, 128, hello)
+        + xfer(0, 0, 0, 128, hello)
+        + xfer(1, 0, 0, 16, hello)
+        + xfer(2, 0, 10, 255, b"")
+        + xfer(0, 5, 60, 200, b"")
+        + WAIT_25MS
+        + xfer(0, 1000, 0, 8, hello)
+        + xfer(3, 0, 0, 8, hello)
+        + WAIT_1S5
+        + WAIT_25MS
+    )
+    big = bytes(range(120))
+    yield opens + b"".join(xfer(0, 120 * k, 0, 0, big) for k in range(10)) + WAIT_25MS * 8
+    tp, bp = dc_payload("tunnel_targetted", 14), dc_payload("tunnel_broadcast", 18)
+    flood = b"".join(can_transfer("targetted", 20, k, tp) for k in range(45))
+    flood += can_transfer("bcast", 30, 3, b"") + can_transfer("bcast", 30, 4, bp)
+    yield (
+        opens
+        + flood
+        + xfer(0, 0, 0, 1000, b"")
+        + xfer(0, 0, 4096, 128, b"")
+        + xfer(1, 0, 0, 128, b"")
+    )
+
+
+def node_table_scripts():
+    """gw_handlers: the node table: more nodes than slots, a node that
+    restarts three times (a duplicate), one leaving a software update, the
+    GetNodeInfo retries running out, nodes going offline and their slots
+    reused, NODES and NODE_INFO of all that."""
+    ns = b"".join(can_transfer("node_status", n, 0, node_status(100)) for n in range(1, 41))
+    flap = b"".join(
+        can_transfer("node_status", 5, t, node_status(100 - 10 * t)) for t in range(1, 4)
+    )
+    upd = can_transfer("node_status", 6, 1, node_status(200, mode=3))
+    upd += can_transfer("node_status", 6, 2, node_status(201, mode=0))
+    info = can_transfer("node_info_rsp", 1, 0, dc_payload("get_node_info_rsp", 20))
+    info += can_transfer("node_info_rsp", 2, 0, dc_payload("get_node_info_rsp", 31))
+    query = b"".join(gw_req(0x47, bytes([k])) for k in (0, 1, 20, 0x80))
+    query += b"".join(gw_req(0x48, bytes([n])) for n in (1, 2, 5, 99))
+    late = can_transfer("node_status", 50, 0, node_status(1))
+    yield ns + flap + upd + info + WAIT_25MS + query + WAIT_1S5 * 3 + late + query + ns
+
+
+def raw_can_scripts():
+    """gw_handlers: raw CAN both ways: filters (all extended frames, a full
+    table, one removed), more frames than the receive ring, CAN_RECV that
+    acknowledges, with and without times, CAN_SEND past the bulk queue."""
+
+    def filt(fid, mask):
+        return struct.pack("<II", fid, mask)
+
+    every = gw_req(0x4D, bytes([0, 1]) + filt(0x80000000, 0))
+    full = gw_req(0x4D, bytes([1, 16]) + b"".join(filt(0x80000000 | k, 0x7FF) for k in range(16)))
+    full += gw_req(0x4D, bytes([2, 1]) + filt(0x80000000 | 3, 0x7FF))
+    full += gw_req(
+        0x4D, bytes([1, 2]) + filt(0x80000000 | 20, 0x7FF) + filt(0x80000000 | 21, 0x7FF)
+    )
+    full += gw_req(0x4D, bytes([3, 0]))
+    frames = b"".join(
+        b"\x02" + can_record(0x1401550A | k << 16, True, bytes([k] * (k % 9))) for k in range(70)
+    )
+
+    def recv(seq, mx, opts):
+        return gw_req(0x4C, uvarint(seq) + bytes([mx, opts]))
+
+    reads = recv(0, 11, 0) + recv(5, 11, 1) + recv(5, 11, 1) + recv(70, 4, 0) + recv(1000, 4, 0)
+    rtr = b"\x02" + can_record(0x1401550A, True, b"", 2)
+    yield gw_req(0x4D, bytes([0, 2]) + filt(0x80000000, 0) + filt(0x40000000, 0))
+    yield every + frames + reads + full + frames[:200] + recv(64, 11, 1)
+    yield every + rtr + recv(0, 11, 0)
+    frame = struct.pack("<IB", 0x9401550A, 8) + bytes(8)
+    sends = b"".join(gw_req(0x4B, bytes([k, 11]) + frame * 11) for k in range(14))
+    yield every + sends + gw_req(0x4B, bytes([13, 11]) + frame * 11) + WAIT_25MS + sends[:60]
+
+
+def call_scripts():
+    """gw_handlers: node calls answered by the node: a parameter read and
+    write (GetSet), a save (ExecuteOpcode), BeginFirmwareUpdate of an
+    uploaded file (accepted, refused), a malformed answer, and their
+    results read through CALL_RESULT (whole, from an offset, an unknown
+    call)."""
+    ns = b"".join(can_transfer("node_status", n, 0, node_status(100)) for n in (20, 21, 22, 23))
+    up = upload_script()[: -len(gw_req(0x5F, file_name(b"fw.bin")))]
+
+    def call(cid, node, op, rest=b""):
+        return gw_req(0x4E, struct.pack("<HBB", cid, node, op) + rest)
+
+    def result(cid, off=0, mx=128):
+        return gw_req(0x4F, struct.pack("<H", cid) + uvarint(off) + bytes([mx]))
+
+    name = file_name(b"esc_index")
+    yield (
+        ns
+        + call(2, 20, 1, name)
+        + can_transfer("getset_rsp", 20, 0, dc_payload("getset_rsp", 3))
+        + call(3, 21, 2, name + b"\x01" + struct.pack("<q", -5))
+        + can_transfer("getset_rsp", 21, 0, dc_payload("getset_rsp", 6))
+        + call(4, 22, 3)
+        + can_transfer("opcode_rsp", 22, 0, dc_payload("opcode_rsp", 12))
+        + call(5, 23, 1, name)
+        + can_transfer("getset_rsp", 23, 0, b"\xff\xff\xff")
+        + can_transfer("getset_rsp", 20, 9, dc_payload("getset_rsp", 3))
+        + can_transfer("node_status", 21, 1, b"")
+        + WAIT_25MS
+        + result(2)
+        + result(2, 20, 10)
+        + result(3)
+        + result(3, 200, 100)
+        + result(4)
+        + result(5)
+        + result(9)
+    )
+    yield (
+        ns
+        + up
+        + call(1, 20, 6, file_name(b"fw.bin"))
+        + can_transfer("fw_begin_rsp", 20, 0, b"\x00")
+        + call(6, 21, 6, file_name(b"fw.bin"))
+        + can_transfer("fw_begin_rsp", 21, 0, b"\x01armed")
+        + result(1)
+        + result(6)
+        + WAIT_1S5
+        + file_request("read", b"fw.bin", 0, tid=1, src=20)
+        + WAIT_25MS
+        + gw_req(0x48, bytes([20]))
+    )
+
+
+def call_error_scripts():
+    """gw_handlers: node calls refused or answered badly: RestartNode with
+    another magic (not forced), BeginFirmwareUpdate of a name that is no
+    name, more calls than slots, malformed Restart and firmware answers."""
+    ns = b"".join(can_transfer("node_status", n, 0, node_status(100)) for n in (20, 21, 22, 23))
+
+    def call(cid, node, op, rest=b""):
+        return gw_req(0x4E, struct.pack("<HBB", cid, node, op) + rest)
+
+    magic = (0xACCE551B1E).to_bytes(5, "little")
+    yield (
+        ns
+        + call(1, 23, 5, (0x1234).to_bytes(5, "little") + b"\x00")
+        + call(2, 20, 6, file_name(b"../x"))
+        + call(3, 21, 5, magic + b"\x00")
+        + can_transfer("restart_rsp", 21, 0, b"")
+        + call(4, 22, 6, file_name(b"fw.bin"))
+        + can_transfer("fw_begin_rsp", 22, 0, b"")
+        + b"".join(call(10 + k, 20 + k % 4, 3) for k in range(10))
+    )
+    # GetSet calls to 20 nodes, one after another: the transfer-ID table
+    # (DAN_DC_TX_TIDS) fills, then the calls and broadcasts find no ID
+    many = b"".join(call(100 + k, 30 + k, 0, b"\x00\x00") + WAIT_1S5 for k in range(20))
+    yield many + gw_req(0x44, b"\xff") + call(200, 60, 0, b"\x00\x00") + WAIT_1S5
+
+
+def esc_scripts():
+    """gw_handlers: ESC telemetry in (esc.Status, StatusExtended and a
+    device.Temperature of the same node, and malformed ones), read by
+    ESC_CMD, ESC_TELEM, ESC_FAST and ESC_FAST_T, and HEALTH; CAN error
+    frames: bus-off (CAN down in HEALTH) and the restart."""
+    telem = can_transfer("esc_status", 10, 6, dc_payload("esc_status", 6))
+    telem += can_transfer("esc_status", 11, 8, dc_payload("esc_status", 8))
+    telem += can_transfer("esc_ext", 10, 9, dc_payload("esc_status_extended", 9))
+    telem += can_transfer("temp", 10, 2, dc_payload("temperature", 2))
+    bad = b"".join(can_transfer(k, 12, 0, b"") for k in ("esc_status", "esc_ext", "temp"))
+    cmd = gw_req(0x42, bytes([4]) + bytes(6)) + gw_req(0x59, bytes.fromhex("000019800cb004"))
+    reads = gw_req(0x5A, bytes.fromhex("000019800cb004")) * 3 + gw_req(0x43, b"\x00")
+    health = gw_req(0x52, b"")
+    busoff = b"\x02" + can_record(0x40, False, bytes(8), 4)
+    restarted = b"\x02" + can_record(0x100, False, bytes(8), 4)
+    yield cmd + telem + bad + reads + health + busoff + health + restarted + health + cmd
+    yield telem * 3 + cmd + WAIT_1S5 * 2 + reads + health
+
+
+def file_error_scripts():
+    """gw_handlers: the upload's error paths: a COMMIT before the last
+    byte, a late COMMIT retry after the file was removed, names that are
+    not names, a resume of a partial kept while another upload ran (and of
+    one longer than the new size), and every step while the store fails
+    (op 3 toggles it)."""
+    img = bytes(range(100))
+
+    def fopen(name, size, resume=0):
+        return gw_req(0x5B, file_name(name) + struct.pack("<IB", size, resume))
+
+    def write(off, data):
+        return gw_req(0x5C, uvarint(off) + uvarint(len(data)) + data)
+
+    commit = gw_req(0x5D, struct.pack("<I", zlib.crc32(img)))
+    rm, fail = gw_req(0x5F, file_name(b"a.bin")), b"\x03"
+    yield (
+        fopen(b"a.bin", 100)
+        + write(0, img[:50])
+        + commit
+        + write(50, img[50:])
+        + commit
+        + rm
+        + commit
+        + fopen(b"../a", 10)
+        + fopen(b"a/b", 10)
+        + gw_req(0x5F, file_name(b".x"))
+    )
+    yield (
+        fopen(b"p.bin", 100)
+        + write(0, img[:60])
+        + fopen(b"q.bin", 100)
+        + fopen(b"p.bin", 100, 1)
+        + write(60, img[60:])
+        + commit
+        + fopen(b"q.bin", 100)
+        + write(0, img[:70])
+        + fopen(b"r.bin", 10)
+        + fopen(b"q.bin", 50, 1)
+    )
+    yield (
+        fopen(b"a.bin", 100)
+        + fail
+        + write(0, img)
+        + fail
+        + write(0, img)
+        + fail
+        + commit
+        + fail
+        + commit
+        + fail
+        + gw_req(0x5E, b"\x00")
+        + rm
+        + fopen(b"b.bin", 10)
+        + fail
+    )
+
+
 def file_dir_scripts():
     """file_dir: store calls (targets_files.c dan_fuzz_file_dir)."""
 
@@ -308,6 +597,12 @@ def file_dir_scripts():
     yield op(4) + nm(b"d") + op(5, 31) + off0 + data * 4 + op(5, 2) + b"\x50\x00" + data
     yield op(4) + nm(b"e") + w + op(7) + nm(b"e") + op(3) + nm(b"e") + op(0) + nm(b"e") + off0
     yield op(4) + nm(b"x" * 33) + op(4) + nm(b".hidden") + op(4) + nm(b"a/b") + op(4) + nm(b"~a")
+    # the upload calls with no upload open, a write past the end (a gap), a
+    # read at the end
+    yield (
+        w + op(6, 31) + off0 + op(7) + nm(b"a") + op(4) + nm(b"g") + op(5, 10) + b"\x64\x00" + data
+    )
+    yield op(4) + nm(b"h") + w + op(6, 31) + b"\x1e\x00" + op(6, 31) + b"\x64\x00"
 
 
 def dna_scripts(calls):
@@ -341,6 +636,86 @@ def dna_scripts(calls):
             + b"\x00\x40"
         )
     yield stages(2) + bytes([7, 0, 0]) + stages(5) + bytes([7, 3, 42]) + health + stages(4)
+    # the stored table with a bit flipped (magic, count, an entry, the CRC)
+    for b2 in (0x01, 0x0D, 0x11, 0x21, 0x53, 0xFF):
+        yield stages(0) + stages(1, 10) + bytes([6, 0, b2]) + dna + health
+
+
+def dc_vector(name, tid):
+    """The frames [(id, ext, data)] of dronecan.txt's vector name with tid."""
+    for line in lines("dronecan.txt"):
+        if line.split()[0] == name and f" tid={tid} " in line:
+            return can_frames(line.split(" : ")[1])
+    raise KeyError((name, tid))
+
+
+def dc_payload(name, tid):
+    """A vector's transfer payload (tail bytes, and a multi-frame CRC, off)."""
+    fr = dc_vector(name, tid)
+    payload = b"".join(d[:-1] for (_, _, d) in fr)
+    return payload[2:] if len(fr) > 1 else payload
+
+
+def dronecan_rx_scripts():
+    """dronecan_rx: the reassembly's error paths, from a four-frame vector
+    (tunnel.Broadcast from node 10, tid 18) bent one way at a time: a start
+    with the toggle set, a short or anonymous start, a continuation with no
+    start, another transfer ID, a skipped frame (toggle), a short middle
+    frame, a corrupted byte (CRC), an overlong transfer, a restart and a
+    continuation after the 2 s timeout, a duplicate, every session slot
+    taken (no free slot, then an expired one taken over), the cleanup."""
+    fr = [(i, d) for (i, _, d) in dc_vector("tunnel_broadcast", 18)]
+    (i0, d0), (i1, d1), (i2, d2), (i3, d3) = fr
+
+    def rec(fid, data, hi=0):
+        return can_record(fid, True, data, hi)
+
+    def tail(data, t):
+        return data[:-1] + bytes([t])
+
+    idle = can_record(0x123, False, b"", 0x70)  # 700 ms pass, a frame nobody takes
+    late = idle * 3  # past DAN_DC_TRANSFER_TIMEOUT_US (2 s)
+    whole = b"".join(rec(i, d) for (i, d) in fr)
+    anon = i0 & ~0x7F | 0x55 << 10  # node 0, a discriminator
+    yield b"\x0a" + rec(i0, tail(d0, d0[-1] | 0x20)) + rec(i1, d1)
+    yield b"\x0a" + rec(i0, d0[:5] + d0[-1:]) + rec(anon, d0) + rec(i1, d1) + rec(i3, d3)
+    yield b"\x0a" + rec(i0, d0) + rec(i1, tail(d1, d1[-1] ^ 1)) + rec(i0, d0) + rec(i2, d2)
+    yield b"\x0a" + rec(i0, d0) + rec(i1, d1[:4] + d1[-1:]) + rec(i2, d2)
+    yield (
+        b"\x0a" + rec(i0, d0) + rec(i1, bytes([d1[0] ^ 0xFF]) + d1[1:]) + rec(i2, d2) + rec(i3, d3)
+    )
+    yield b"\x0a" + whole + whole + rec(i0, d0) + rec(i0, tail(d0, d0[-1] ^ 3)) + rec(i1, d1)
+    yield b"\x0a" + rec(i0, d0) + rec(i1, d1) + rec(i0, tail(d0, d0[-1] ^ 3))
+    yield b"\x0a" + rec(i0, d0) + late + rec(i1, d1) + rec(i0, d0) + late + rec(i0, d0)
+    mids = b"".join(rec(i1, tail(d1, d1[-1] ^ (0x20 if k % 2 else 0))) for k in range(60))
+    yield b"\x0a" + rec(i0, d0) + mids
+    # every slot held by a transfer in progress (nodes 1..64), one more
+    starts = b"".join(rec(i0 & ~0x7F | n, d0) for n in range(1, 66))
+    single = rec(i0 & ~0x7F | 66, dc_vector("tunnel_broadcast", 19)[0][2])
+    yield b"\x0a" + starts + single + late + rec(i0 & ~0x7F | 67, d0) + rec(i0, d0, 0x80)
+    # types nobody knows: a broadcast (even ID: taken), a service request
+    unknown = rec(20 << 24 | 0x7FF0 << 8 | 10, b"\x01\xc0") + rec(
+        20 << 24 | 0x7FF1 << 8 | 10, b"\xc1"
+    )
+    unknown += rec(20 << 24 | 0xEE << 16 | 0x8000 | 10 << 8 | 0x80 | 20, b"\xc2")
+    yield b"\x0a" + unknown
+    # service frames: to another node, from node 0, to node 0
+    svc = dc_vector("get_node_info_req", 20)[0]
+    yield (
+        b"\x2a" + rec(svc[0], svc[2]) + rec(svc[0] & ~0x7F, svc[2]) + rec(svc[0] & ~0x7F00, svc[2])
+    )
+
+
+JUNK = (b"", b"\xff", b"\xff" * 12, b"\x7f" * 60)  # too short, counts and values too large
+
+
+def bent(payload):
+    """A vector's payload one byte short and one byte long: the decoders'
+    length checks."""
+    out = [payload + b"\x00"]
+    if payload:
+        out.append(payload[:-1])
+    return out
 
 
 def main():
@@ -355,6 +730,7 @@ def main():
         wire = bytes.fromhex(line.split()[-1])
         add("frame", b"\x10\x00" + wire)
         add("frame", b"\x00\x80" + wire)
+    add("frame", b"\x10\x00D\x42" + b"\xff" * 6 + b"\x00")  # a length varint past 5 bytes
     for line in lines("streams.txt"):
         stream = bytes.fromhex(line.split()[1])
         add("frame", b"\x10\x00" + stream)
@@ -377,6 +753,7 @@ def main():
         add("payloads", bytes([sel[f[0]]]) + (b"" if hx == "-" else bytes.fromhex(hx)))
     # gateway requests (handlers) and responses (client)
     script = bytearray()
+    requests = []
     for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
         head, hx = line.split(" : ")
         msg, d = head.split()[:2]
@@ -395,15 +772,39 @@ def main():
             add("gw_handlers", req)
             add("gw_handlers", bytes([req[0] | SEALED_OP]) + req[1:])
             script += req
+            requests.append((code, payload))
         else:
             add("gw_client", bytes([client_sel(code), 0]) + payload)
             add("gw_client", bytes([client_sel(code), SEALED_SEED]) + payload)
+    # every code with payloads no decoder takes (sealed: the handlers and
+    # the client's decoders see them), the vectors bent by a byte
+    for code in sorted(set(GW_CODES.values()) | {0x5A}):
+        add("gw_handlers", b"".join(gw_req(code, j) for j in JUNK))
+        for j in JUNK:
+            add("gw_client", bytes([client_sel(code), SEALED_SEED]) + j)
+    big = bytes([0]) + uvarint(0) * 4 + uvarint(200) + bytes(200)  # TUN_XFER data past 128
+    add("gw_client", bytes([client_sel(0x4A), SEALED_SEED]) + big)
+    for sel_ in range(32):
+        for j in JUNK:
+            add("gw_msgs", bytes([sel_]) + j)
+    for line in [*lines("gateway.txt"), *lines("gateway_file.txt")]:
+        head, hx = line.split(" : ")
+        msg, d = head.split()[:2]
+        if (msg, d) in MSGS_SEL and hx.strip() != "-":
+            for b in bent(bytes.fromhex(hx.strip())):
+                add("gw_msgs", bytes([MSGS_SEL[(msg, d)]]) + b)
     # a session: identify, configure, the requests, CAN traffic, time passing
     dc = [can_frames(line.split(" : ")[1]) for line in lines("dronecan.txt")]
     can = b"".join(b"\x02" + can_record(i, e, d) for fr in dc for (i, e, d) in fr)
     add("gw_handlers", b"\x00\x00" + bytes(script) + can + b"\xff\x03" + bytes(script[:40]))
     add("gw_handlers", b"\x04\x05\x00\x80\x84\x07" + can[:200] + b"\x83")
     add("gw_handlers", upload_script())
+    for script_ in [*sealed_session(requests), *tunnel_scripts(), *node_table_scripts()]:
+        add("gw_handlers", script_)
+    for script_ in [*raw_can_scripts(), *call_scripts(), *esc_scripts(), *file_error_scripts()]:
+        add("gw_handlers", script_)
+    for script_ in call_error_scripts():
+        add("gw_handlers", script_)
     for script_ in file_server_scripts():
         add("gw_handlers", script_)
     # file names and DroneCAN paths; the directory store
@@ -448,6 +849,8 @@ def main():
         "dronecan_rx",
         b"\x0a" + b"".join(can_record(i, e, d, 0x10) for fr in dc for (i, e, d) in fr),
     )
+    for script_ in dronecan_rx_scripts():
+        add("dronecan_rx", script_)
     # DSDL payloads (transfer CRC and tail bytes removed)
     for line in lines("dronecan.txt"):
         name = line.split()[0]
@@ -458,6 +861,11 @@ def main():
         if len(fr) > 1:
             payload = payload[2:]
         add("dsdl", bytes([DSDL_SEL[name]]) + payload)
+        for b in bent(payload):
+            add("dsdl", bytes([DSDL_SEL[name]]) + b)
+    for sel_ in range(20):
+        for j in JUNK:
+            add("dsdl", bytes([sel_]) + j)
     # SLCAN lines
     for fr in dc[:6]:
         for i, e, d in fr:
@@ -493,6 +901,26 @@ def main():
         b"x",
     ):
         add("slcan", s)
+    # lines and cansend arguments each parser refuses: bad hex in the ID,
+    # the data or the timestamp, an ID too large, a DLC past 8
+    for s in (
+        b"tX230",
+        b"t8000",
+        b"T200000000",
+        b"t1239",
+        b"t1230ZZZZ",
+        b"t1231ZZ",
+        b"r1239",
+        b"12#00",
+        b"800#00",
+        b"2FFFFFFF#00",
+        b"123#R9",
+        b"123#001122334455667788",
+        b"123#GG",
+    ):
+        add("slcan", s)
+    # 4 reads of garbage (the backend's read limit per call), a frame in the last
+    add("slcan", b"x" * 1017 + b"\rt1230\r")
 
     for target, items in sorted(seeds.items()):
         d = out / target

@@ -18,7 +18,7 @@ dir=${FUZZ_DIR:-build/fuzz}
 
 # Longest input per target: enough for every state the input can reach
 # (several frames, a script of requests, a multi-frame transfer), short
-# enough that an execution stays cheap (tests/fuzz/README.md).
+# enough that an execution stays cheap (docs/FUZZING.md).
 max_len() {
     case $1 in
     payloads | gw_client | gw_msgs) echo 256 ;;
