@@ -19,7 +19,19 @@ static bool servo_get(dan_reader_t *r, dan_gw_servo_t *s)
 }
 
 /* The lists' count (SERVO, SERVO_FAILSAFE, LIGHTS): u8 n in min..max (one
- * unsigned compare), n items follow. */
+ * unsigned compare), n items follow. list_put() checks n (and that there
+ * are items for it) and writes it; false: DAN_ERR_ARG. */
+static bool list_put(dan_writer_t *w, const void *items, size_t n, size_t min, size_t max,
+                     uint8_t *out, size_t cap)
+{
+    if ((items == NULL && n > 0u) || n - min > max - min) {
+        return false;
+    }
+    dan_writer_init(w, out, cap);
+    dan_put_u8(w, (uint8_t)n);
+    return true;
+}
+
 static bool list_get(dan_reader_t *r, size_t *n, size_t min, size_t max, const uint8_t *p,
                      size_t len)
 {
@@ -34,11 +46,9 @@ int dan_gw_msg_servo_encode(const dan_gw_servo_t *s, size_t n, uint8_t *out, siz
 {
     dan_writer_t w;
     size_t i;
-    if (s == NULL || n == 0u || n > DAN_GW_SERVO_MAX) {
+    if (!list_put(&w, s, n, 1u, DAN_GW_SERVO_MAX, out, cap)) {
         return DAN_ERR_ARG;
     }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, (uint8_t)n);
     for (i = 0; i < n; i++) {
         if (s[i].command_type > DAN_GW_SERVO_TYPE_MAX) {
             return DAN_ERR_ARG;
@@ -67,11 +77,9 @@ int dan_gw_msg_servo_fs_encode(const dan_gw_servo_fs_t *s, size_t n, uint8_t *ou
 {
     dan_writer_t w;
     size_t i;
-    if ((s == NULL && n > 0u) || n > DAN_GW_SERVO_MAX) {
+    if (!list_put(&w, s, n, 0u, DAN_GW_SERVO_MAX, out, cap)) {
         return DAN_ERR_ARG;
     }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, (uint8_t)n);
     for (i = 0; i < n; i++) {
         dan_gw_servo_t v = s[i].value;
         if (s[i].mode > DAN_GW_SERVO_VALUE || v.command_type > DAN_GW_SERVO_TYPE_MAX) {
@@ -107,11 +115,9 @@ int dan_gw_msg_lights_encode(const dan_gw_light_t *l, size_t n, uint8_t *out, si
 {
     dan_writer_t w;
     size_t i;
-    if (l == NULL || n == 0u || n > DAN_GW_LIGHTS_MAX) {
+    if (!list_put(&w, l, n, 1u, DAN_GW_LIGHTS_MAX, out, cap)) {
         return DAN_ERR_ARG;
     }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, (uint8_t)n);
     for (i = 0; i < n; i++) {
         dan_put_u8(&w, l[i].light_id);
         dan_put_u16(&w, l[i].rgb565);
@@ -140,26 +146,23 @@ static bool beep_ok(const dan_gw_beep_t *b)
            b->duration_ms <= DAN_GW_BEEP_MS_MAX;
 }
 
+static const dan_field_t BEEP[] = {
+    DAN_FIELD(dan_gw_beep_t, frequency_hz, DAN_F_UV),
+    DAN_FIELD(dan_gw_beep_t, duration_ms, DAN_F_UV),
+};
+
 int dan_gw_msg_beep_encode(const dan_gw_beep_t *b, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
     if (b == NULL || !beep_ok(b)) {
         return DAN_ERR_ARG;
     }
-    dan_writer_init(&w, out, cap);
-    dan_put_uvarint(&w, b->frequency_hz);
-    dan_put_uvarint(&w, b->duration_ms);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(b, BEEP, DAN_NFIELDS(BEEP), out, cap);
 }
 
 int dan_gw_msg_beep_decode(dan_gw_beep_t *b, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
-    dan_reader_init(&r, p, len);
-    b->frequency_hz = dan_get_uvarint(&r);
-    b->duration_ms = dan_get_uvarint(&r);
-    if (!beep_ok(b)) {
-        return DAN_ERR_MALFORMED;
-    }
-    return dan_reader_finish(&r);
+    int rc;
+    memset(b, 0, sizeof *b);
+    rc = dan_decode_fields(b, BEEP, DAN_NFIELDS(BEEP), p, len);
+    return rc == DAN_OK && !beep_ok(b) ? DAN_ERR_MALFORMED : rc;
 }
