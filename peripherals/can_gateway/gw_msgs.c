@@ -477,7 +477,30 @@ static const dan_field_t TUN_XFER_RSP[] = {
 };
 
 DAN_FIELDS_CODEC(dan_gw_msg_tun_xfer_req, dan_gw_tun_xfer_t, TUN_XFER_REQ)
-DAN_FIELDS_CODEC(dan_gw_msg_tun_xfer_rsp, dan_gw_tun_xfer_t, TUN_XFER_RSP)
+
+int dan_gw_msg_tun_xfer_rsp_encode(const dan_gw_tun_xfer_t *x, uint8_t *out, size_t cap)
+{
+    return dan_encode_fields(x, TUN_XFER_RSP, DAN_NFIELDS(TUN_XFER_RSP), out, cap);
+}
+
+/* Written out: dan_gw_complete() links it into every FC image, where the
+ * table walker would cost flash. */
+int dan_gw_msg_tun_xfer_rsp_decode(dan_gw_tun_xfer_t *x, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    memset(x, 0, sizeof *x);
+    dan_reader_init(&r, p, len);
+    x->port = dan_get_u8(&r);
+    x->wr_offset = dan_get_uvarint(&r);
+    x->wr_space = dan_get_uvarint(&r);
+    x->rd_offset = dan_get_uvarint(&r);
+    x->rd_dropped = dan_get_uvarint(&r);
+    dan_get_array_view(&r, &x->data, &x->len);
+    if (x->len > DAN_GW_TUN_CHUNK_MAX) {
+        return DAN_ERR_MALFORMED;
+    }
+    return dan_reader_finish(&r);
+}
 
 /* ---- raw CAN ---- */
 
@@ -545,7 +568,22 @@ static const dan_field_t CAN_SEND_RSP[] = {
     DAN_FIELD(dan_gw_can_send_t, queue_free, DAN_F_UV),
 };
 
-DAN_FIELDS_CODEC(dan_gw_msg_can_send_rsp, dan_gw_can_send_t, CAN_SEND_RSP)
+int dan_gw_msg_can_send_rsp_encode(const dan_gw_can_send_t *s, uint8_t *out, size_t cap)
+{
+    return dan_encode_fields(s, CAN_SEND_RSP, DAN_NFIELDS(CAN_SEND_RSP), out, cap);
+}
+
+/* Written out: dan_gw_complete() links it into every FC image, where the
+ * table walker would cost flash. */
+int dan_gw_msg_can_send_rsp_decode(dan_gw_can_send_t *s, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    s->seq = dan_get_u8(&r);
+    s->count = dan_get_u8(&r);
+    s->queue_free = dan_get_uvarint(&r);
+    return dan_reader_finish(&r);
+}
 
 int dan_gw_msg_can_recv_req_encode(const dan_gw_can_recv_t *q, uint8_t *out, size_t cap)
 {

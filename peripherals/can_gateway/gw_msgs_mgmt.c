@@ -291,7 +291,24 @@ static const dan_field_t HEALTH[] = {
     DAN_FIELD(dan_gw_health_t, problems, DAN_F_U8),
 };
 
-DAN_FIELDS_CODEC(dan_gw_msg_health, dan_gw_health_t, HEALTH)
+int dan_gw_msg_health_encode(const dan_gw_health_t *h, uint8_t *out, size_t cap)
+{
+    return dan_encode_fields(h, HEALTH, DAN_NFIELDS(HEALTH), out, cap);
+}
+
+/* Written out: dan_gw_complete() links it into every FC image, where the
+ * table walker would cost flash. */
+int dan_gw_msg_health_decode(dan_gw_health_t *h, const uint8_t *p, size_t len)
+{
+    dan_reader_t r;
+    dan_reader_init(&r, p, len);
+    h->verdict = dan_get_u8(&r);
+    h->reason = dan_get_u8(&r);
+    h->subject = dan_get_u8(&r);
+    h->detail = dan_get_u8(&r);
+    h->problems = dan_get_u8(&r);
+    return dan_reader_finish(&r);
+}
 
 const char *dan_gw_reason_name(unsigned reason)
 {
