@@ -225,6 +225,16 @@ int dan_decode_fields(void *m, const dan_field_t *f, size_t n, const uint8_t *p,
     {                                                           \
         return dan_get_fields(r, m, table, DAN_NFIELDS(table)); \
     }
+/* Defines size_t NAME_size(const TYPE *m): the bytes NAME_put() writes for
+ * m (a writer without a buffer counts them). */
+#define DAN_ITEM_SIZE(name, type)      \
+    size_t name##_size(const type *m)  \
+    {                                  \
+        dan_writer_t w_;               \
+        dan_writer_init(&w_, NULL, 0); \
+        name##_put(&w_, m);            \
+        return w_.len;                 \
+    }
 
 #ifdef __cplusplus
 }

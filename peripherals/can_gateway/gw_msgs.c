@@ -206,13 +206,7 @@ void dan_gw_msg_telem_put(dan_writer_t *w, const dan_gw_telem_t *t)
     ops_put(w, t, TELEM_OPS, NOPS(TELEM_OPS));
 }
 
-size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t)
-{
-    dan_writer_t w;
-    dan_writer_init(&w, NULL, 0);
-    dan_gw_msg_telem_put(&w, t);
-    return w.len;
-}
+DAN_ITEM_SIZE(dan_gw_msg_telem, dan_gw_telem_t)
 
 static uint32_t get_u24(dan_reader_t *r)
 {
@@ -381,13 +375,7 @@ void dan_gw_msg_node_put(dan_writer_t *w, const dan_gw_node_entry_t *n)
     dan_put_u8(w, n->info_state);
 }
 
-size_t dan_gw_msg_node_size(const dan_gw_node_entry_t *n)
-{
-    dan_writer_t w;
-    dan_writer_init(&w, NULL, 0);
-    dan_gw_msg_node_put(&w, n);
-    return w.len;
-}
+DAN_ITEM_SIZE(dan_gw_msg_node, dan_gw_node_entry_t)
 
 int dan_gw_msg_node_get(dan_reader_t *r, dan_gw_node_entry_t *n)
 {
@@ -536,13 +524,7 @@ void dan_gw_msg_can_frame_put(dan_writer_t *w, const dan_can_frame_t *f)
     }
 }
 
-size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f)
-{
-    dan_writer_t w;
-    dan_writer_init(&w, NULL, 0);
-    dan_gw_msg_can_frame_put(&w, f);
-    return w.len;
-}
+DAN_ITEM_SIZE(dan_gw_msg_can_frame, dan_can_frame_t)
 
 int dan_gw_msg_can_frame_get(dan_reader_t *r, dan_can_frame_t *f)
 {

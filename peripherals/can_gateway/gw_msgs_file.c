@@ -126,13 +126,7 @@ void dan_gw_msg_file_entry_put(dan_writer_t *w, const dan_gw_file_entry_t *e)
     dan_put_uvarint(w, e->size);
 }
 
-size_t dan_gw_msg_file_entry_size(const dan_gw_file_entry_t *e)
-{
-    dan_writer_t w;
-    dan_writer_init(&w, NULL, 0);
-    dan_gw_msg_file_entry_put(&w, e);
-    return w.len;
-}
+DAN_ITEM_SIZE(dan_gw_msg_file_entry, dan_gw_file_entry_t)
 
 int dan_gw_msg_file_entry_get(dan_reader_t *r, dan_gw_file_entry_t *e)
 {

@@ -3,6 +3,62 @@
 
 #include "dan/can_gw/msgs_out.h"
 
+/* ---- the lists (SERVO, SERVO_FAILSAFE, LIGHTS): u8 n in min..max, n items ----
+ *
+ * One encoder and one decoder for the three; an item's put and get say
+ * whether it is valid (false: DAN_ERR_ARG or DAN_ERR_MALFORMED). */
+typedef bool (*item_put_fn)(dan_writer_t *w, const void *item);
+typedef bool (*item_get_fn)(dan_reader_t *r, void *item);
+
+static int list_encode(const void *items, size_t n, size_t size, size_t min, size_t max,
+                       item_put_fn put, uint8_t *out, size_t cap)
+{
+    const uint8_t *item = (const uint8_t *)items;
+    dan_writer_t w;
+    size_t i;
+    if ((items == NULL && n > 0u) || n - min > max - min) { /* one unsigned compare */
+        return DAN_ERR_ARG;
+    }
+    dan_writer_init(&w, out, cap);
+    dan_put_u8(&w, (uint8_t)n);
+    for (i = 0; i < n; i++) {
+        if (!put(&w, item + i * size)) {
+            return DAN_ERR_ARG;
+        }
+    }
+    return dan_writer_finish(&w);
+}
+
+static int list_decode(void *items, size_t *n, size_t size, size_t min, size_t max, item_get_fn get,
+                       const uint8_t *p, size_t len)
+{
+    uint8_t *item = (uint8_t *)items;
+    dan_reader_t r;
+    size_t i;
+    dan_reader_init(&r, p, len);
+    *n = dan_get_u8(&r);
+    if (*n - min > max - min) {
+        return DAN_ERR_MALFORMED;
+    }
+    for (i = 0; i < *n; i++) {
+        if (!get(&r, item + i * size)) {
+            return DAN_ERR_MALFORMED;
+        }
+    }
+    return dan_reader_finish(&r);
+}
+
+/* Defines DAN_GW_LIST_CODEC(NAME, TYPE) from its items' put and get. */
+#define LIST_CODEC(name, type, min, max, put, get)                       \
+    int name##_encode(const type *m, size_t n, uint8_t *out, size_t cap) \
+    {                                                                    \
+        return list_encode(m, n, sizeof *m, min, max, put, out, cap);    \
+    }                                                                    \
+    int name##_decode(type *m, size_t *n, const uint8_t *p, size_t len)  \
+    {                                                                    \
+        return list_decode(m, n, sizeof *m, min, max, get, p, len);      \
+    }
+
 static void servo_put(dan_writer_t *w, const dan_gw_servo_t *s)
 {
     dan_put_u8(w, s->actuator_id);
@@ -18,120 +74,66 @@ static bool servo_get(dan_reader_t *r, dan_gw_servo_t *s)
     return s->command_type <= DAN_GW_SERVO_TYPE_MAX;
 }
 
-/* The lists' count (SERVO, SERVO_FAILSAFE, LIGHTS): u8 n in min..max (one
- * unsigned compare), n items follow. */
-static bool list_get(dan_reader_t *r, size_t *n, size_t min, size_t max, const uint8_t *p,
-                     size_t len)
+static bool servo_item_put(dan_writer_t *w, const void *item)
 {
-    size_t k;
-    dan_reader_init(r, p, len);
-    k = dan_get_u8(r);
-    *n = k;
-    return k - min <= max - min;
+    const dan_gw_servo_t *s = (const dan_gw_servo_t *)item;
+    if (s->command_type > DAN_GW_SERVO_TYPE_MAX) {
+        return false;
+    }
+    servo_put(w, s);
+    return true;
 }
 
-int dan_gw_msg_servo_encode(const dan_gw_servo_t *s, size_t n, uint8_t *out, size_t cap)
+static bool servo_item_get(dan_reader_t *r, void *item)
 {
-    dan_writer_t w;
-    size_t i;
-    if (s == NULL || n == 0u || n > DAN_GW_SERVO_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, (uint8_t)n);
-    for (i = 0; i < n; i++) {
-        if (s[i].command_type > DAN_GW_SERVO_TYPE_MAX) {
-            return DAN_ERR_ARG;
-        }
-        servo_put(&w, &s[i]);
-    }
-    return dan_writer_finish(&w);
+    return servo_get(r, (dan_gw_servo_t *)item);
 }
 
-int dan_gw_msg_servo_decode(dan_gw_servo_t *s, size_t *n, const uint8_t *p, size_t len)
+LIST_CODEC(dan_gw_msg_servo, dan_gw_servo_t, 1u, DAN_GW_SERVO_MAX, servo_item_put, servo_item_get)
+
+/* A failsafe entry: a servo command whose type byte has the mode in bit 7. */
+static bool fs_item_put(dan_writer_t *w, const void *item)
 {
-    dan_reader_t r;
-    size_t i;
-    if (!list_get(&r, n, 1u, DAN_GW_SERVO_MAX, p, len)) {
-        return DAN_ERR_MALFORMED;
+    const dan_gw_servo_fs_t *f = (const dan_gw_servo_fs_t *)item;
+    dan_gw_servo_t v = f->value;
+    if (f->mode > DAN_GW_SERVO_VALUE || v.command_type > DAN_GW_SERVO_TYPE_MAX) {
+        return false;
     }
-    for (i = 0; i < *n; i++) {
-        if (!servo_get(&r, &s[i])) {
-            return DAN_ERR_MALFORMED;
-        }
-    }
-    return dan_reader_finish(&r);
+    v.command_type = (uint8_t)(v.command_type | (f->mode << 7));
+    servo_put(w, &v);
+    return true;
 }
 
-int dan_gw_msg_servo_fs_encode(const dan_gw_servo_fs_t *s, size_t n, uint8_t *out, size_t cap)
+static bool fs_item_get(dan_reader_t *r, void *item)
 {
-    dan_writer_t w;
-    size_t i;
-    if ((s == NULL && n > 0u) || n > DAN_GW_SERVO_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, (uint8_t)n);
-    for (i = 0; i < n; i++) {
-        dan_gw_servo_t v = s[i].value;
-        if (s[i].mode > DAN_GW_SERVO_VALUE || v.command_type > DAN_GW_SERVO_TYPE_MAX) {
-            return DAN_ERR_ARG;
-        }
-        v.command_type = (uint8_t)(v.command_type | (s[i].mode << 7));
-        servo_put(&w, &v);
-    }
-    return dan_writer_finish(&w);
+    dan_gw_servo_fs_t *f = (dan_gw_servo_fs_t *)item;
+    uint8_t kind;
+    (void)servo_get(r, &f->value); /* its type byte: kind */
+    kind = f->value.command_type;
+    f->mode = (uint8_t)(kind >> 7);
+    f->value.command_type = kind & 0x0Fu;
+    return (kind & 0x70u) == 0u && f->value.command_type <= DAN_GW_SERVO_TYPE_MAX;
 }
 
-int dan_gw_msg_servo_fs_decode(dan_gw_servo_fs_t *s, size_t *n, const uint8_t *p, size_t len)
+LIST_CODEC(dan_gw_msg_servo_fs, dan_gw_servo_fs_t, 0u, DAN_GW_SERVO_MAX, fs_item_put, fs_item_get)
+
+static bool light_put(dan_writer_t *w, const void *item)
 {
-    dan_reader_t r;
-    size_t i;
-    if (!list_get(&r, n, 0u, DAN_GW_SERVO_MAX, p, len)) {
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = 0; i < *n; i++) {
-        uint8_t kind;
-        (void)servo_get(&r, &s[i].value); /* its type byte: kind */
-        kind = s[i].value.command_type;
-        s[i].mode = (uint8_t)(kind >> 7);
-        s[i].value.command_type = kind & 0x0Fu;
-        if ((kind & 0x70u) != 0u || s[i].value.command_type > DAN_GW_SERVO_TYPE_MAX) {
-            return DAN_ERR_MALFORMED;
-        }
-    }
-    return dan_reader_finish(&r);
+    const dan_gw_light_t *l = (const dan_gw_light_t *)item;
+    dan_put_u8(w, l->light_id);
+    dan_put_u16(w, l->rgb565);
+    return true;
 }
 
-int dan_gw_msg_lights_encode(const dan_gw_light_t *l, size_t n, uint8_t *out, size_t cap)
+static bool light_get(dan_reader_t *r, void *item)
 {
-    dan_writer_t w;
-    size_t i;
-    if (l == NULL || n == 0u || n > DAN_GW_LIGHTS_MAX) {
-        return DAN_ERR_ARG;
-    }
-    dan_writer_init(&w, out, cap);
-    dan_put_u8(&w, (uint8_t)n);
-    for (i = 0; i < n; i++) {
-        dan_put_u8(&w, l[i].light_id);
-        dan_put_u16(&w, l[i].rgb565);
-    }
-    return dan_writer_finish(&w);
+    dan_gw_light_t *l = (dan_gw_light_t *)item;
+    l->light_id = dan_get_u8(r);
+    l->rgb565 = dan_get_u16(r);
+    return true;
 }
 
-int dan_gw_msg_lights_decode(dan_gw_light_t *l, size_t *n, const uint8_t *p, size_t len)
-{
-    dan_reader_t r;
-    size_t i;
-    if (!list_get(&r, n, 1u, DAN_GW_LIGHTS_MAX, p, len)) {
-        return DAN_ERR_MALFORMED;
-    }
-    for (i = 0; i < *n; i++) {
-        l[i].light_id = dan_get_u8(&r);
-        l[i].rgb565 = dan_get_u16(&r);
-    }
-    return dan_reader_finish(&r);
-}
+LIST_CODEC(dan_gw_msg_lights, dan_gw_light_t, 1u, DAN_GW_LIGHTS_MAX, light_put, light_get)
 
 /* BEEP's ranges, for both directions. */
 static bool beep_ok(const dan_gw_beep_t *b)
@@ -140,26 +142,23 @@ static bool beep_ok(const dan_gw_beep_t *b)
            b->duration_ms <= DAN_GW_BEEP_MS_MAX;
 }
 
+static const dan_field_t BEEP[] = {
+    DAN_FIELD(dan_gw_beep_t, frequency_hz, DAN_F_UV),
+    DAN_FIELD(dan_gw_beep_t, duration_ms, DAN_F_UV),
+};
+
 int dan_gw_msg_beep_encode(const dan_gw_beep_t *b, uint8_t *out, size_t cap)
 {
-    dan_writer_t w;
     if (b == NULL || !beep_ok(b)) {
         return DAN_ERR_ARG;
     }
-    dan_writer_init(&w, out, cap);
-    dan_put_uvarint(&w, b->frequency_hz);
-    dan_put_uvarint(&w, b->duration_ms);
-    return dan_writer_finish(&w);
+    return dan_encode_fields(b, BEEP, DAN_NFIELDS(BEEP), out, cap);
 }
 
 int dan_gw_msg_beep_decode(dan_gw_beep_t *b, const uint8_t *p, size_t len)
 {
-    dan_reader_t r;
-    dan_reader_init(&r, p, len);
-    b->frequency_hz = dan_get_uvarint(&r);
-    b->duration_ms = dan_get_uvarint(&r);
-    if (!beep_ok(b)) {
-        return DAN_ERR_MALFORMED;
-    }
-    return dan_reader_finish(&r);
+    int rc;
+    memset(b, 0, sizeof *b);
+    rc = dan_decode_fields(b, BEEP, DAN_NFIELDS(BEEP), p, len);
+    return rc == DAN_OK && !beep_ok(b) ? DAN_ERR_MALFORMED : rc;
 }

@@ -182,31 +182,22 @@ def test_noise_recovered(bus3, procs):
     retries, and no wrong payload is ever returned; once noise stops the
     link is clean."""
     eps, ctl, ps = bus3
+
+    def at_ber(ber, repeats, last, **kw):
+        """discover, the same request `repeats` times, then `last`, at this bit error rate."""
+        assert control(ctl, f"ber {ber}") == "ok"
+        repeat = f"repeat:{repeats}:0x62:00112233445566778899"
+        return master(eps[0], "discover", repeat, last, types="test-a", **kw)
+
     master(eps[0], "discover", "configure")
-    assert control(ctl, "ber 0.002") == "ok"
-    rc, out = master(
-        eps[0],
-        "discover",
-        "repeat:40:0x62:00112233445566778899",
-        "stats",
-        types="test-a",
-        check=False,
-    )
+    rc, out = at_ber("0.002", 40, "stats", check=False)
     disc, rep, stats = out
     noisy = vbus_stats(ctl)
     assert noisy["noise_flips"] > 0
     # Every exchange the master reported OK returned the right bytes (the
     # repeat step stops at the first failure, which is allowed under noise).
     assert rep["done"] >= 1
-    assert control(ctl, "ber 0") == "ok"
-    rc, out = master(
-        eps[0],
-        "discover",
-        "repeat:30:0x62:00112233445566778899",
-        "request:0x62:cafe",
-        types="test-a",
-        opts=("--retries", "4"),
-    )
+    rc, out = at_ber("0", 30, "request:0x62:cafe", opts=("--retries", "4"))
     assert out[1]["done"] == 30 and out[2]["payload"] == "feca"
 
 
