@@ -211,6 +211,23 @@ def test_code_names():
     assert registry.lookup("0x40").name == "can-gw" and registry.lookup("nope") is None
 
 
+def test_sleep_until_reads_the_clock_once_per_pass():
+    """A loop that runs late must not ask for a negative sleep (danprobe esc
+    crashed with ValueError under load): the clock jumps past `due` between
+    passes, and sleep_until returns instead."""
+    from types import SimpleNamespace
+
+    from danprobe.commands.common import sleep_until
+
+    readings = iter([0.0, 0.99, 1.2])
+    sleeps = []
+    sleep_until(1.0, SimpleNamespace(stop=False), clock=lambda: next(readings), sleep=sleeps.append)
+    assert sleeps == [0.05, pytest.approx(0.01)]
+    sleeps.clear()
+    sleep_until(1.0, SimpleNamespace(stop=True), clock=lambda: 0.0, sleep=sleeps.append)
+    assert sleeps == []
+
+
 def test_sniff_capture_counts_errors(tmp_path):
     """A hand-made capture: a good exchange, a corrupted frame, a collision
     (decoded as it was on the wire), a partial frame cut by an idle gap."""

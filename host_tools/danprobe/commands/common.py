@@ -8,6 +8,7 @@ import json
 import os
 import signal
 import sys
+import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from typing import Callable, Optional
@@ -587,6 +588,19 @@ def long_running(m: Master, ctx: Context) -> tuple[StopSignals, Watchdog]:
     """After the gateway was found: no overall time limit any more."""
     m.set_time_limit(None)
     return stop_signals(ctx), Watchdog(ctx.args.timeout)
+
+
+def sleep_until(due: float, stop, step: float = 0.05, clock=now, sleep=None) -> None:
+    """Sleeps until the clock reaches `due` or stop.stop is set, in steps of
+    at most `step` s (so a signal is seen). The clock is read once per pass:
+    reading it again for the length gave a negative sleep (ValueError) when
+    the loop ran late on a loaded machine."""
+    sleep = sleep or time.sleep
+    while not stop.stop:
+        left = due - clock()
+        if left <= 0:
+            return
+        sleep(min(left, step))
 
 
 def time_left(ctx: Context, t0: float) -> bool:

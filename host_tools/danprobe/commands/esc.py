@@ -1,7 +1,6 @@
 """danprobe esc: drive ESCs through the gateway and watch their telemetry."""
 
 import argparse
-import time
 
 from danprobe import gateway_msgs
 from danprobe.commands.common import (
@@ -14,6 +13,7 @@ from danprobe.commands.common import (
     long_running,
     positive_float,
     positive_int,
+    sleep_until,
     telemetry_table,
 )
 from danprobe.master import DanError, OperationTimeout
@@ -279,8 +279,7 @@ def _drive(ctx, m, gw, values_at, res):
                     print(_live_line(t_rx - t0, values, gw, rate), flush=True)
                     last_line, count_at_line = t_rx, res["exchanges"]
                 due = max(due + period, now() - period)
-                while not stop.stop and now() < due:
-                    time.sleep(min(due - now(), 0.05))
+                sleep_until(due, stop)
         finally:
             res["seconds"] = now() - t0
             _stop_motors(ctx, gw, n_values, a.arm)
