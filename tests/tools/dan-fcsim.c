@@ -86,7 +86,8 @@ static const char HELP[] =
     "  xfer:PORT:INFILE:OUTFILE:N[:TIMEOUT_MS]\n"
     "                                writes INFILE (\"-\": nothing) through the\n"
     "                                tunnel while reading until N bytes came back\n"
-    "                                into OUTFILE\n"
+    "                                into OUTFILE; fails after 30 s in which\n"
+    "                                no byte moved (\"stalled\")\n"
     "  filter:ID/MASK[,...]          replace the raw filter (ID hex; 8 digits = 29-bit)\n"
     "  filter-add:ID/MASK[,...] | filter-remove:ID/MASK[,...] | filter-read\n"
     "                                prints the result (1: table full) and the table\n"
@@ -328,6 +329,10 @@ static int parse_frame(const char *s, dan_can_frame_t *f)
     return 0;
 }
 
+/* An xfer in which nothing moved either way for this long has lost bytes
+ * (a tunnel has no retransmission): it ends as failed, with "stalled". */
+#define FCSIM_XFER_STALL_US 30000000u
+
 static int step_xfer(const char *step, char *args)
 {
     unsigned port;
@@ -337,7 +342,8 @@ static int step_xfer(const char *step, char *args)
     static uint8_t wbuf[1u << 20];
     size_t wlen = 0, wpos = 0, got = 0;
     uint32_t xfers = 0;
-    uint64_t start, deadline;
+    uint64_t start, deadline, moved;
+    bool stalled = false;
     int rc;
     int fields =
         sscanf(args, "%u:%255[^:]:%255[^:]:%lu:%lu", &port, infile, outfile, &want, &timeout_ms);
@@ -358,7 +364,12 @@ static int step_xfer(const char *step, char *args)
     }
     start = dan_posix_now_us();
     deadline = start + timeout_ms * 1000u;
+    moved = start;
     while ((wpos < wlen || got < want) && dan_posix_now_us() < deadline) {
+        if (dan_posix_now_us() - moved > FCSIM_XFER_STALL_US) {
+            stalled = true; /* bytes lost on the way: waiting longer finds nothing */
+            break;
+        }
         const uint8_t *d;
         size_t n = wlen - wpos;
         rc = dan_gw_tunnel_xfer(&g_gw, (uint8_t)port, wbuf + wpos, n, DAN_GW_TUN_CHUNK_MAX,
@@ -371,9 +382,13 @@ static int step_xfer(const char *step, char *args)
             continue; /* a timeout: the next call repeats the same offsets */
         }
         wpos += g_gw.tun[port].accepted;
+        if (g_gw.tun[port].accepted > 0u) {
+            moved = dan_posix_now_us();
+        }
         if (dan_gw_tunnel_data(&g_gw, &d, &n) == DAN_OK && n > 0u) {
             fwrite(d, 1, n, out);
             got += n;
+            moved = dan_posix_now_us();
         } else if (g_gw.tun[port].accepted == 0u) {
             fcsim_sleep_us(5000); /* nothing moved: do not spin */
         }
@@ -382,9 +397,9 @@ static int step_xfer(const char *step, char *args)
     {
         double secs = (double)(dan_posix_now_us() - start) / 1e6;
         printf("{\"step\": \"%s\", \"ok\": %s, \"written\": %zu, \"read\": %zu, \"xfers\": %u, "
-               "\"seconds\": %.3f, \"rd_dropped\": %u, \"rd_lost\": %u}\n",
+               "\"seconds\": %.3f, \"rd_dropped\": %u, \"rd_lost\": %u, \"stalled\": %s}\n",
                step, (wpos == wlen && got >= want) ? "true" : "false", wpos, got, xfers, secs,
-               g_gw.tun[port].rd_dropped, g_gw.tun[port].rd_lost);
+               g_gw.tun[port].rd_dropped, g_gw.tun[port].rd_lost, stalled ? "true" : "false");
     }
     return (wpos == wlen && got >= want) ? 0 : 1;
 }
