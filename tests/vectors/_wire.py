@@ -21,12 +21,12 @@ def crc8(data):
 
 
 def uvarint(v):
-    out = bytearray()
-    while v >= 0x80:
-        out.append((v & 0x7F) | 0x80)
-        v >>= 7
-    out.append(v)
-    return bytes(out)
+    """7-bit groups, low group first, 0x80 on every byte but the last.
+    Written from the groups a value's bit length gives (not as danprobe's
+    and libdan's shift loop), so the two are checked against another
+    derivation: 127 is one byte, 128 is two (80 01), 16384 three."""
+    groups = [(v >> shift) & 0x7F for shift in range(0, max(v.bit_length(), 1), 7)]
+    return bytes([g | 0x80 for g in groups[:-1]] + groups[-1:])
 
 
 def frame(code, payload=b""):
