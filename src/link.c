@@ -239,6 +239,13 @@ dan_link_state_t dan_link_poll(dan_link_t *l, uint64_t now64)
     return l->state;
 }
 
+void dan_link_tx_answered(dan_link_t *l, uint32_t now_us)
+{
+    if (l->state == DAN_LINK_TX) {
+        end_tx(l, DAN_LINK_TX_DONE, now_us);
+    }
+}
+
 void dan_link_ack(dan_link_t *l)
 {
     if (l->state == DAN_LINK_TX_DONE || l->state == DAN_LINK_TX_FAILED) {
@@ -248,7 +255,7 @@ void dan_link_ack(dan_link_t *l)
 
 uint32_t dan_link_wait_us(const dan_link_t *l)
 {
-    uint32_t next = UINT32_MAX;
+    uint32_t next = DAN_LINK_IDLE_POLL_US;
     if (dan_decoder_busy(&l->dec)) {
         next = dan_link_due_in(l, l->last_rx_us + dan_link_gap_us(l));
     }

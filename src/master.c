@@ -221,6 +221,9 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now64)
         m->stats.stray++; /* our own request, echoed late: not its reply */
         return;
     }
+    /* no echo, and a poll has not seen our frame end (PH_TX): a reply
+     * proves it has (else the link stays in TX and refuses the next one) */
+    dan_link_tx_answered(&m->link, now_us);
     if (f->code == m->req_code) {
         if (m->reply_check != NULL &&
             m->reply_check(m->reply_check_user, f->code, f->payload, f->len) != DAN_OK) {

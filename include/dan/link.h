@@ -6,9 +6,10 @@
  * Time is always passed in as a monotonic microsecond count (now_us); the
  * library never reads a clock or sleeps. The link keeps times as their low
  * 32 bits (wrap-safe differences: every interval it times is far below
- * 2^31 us, and dan_link_poll() keeps the idle reference within 2^30 us),
- * and the last 64-bit now_us passed in to give them back as 64-bit times
- * (dan_link_set_now()).
+ * 2^31 us, and dan_link_poll() keeps the idle reference within 2^30 us,
+ * which needs a poll at least every DAN_LINK_IDLE_POLL_US: the engines'
+ * *_next_us() never ask for less), and the last 64-bit now_us passed in to
+ * give them back as 64-bit times (dan_link_set_now()).
  *
  * Timing (docs/PROTOCOL.md, section 6), with C = one character time
  * = 10 bits / baud (8N1), rounded up to whole microseconds:
@@ -152,14 +153,19 @@ static inline uint32_t dan_link_due_in(const dan_link_t *l, uint32_t t)
     uint32_t d = t - l->now_us;
     return (d >= 0x80000000u) ? 0u : d;
 }
-/* Microseconds until dan_link_poll() has something to do (UINT32_MAX:
- * nothing), from the last now_us passed in. */
+/* Microseconds until dan_link_poll() has something to do, from the last
+ * now_us passed in: at most DAN_LINK_IDLE_POLL_US when there is nothing,
+ * so that a caller sleeping as long as it says keeps the 32-bit stamps
+ * within reach (a difference of 2^31 us would read as "ahead"). */
+#define DAN_LINK_IDLE_POLL_US 0x20000000u /* 2^29 us, 8.9 minutes */
 uint32_t dan_link_wait_us(const dan_link_t *l);
-/* The 64-bit time of a wait from dan_link_wait_us() (UINT64_MAX for none). */
+/* A reply to our frame arrived while the link still counts it as on the
+ * wire (a port without echo, before a poll saw its end): it has left. */
+void dan_link_tx_answered(dan_link_t *l, uint32_t now_us);
+/* The 64-bit time of a wait from dan_link_wait_us(). */
 static inline uint64_t dan_link_wait_time(const dan_link_t *l, uint32_t wait_us)
 {
-    return (wait_us == UINT32_MAX) ? UINT64_MAX
-                                   : (((uint64_t)l->now_hi << 32) | l->now_us) + wait_us;
+    return (((uint64_t)l->now_hi << 32) | l->now_us) + wait_us;
 }
 
 #ifdef __cplusplus

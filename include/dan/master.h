@@ -174,7 +174,8 @@ void dan_master_rx(dan_master_t *m, const uint8_t *data, size_t len, uint64_t no
  * completed (see dan_master_result()), else 0. */
 int dan_master_poll(dan_master_t *m, uint64_t now_us);
 
-/* Earliest time the engine needs a poll (UINT64_MAX: only on rx). */
+/* Earliest time the engine needs a poll: at the latest DAN_LINK_IDLE_POLL_US
+ * (8.9 minutes) after the last call when nothing is going on. */
 uint64_t dan_master_next_us(const dan_master_t *m);
 
 /* True while an operation runs. */

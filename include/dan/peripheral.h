@@ -131,7 +131,8 @@ int dan_periph_init(dan_periph_t *p, const dan_port_t *port, const dan_ptype_t *
                     size_t ntypes, const dan_periph_config_t *cfg, uint32_t baud, uint64_t now_us);
 void dan_periph_rx(dan_periph_t *p, const uint8_t *data, size_t len, uint64_t now_us);
 void dan_periph_poll(dan_periph_t *p, uint64_t now_us);
-/* Earliest time the engine needs a poll (UINT64_MAX: only on rx). */
+/* Earliest time the engine needs a poll: at the latest DAN_LINK_IDLE_POLL_US
+ * (8.9 minutes) after the last call when nothing is going on. */
 uint64_t dan_periph_next_us(const dan_periph_t *p);
 /* Current baud. */
 static inline uint32_t dan_periph_baud(const dan_periph_t *p)

@@ -466,6 +466,89 @@ static void test_reply_in_same_read_as_echo(void **state)
     assert_int_equal(m.stats.stray, 0);
 }
 
+static int pin_released; /* set_tx(false) calls */
+static void count_release(void *ctx, bool on)
+{
+    (void)ctx;
+    pin_released += !on;
+}
+
+/* Gives cap's frame (our request "abc" to 0x62) the reply "cba" at
+ * reply_us, before any poll, and checks the transaction completed. */
+static void reply_cba(dan_master_t *m, uint64_t reply_us)
+{
+    uint8_t rx[32];
+    int n = dan_frame_encode(0x62, (const uint8_t *)"cba", 3, rx, sizeof rx);
+    dan_master_rx(m, rx, (size_t)n, reply_us);
+    assert_int_equal(dan_master_poll(m, reply_us + 1u), 1);
+    assert_int_equal(dan_master_result(m), DAN_OK);
+    assert_memory_equal(m->resp, "cba", 3);
+    assert_int_equal(m->link.state, DAN_LINK_IDLE);
+}
+
+/* A direction pin and no echo: the whole reply arrives (the FC's loop reads
+ * before it polls) while the link still counts our frame as on the wire.
+ * The reply proves the frame has left: the pin is released and the next
+ * request goes out (it failed at once, unsent, and so did every one after
+ * it: a discovery found nothing more, a configure split the bus). */
+static void test_direction_pin_reply_before_poll(void **state)
+{
+    static sim_cap_t cap;
+    dan_master_t m;
+    dan_port_t port;
+    uint64_t now = 1000;
+    int round;
+    (void)state;
+    sim_cap_port(&cap, &port);
+    port.echo = false;
+    port.set_tx = count_release;
+    pin_released = 0;
+    assert_int_equal(dan_master_init(&m, &port, NULL, probe_types, 1, 115200, now), DAN_OK);
+    for (round = 1; round <= 3; round++) {
+        cap.len = 0;
+        assert_int_equal(dan_master_request(&m, 0x62, (const uint8_t *)"abc", 3, now), DAN_OK);
+        sim_cap_wait_tx(&cap, &m, &now, 100);
+        assert_int_equal(m.link.state, DAN_LINK_TX);
+        now += 2000u;
+        reply_cba(&m, now);
+        assert_int_equal(pin_released, round);
+    }
+    assert_int_equal(m.link.stats.tx_frames, 3);
+}
+
+/* A caller may sleep as long as dan_master_next_us() says. It said "never"
+ * when nothing was going on, and 40 minutes later (32-bit stamps 2^31 us
+ * and more behind) a request failed with DAN_ERR_BUSY: the old last-byte
+ * stamp read as "ahead", the line as busy. Now an idle engine asks for a
+ * poll every DAN_LINK_IDLE_POLL_US, and the request goes out at once. */
+static void test_request_after_40_minutes_idle(void **state)
+{
+    static sim_cap_t cap;
+    dan_master_t m;
+    dan_port_t port;
+    uint64_t now = 1000, start;
+    (void)state;
+    sim_cap_port(&cap, &port);
+    assert_int_equal(dan_master_init(&m, &port, NULL, probe_types, 1, 115200, now), DAN_OK);
+    while (now < 2400000000ull) {
+        uint64_t next = dan_master_next_us(&m);
+        assert_true(next > now && next <= now + DAN_LINK_IDLE_POLL_US);
+        now = next;
+        (void)dan_master_poll(&m, now);
+    }
+    start = now;
+    assert_int_equal(dan_master_request(&m, 0x62, (const uint8_t *)"abc", 3, now), DAN_OK);
+    while (cap.len == 0u && now - start < 100000u) {
+        now += 100u;
+        (void)dan_master_poll(&m, now);
+    }
+    assert_true(cap.len > 0u);
+    assert_true(now - start <= 1000u);               /* listen-before-talk only */
+    dan_master_rx(&m, cap.buf, cap.len, now + 700u); /* the echo */
+    reply_cba(&m, now + 2000u);
+    assert_int_equal(m.stats.busy_failures, 0);
+}
+
 /* Polls p every 100 us from *now until it has written something. */
 static void periph_wait_tx(sim_cap_t *cap, dan_periph_t *p, uint64_t *now)
 {
@@ -588,6 +671,7 @@ int main(void)
                     test_listen_before_talk, test_busy_line_times_out, test_noise_no_wrong_data,
                     test_direction_pin, test_discovery_configure_time,
                     test_late_echo_is_not_a_reply, test_reply_in_same_read_as_echo,
+                    test_direction_pin_reply_before_poll, test_request_after_40_minutes_idle,
                     test_configure_in_same_read_as_echo,
                     test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }
