@@ -355,15 +355,15 @@ static void refused(dan_master_t *m, dan_peer_t *p, int why)
 
 /* The reply (or failure) of the step's request to peers[idx]. A
  * CONFIGURE is good when acknowledged, or unanswered at the old baud (a
- * device serving several types moved them all with its first CONFIGURE;
- * verification decides), but for recovery's. */
+ * device serving several types moved them all with its first CONFIGURE,
+ * or its ACK was lost; verification decides: recovery's too). */
 void dan_mst_seq_txn_done(dan_master_t *m, uint32_t now_us)
 {
     dan_peer_t *p = &m->peers[m->idx];
     uint8_t step = m->step;
     bool conf = (step_walk[step] & W_CONF) != 0u;
     int e = conf ? ack_result(m) : m->txn_result;
-    bool good = e == DAN_OK || (conf && e == DAN_ERR_TIMEOUT && step != DAN_ST_REC_BACK);
+    bool good = e == DAN_OK || (conf && e == DAN_ERR_TIMEOUT);
     switch (step) {
     case DAN_ST_DISC_PROBE:
         if (good && probe_accept(m, p)) {
@@ -386,7 +386,7 @@ void dan_mst_seq_txn_done(dan_master_t *m, uint32_t now_us)
         break;
     case DAN_ST_REC_BACK:
         p->baud = DAN_BAUD_BASE;
-        p->present = good; /* else it cannot be brought to a common baud */
+        p->present = good; /* refused 9600: no common baud (unanswered: verify) */
         m->step = DAN_ST_REC_FIND;
         m->bidx = 0;
         m->idx++;

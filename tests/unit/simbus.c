@@ -135,7 +135,7 @@ static void deliver(simbus_t *b)
         for (i = 0; i < b->nnodes; i++) {
             sim_node_t *n = &b->nodes[i];
             uint8_t v = e.byte;
-            if (i == e.src && !n->echo) {
+            if ((i == e.src && !n->echo) || (i != e.src && n->deaf)) {
                 continue;
             }
             if (e.corrupt || n->baud != e.baud) {

@@ -23,6 +23,7 @@ typedef struct {
     bool ignore_baud;      /* fault: set_baud does nothing (stays at baud) */
     uint32_t ignore_above; /* fault: set_baud above this does nothing (0: off) */
     bool mute;             /* fault: writes are dropped */
+    bool deaf;             /* fault: other nodes' bytes do not reach it */
     uint64_t tx_free_us;
     dan_port_t port;
     dan_master_t *master;

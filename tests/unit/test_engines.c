@@ -10,6 +10,7 @@
 
 #include "dan/codes.h"
 #include "simbus.h"
+#include "../../src/master_internal.h" /* the sequencer's steps (white box) */
 #include "handlers_test_a.h"
 #include "unit_run.h"
 
@@ -263,6 +264,42 @@ static void test_configure_verify_failure_recovers(void **state)
     assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST));
     assert_int_equal(request(0x62, "ab", 2), DAN_OK);
     assert_int_equal(request(DAN_TYPE_IDENTIFY(DAN_TYPE_CAN_GW_FIRST), NULL, 0), DAN_OK);
+}
+
+/* Recovery brings a moved peer back with CONFIGURE(9600); the peer
+ * acknowledges and switches, but the master does not hear the ACK (noise
+ * on its side). The peer is where it was asked to go: verification at 9600
+ * finds it, and it stays in the table (it was dropped as "refusing 9600"). */
+static void test_recovery_ack_lost_peer_kept(void **state)
+{
+    uint32_t writes;
+    (void)state;
+    rig_discovered();
+    rig.n2->ignore_baud = true; /* device 2 stays at 9600: verification fails */
+    assert_int_equal(dan_master_configure(&rig.m, 115200, rig.bus.now), DAN_OK);
+    while (rig.m.step != DAN_ST_REC_BACK && rig.bus.now < 20000000u) {
+        sim_step(&rig.bus);
+    }
+    assert_int_equal(rig.m.step, DAN_ST_REC_BACK);
+    assert_int_equal(rig.n1->baud, 115200);
+    /* the CONFIGURE(9600) goes out whole, then the master hears nothing */
+    writes = rig.m.link.stats.tx_frames;
+    while ((rig.m.link.stats.tx_frames == writes || rig.m.link.state == DAN_LINK_TX) &&
+           rig.bus.now < 30000000u) {
+        sim_step(&rig.bus);
+    }
+    rig.nm->deaf = true;
+    while (rig.n1->baud != 9600 && rig.bus.now < 40000000u) {
+        sim_step(&rig.bus);
+    }
+    assert_int_equal(rig.n1->baud, 9600); /* it acknowledged and moved */
+    rig.nm->deaf = false;
+    assert_int_equal(sim_run_master(&rig.bus, &rig.m, 20000000u), DAN_ERR_TIMEOUT);
+    assert_int_equal(rig.m.stats.recoveries, 1);
+    assert_int_equal(dan_master_baud(&rig.m), 9600);
+    assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_TEST_A_FIRST));
+    assert_non_null(dan_master_peer(&rig.m, DAN_TYPE_CAN_GW_FIRST));
+    assert_int_equal(request(0x62, "ab", 2), DAN_OK);
 }
 
 /* A peripheral that vanishes mid-configure is dropped; the others work. */
@@ -667,11 +704,11 @@ int main(void)
     return UNIT_RUN("engines", NULL, NULL, test_discovery_identities, test_configure_best_baud,
                     test_baud_switch_after_ack, test_turnaround_gap, test_unknown_malformed_silent,
                     test_master_restart_recovery, test_configure_verify_failure_recovers,
-                    test_configure_peer_vanishes, test_collision_detected_and_retried,
-                    test_listen_before_talk, test_busy_line_times_out, test_noise_no_wrong_data,
-                    test_direction_pin, test_discovery_configure_time,
-                    test_late_echo_is_not_a_reply, test_reply_in_same_read_as_echo,
-                    test_direction_pin_reply_before_poll, test_request_after_40_minutes_idle,
-                    test_configure_in_same_read_as_echo,
+                    test_recovery_ack_lost_peer_kept, test_configure_peer_vanishes,
+                    test_collision_detected_and_retried, test_listen_before_talk,
+                    test_busy_line_times_out, test_noise_no_wrong_data, test_direction_pin,
+                    test_discovery_configure_time, test_late_echo_is_not_a_reply,
+                    test_reply_in_same_read_as_echo, test_direction_pin_reply_before_poll,
+                    test_request_after_40_minutes_idle, test_configure_in_same_read_as_echo,
                     test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }
