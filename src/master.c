@@ -404,7 +404,8 @@ uint64_t dan_master_next_us(const dan_master_t *m)
             uint32_t busy = dan_link_due_in(l, m->busy_since_us + m->cfg.busy_timeout_us);
             t = max_u32(dan_link_due_in(l, m->wait_until_us),
                         dan_link_due_in(l, l->last_rx_us + lbt_us(m)));
-            t = (busy < t) ? busy : t;
+            /* a partial frame holds the line until the gap drops it (next) */
+            t = (busy < t || dan_decoder_busy(&l->dec)) ? busy : t;
             break;
         }
         case PH_WAIT:

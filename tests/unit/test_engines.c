@@ -586,6 +586,38 @@ static void test_request_after_40_minutes_idle(void **state)
     assert_int_equal(m.stats.busy_failures, 0);
 }
 
+/* A frame starts and stops while a request waits to talk: the line is not
+ * idle until the inter-byte gap drops the partial frame, and next_us says
+ * so (it said "now" on every call until then: a caller sleeping until
+ * next_us spun for the whole gap, 2 ms here and 20 ms in the Linux tools). */
+static void test_partial_frame_next_us_waits_for_gap(void **state)
+{
+    static sim_cap_t cap;
+    static const uint8_t part[3] = {DAN_SYNC, 0x60, 0x10};
+    dan_master_t m;
+    dan_port_t port;
+    uint64_t now = 1000, gap_end;
+    int polls = 0;
+    (void)state;
+    sim_cap_port(&cap, &port);
+    assert_int_equal(dan_master_init(&m, &port, NULL, probe_types, 1, 115200, now), DAN_OK);
+    now += 5000u;
+    dan_master_rx(&m, part, sizeof part, now);
+    gap_end = now + dan_link_gap_us(&m.link);
+    assert_int_equal(dan_master_request(&m, 0x62, (const uint8_t *)"abc", 3, now), DAN_OK);
+    now += 500u; /* listen-before-talk's 3 C have passed, the gap has not */
+    while (cap.len == 0u && polls < 100) {
+        uint64_t next;
+        (void)dan_master_poll(&m, now);
+        next = dan_master_next_us(&m);
+        assert_true(next > now || cap.len > 0u || now >= gap_end);
+        now = next > now ? next : now + 1u;
+        polls++;
+    }
+    assert_true(cap.len > 0u);
+    assert_true(polls <= 4);
+}
+
 /* Polls p every 100 us from *now until it has written something. */
 static void periph_wait_tx(sim_cap_t *cap, dan_periph_t *p, uint64_t *now)
 {
@@ -709,6 +741,7 @@ int main(void)
                     test_busy_line_times_out, test_noise_no_wrong_data, test_direction_pin,
                     test_discovery_configure_time, test_late_echo_is_not_a_reply,
                     test_reply_in_same_read_as_echo, test_direction_pin_reply_before_poll,
-                    test_request_after_40_minutes_idle, test_configure_in_same_read_as_echo,
+                    test_request_after_40_minutes_idle, test_partial_frame_next_us_waits_for_gap,
+                    test_configure_in_same_read_as_echo,
                     test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }
