@@ -59,7 +59,10 @@ typedef struct {
      * best mask baud; discovery and recovery scan them. 0 (the default):
      * none, the v1 behaviour. */
     uint32_t fast_max_baud;
-    const uint32_t *fast_bauds; /* the list, ascending (NULL: dan_fast_bauds); not copied */
+    /* the list (NULL: dan_fast_bauds); not copied. Strictly ascending,
+     * every entry above 115200: the walk assumes it (an entry below its
+     * predecessor is never offered, a 0 ends the list) */
+    const uint32_t *fast_bauds;
     uint8_t nfast_bauds;
 } dan_master_config_t;
 
