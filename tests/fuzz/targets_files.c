@@ -108,7 +108,6 @@ static struct {
     bool lost;      /* more files than the model follows: its checks stop */
     bool part_disk; /* ~part.name is in the directory */
     bool part_open; /* and is the store's open partial */
-    bool keep_link; /* the fixture's ~keep is there (an up_open removes it) */
     fzf_file_t part;
 } fzf;
 
@@ -307,7 +306,6 @@ static void fzf_reset(void)
     memset(fzf.files, 0, sizeof fzf.files[0] * fzf.nfiles);
     fzf.nfiles = 0;
     fzf.lost = fzf.part_disk = fzf.part_open = false;
-    fzf.keep_link = true;
     memset(&fzf.part, 0, sizeof fzf.part);
     {
         char err[DAN_FILE_DIR_ERR_MAX];
@@ -421,13 +419,9 @@ static void fzf_op_open(const char *name, bool keep)
         FUZZ_CHECK(r == DAN_GW_FS_ENOENT); /* refused before anything changed */
         return;
     }
-    if (!strcmp(name, "keep") && fzf.keep_link) {
-        /* ~keep is a symlink out: never opened (nor truncated) through */
-        FUZZ_CHECK(r < 0);
-        fzf.part_open = fzf.part_disk = false; /* the store dropped its partial first */
-        return;
-    }
-    fzf.keep_link = false; /* another upload's partial: removed as one */
+    /* the fixture's ~keep (a symlink out) goes as another upload's partial
+     * does, or is replaced by a file of our own: never opened through (the
+     * watch on outside/ says so) */
     if (!(keep && fzf.part_disk && !strcmp(fzf.part.name, name))) {
         memset(&fzf.part, 0, sizeof fzf.part);
         memcpy(fzf.part.name, name, strlen(name) + 1u); /* valid: <= 32 bytes */

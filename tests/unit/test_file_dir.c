@@ -151,11 +151,15 @@ static void test_symlinks_refused(void **state)
     assert_int_equal(fs->read(fs->ctx, "evil", 0, buf, sizeof buf), DAN_GW_FS_ENOENT);
     assert_int_equal(fs->list(fs->ctx, 0, name, sizeof name, &size), DAN_GW_FS_ENOENT);
     assert_int_equal(fs->remove(fs->ctx, "evil"), DAN_GW_FS_ENOENT);
-    /* an upload whose partial is a link: never written through */
-    assert_true(fs->up_open(fs->ctx, "up.bin", true) < 0);
-    assert_true(fs->up_write(fs->ctx, 0, (const uint8_t *)"xx", 2) < 0);
+    /* an upload whose partial is a link: the link is replaced by a file of
+     * our own, never written through */
+    assert_int_equal(fs->up_open(fs->ctx, "up.bin", true), 0);
+    assert_int_equal(fs->up_write(fs->ctx, 0, (const uint8_t *)"xx", 2), 2);
     assert_int_equal(stat(target, &st), 0);
     assert_int_equal(st.st_size, 6);
+    path_of("~up.bin", p, sizeof p);
+    assert_int_equal(lstat(p, &st), 0);
+    assert_true(S_ISREG(st.st_mode) && st.st_size == 2);
     /* a commit over a link replaces the link, not its target */
     path_of("~up.bin", p, sizeof p);
     assert_int_equal(unlink(p), 0);
@@ -166,6 +170,32 @@ static void test_symlinks_refused(void **state)
     assert_int_equal(stat(target, &st), 0);
     assert_int_equal(st.st_size, 6);
     assert_int_equal(unlink(target), 0);
+}
+
+/* Whoever can write DIR plants a partial that is a hard link to another
+ * file (the daemon's DNA table, say) or a FIFO: the upload neither
+ * truncates nor writes that file, and does not block on the FIFO. */
+static void test_planted_partials_replaced(void **state)
+{
+    char p[128], victim[128];
+    struct stat st;
+    (void)state;
+    put_file("victim.db", "allocation table");
+    path_of("victim.db", victim, sizeof victim);
+    path_of("~fw.bin", p, sizeof p);
+    assert_int_equal(link(victim, p), 0);
+    assert_int_equal(fs->up_open(fs->ctx, "fw.bin", true), 0); /* kept: but not that one */
+    assert_int_equal(fs->up_write(fs->ctx, 0, (const uint8_t *)"image", 5), 5);
+    assert_int_equal(stat(victim, &st), 0);
+    assert_int_equal(st.st_size, 16);
+    assert_int_equal(st.st_nlink, 1);
+    assert_int_equal(fs->up_open(fs->ctx, "fw.bin", false), 0); /* ours now: truncated */
+    path_of("~pipe.bin", p, sizeof p);
+    assert_int_equal(mkfifo(p, 0600), 0);
+    assert_int_equal(fs->up_open(fs->ctx, "pipe.bin", true), 0);
+    assert_int_equal(fs->up_write(fs->ctx, 0, (const uint8_t *)"ok", 2), 2);
+    assert_int_equal(lstat(p, &st), 0);
+    assert_true(S_ISREG(st.st_mode));
 }
 
 static void test_upload(void **state)
@@ -232,5 +262,6 @@ static void test_size_cap(void **state)
 int main(void)
 {
     return UNIT_RUN("file_dir", setup, teardown, test_open_errors, test_committed,
-                    test_symlinks_refused, test_upload, test_resume_after_restart, test_size_cap);
+                    test_symlinks_refused, test_planted_partials_replaced, test_upload,
+                    test_resume_after_restart, test_size_cap);
 }

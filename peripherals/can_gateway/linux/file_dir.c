@@ -206,28 +206,49 @@ static void remove_other_partials(dan_file_dir_t *d, const char *keep)
     closedir(dir);
 }
 
+/* Opens (creates) the partial at path: a regular file with one link, or
+ * -1. Anything else there (a symlink, FIFO, device, or a hard link to
+ * another file, planted by whoever can write DIR) is removed and a file of
+ * our own created in its place: never opened blocking, never truncated or
+ * written through. */
+static int open_partial(dan_file_dir_t *d, const char *path, struct stat *st)
+{
+    int flags = O_RDWR | O_CREAT | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC;
+    int fd = openat(d->dirfd, path, flags, FILE_MODE);
+    if (fd >= 0 && fstat(fd, st) == 0 && S_ISREG(st->st_mode) && st->st_nlink == 1) {
+        return fd;
+    }
+    if (fd >= 0) {
+        close(fd);
+    }
+    if (unlinkat(d->dirfd, path, 0) != 0 && errno != ENOENT) {
+        return -1;
+    }
+    fd = openat(d->dirfd, path, flags | O_EXCL, FILE_MODE);
+    if (fd >= 0 && fstat(fd, st) != 0) {
+        close(fd);
+        fd = -1;
+    }
+    return fd;
+}
+
 static int32_t up_open_cb(void *ctx, const char *name, bool keep)
 {
     dan_file_dir_t *d = (dan_file_dir_t *)ctx;
     char path[DAN_GW_FILE_NAME_MAX + 2u];
     struct stat st;
-    int flags = O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC;
     if (!name_ok(name)) {
         return DAN_GW_FS_ENOENT;
     }
     close_partial(d);
     remove_other_partials(d, name);
     partial_path(name, path, sizeof path);
-    d->up_fd = openat(d->dirfd, path, keep ? flags : flags | O_TRUNC, FILE_MODE);
+    d->up_fd = open_partial(d, path, &st);
     if (d->up_fd < 0) {
         return fs_error(d);
     }
-    if (fstat(d->up_fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        close_partial(d);
-        d->errors++;
-        return DAN_GW_FS_EIO;
-    }
-    if (st.st_size > (off_t)d->store.max_size) { /* not one of ours: start it again */
+    /* restart, or not one of ours (over the cap): start it again */
+    if (!keep || st.st_size > (off_t)d->store.max_size) {
         if (ftruncate(d->up_fd, 0) != 0) {
             int32_t e = fs_error(d);
             close_partial(d);
