@@ -17,6 +17,9 @@ bool dan_gwn_file_service(const dan_gw_node_t *g, uint16_t dtid)
 
 static int16_t store_error(int32_t r)
 {
+    if (r == DAN_GW_FS_EFBIG) {
+        return DAN_DC_FILE_TOO_LARGE; /* over what the store serves (dan-gatewayd: 2 GiB) */
+    }
     return r == DAN_GW_FS_ENOENT ? (int16_t)DAN_DC_FILE_NOT_FOUND : (int16_t)DAN_DC_FILE_IO_ERROR;
 }
 

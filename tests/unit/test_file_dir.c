@@ -99,6 +99,10 @@ static void test_committed(void **state)
     put_file("a.bin", "alpha!");
     put_file("~c.bin", "partial"); /* never listed */
     put_file(".hidden", "dot");    /* not a valid name */
+    put_file("big.bin", "");
+    path_of("big.bin", p, sizeof p);
+    assert_int_equal(truncate(p, (off_t)3 << 30), 0); /* 3 GiB, sparse: not served, not listed */
+    assert_int_equal(fs->size(fs->ctx, "big.bin"), DAN_GW_FS_EFBIG);
     path_of("sub", p, sizeof p);
     assert_int_equal(mkdir(p, 0700), 0); /* a directory is no file */
     assert_int_equal(fs->size(fs->ctx, "a.bin"), 6);

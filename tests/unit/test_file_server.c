@@ -38,6 +38,9 @@ static int32_t fake_size(void *ctx, const char *name)
     if (broken) {
         return DAN_GW_FS_EIO;
     }
+    if (strcmp(name, "huge.bin") == 0) {
+        return DAN_GW_FS_EFBIG; /* over what the store serves */
+    }
     return strcmp(name, "fw.bin") == 0 ? (int32_t)IMG_SIZE : DAN_GW_FS_ENOENT;
 }
 
@@ -299,6 +302,9 @@ static void test_getinfo(void **state)
 {
     dan_dc_file_getinfo_rsp_t r;
     test_getinfo_dir(state);
+    get_info("huge.bin", &r); /* file.Error FILE_TOO_LARGE, not an I/O error */
+    assert_int_equal(r.error, DAN_DC_FILE_TOO_LARGE);
+    assert_int_equal(r.size, 0);
     broken = true;
     get_info("fw.bin", &r);
     assert_int_equal(r.error, DAN_DC_FILE_IO_ERROR);

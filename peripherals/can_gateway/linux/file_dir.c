@@ -99,15 +99,16 @@ static int32_t read_cb(void *ctx, const char *name, uint32_t offset, uint8_t *bu
     return e;
 }
 
-/* A committed file of the listing: a valid name, a regular file. */
+/* A committed file of the listing: a valid name, a regular file the store
+ * serves (one over DAN_FILE_DIR_MAX_MAX is FILE_TOO_LARGE to a reader). */
 static bool listed(dan_file_dir_t *d, const char *name, uint32_t *size)
 {
     struct stat st;
     if (!name_ok(name) || fstatat(d->dirfd, name, &st, AT_SYMLINK_NOFOLLOW) != 0 ||
-        !S_ISREG(st.st_mode)) {
+        !S_ISREG(st.st_mode) || st.st_size > (off_t)DAN_FILE_DIR_MAX_MAX) {
         return false;
     }
-    *size = st.st_size > (off_t)UINT32_MAX ? UINT32_MAX : (uint32_t)st.st_size;
+    *size = (uint32_t)st.st_size;
     return true;
 }
 

@@ -33,6 +33,7 @@ extern "C" {
 #define DAN_DC_FILE_NOT_FOUND     2
 #define DAN_DC_FILE_IO_ERROR      5
 #define DAN_DC_FILE_INVALID_VALUE 22
+#define DAN_DC_FILE_TOO_LARGE     27
 /* uavcan.protocol.file.EntryType flags (uint8). */
 #define DAN_DC_FILE_FLAG_FILE     1u
 #define DAN_DC_FILE_FLAG_READABLE 8u
