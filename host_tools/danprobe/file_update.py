@@ -211,6 +211,13 @@ def upload(
             "(the upload stays open: --restart sends it again)",
             c.result,
         )
+    if c.result == F.FILE_IN_USE:
+        raise FileError(
+            f"FILE_COMMIT: a node is reading the {u.name.decode()} this would replace (the "
+            "upload stays held: run again once its update has ended, or upload under another "
+            "name)",
+            c.result,
+        )
     if c.result != F.FILE_OK:
         raise FileError("FILE_COMMIT", c.result)
     u.committed, u.seconds = True, now() - t0

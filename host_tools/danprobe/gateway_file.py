@@ -41,7 +41,8 @@ LIST_END = 0xFF
     FILE_NOT_FOUND,
     FILE_IO_ERROR,
     FILE_NO_STORE,
-) = range(9)
+    FILE_IN_USE,
+) = range(10)
 RESULT_NAMES = (
     "ok",
     "no upload open",
@@ -52,6 +53,7 @@ RESULT_NAMES = (
     "not found",
     "i/o error in the store",
     "no file store",
+    "in use (a node is reading the file it would replace)",
 )
 
 # FW_BEGIN result: uavcan.protocol.file.BeginFirmwareUpdate.Response error

@@ -140,9 +140,10 @@ static void upload_write(dan_gw_node_t *g, const dan_gw_file_write_t *w, dan_gw_
     h->have = u->have;
 }
 
-/* FILE_COMMIT: have = size and the CRC of the bytes held, then the store
- * makes it the file. A retry after success answers OK again. */
-static void upload_commit(dan_gw_node_t *g, uint32_t crc, dan_gw_file_commit_t *c)
+/* FILE_COMMIT: have = size and the CRC of the bytes held, and no node
+ * reading the file it replaces; then the store makes it the file. A retry
+ * after success answers OK again. */
+static void upload_commit(dan_gw_node_t *g, uint32_t crc, dan_gw_file_commit_t *c, uint64_t now_us)
 {
     const dan_gw_file_store_t *fs = g->cfg.files;
     dan_gw_node_upload_t *u = &g->upload;
@@ -159,6 +160,10 @@ static void upload_commit(dan_gw_node_t *g, uint32_t crc, dan_gw_file_commit_t *
     }
     if (crc != u->crc) {
         c->result = DAN_GW_FILE_CRC; /* still open: restart it */
+        return;
+    }
+    if (dan_gwn_file_in_use(g, u->name, now_us)) {
+        c->result = DAN_GW_FILE_IN_USE; /* still open: commit when the reader is done */
         return;
     }
     rc = fs->up_commit(fs->ctx, u->name);
@@ -215,7 +220,7 @@ DAN_GWN_HANDLER(dan_gwn_h_file_commit)
         return dan_gwn_refuse(err, "bad FILE_COMMIT");
     }
     if (g->cfg.files != NULL) {
-        upload_commit(g, q.crc32, &c);
+        upload_commit(g, q.crc32, &c, now_us);
     }
     PUT_ENCODED(resp, dan_gw_msg_file_commit_rsp_encode, &c);
     return DAN_OK;

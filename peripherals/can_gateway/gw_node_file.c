@@ -86,12 +86,38 @@ static bool answer_getinfo(dan_gw_node_t *g, const dan_gw_node_file_req_t *q)
     return true;
 }
 
+/* FNV-1a 32 of a name: which file a node reads, in 4 bytes per slot (a
+ * collision only makes a commit wait for another file's reader). */
+static uint32_t name_hash(const char *name)
+{
+    uint32_t h = 2166136261u;
+    while (*name != '\0') {
+        h = (h ^ (uint8_t)*name++) * 16777619u;
+    }
+    return h;
+}
+
+bool dan_gwn_file_in_use(const dan_gw_node_t *g, const char *name, uint64_t now_us)
+{
+    uint32_t h = name_hash(name);
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
+        const dan_gw_node_fw_t *f = &g->nodes[i].fw;
+        if (g->nodes[i].e.node_id != 0u && (f->flags & DAN_GW_FW_READING) != 0u &&
+            f->name_hash == h && f->bytes_read < f->file_size &&
+            now_us - f->last_read_us < DAN_GW_NODE_READER_US) {
+            return true;
+        }
+    }
+    return false;
+}
+
 /* The node's firmware-update progress (NODE_INFO): a read from 0 starts a
  * new pass over the file. */
-static void note_read(dan_gw_node_t *g, uint8_t src, uint32_t offset, uint32_t n, uint32_t size,
-                      uint64_t now_us)
+static void note_read(dan_gw_node_t *g, const dan_gw_node_file_req_t *q, uint32_t offset,
+                      uint32_t n, uint32_t size, uint64_t now_us)
 {
-    dan_gw_node_slot_t *s = dan_gwn_find_node(g, src);
+    dan_gw_node_slot_t *s = dan_gwn_find_node(g, q->src);
     if (s == NULL) {
         return;
     }
@@ -104,6 +130,7 @@ static void note_read(dan_gw_node_t *g, uint8_t src, uint32_t offset, uint32_t n
     s->fw.file_size = size;
     s->fw.last_read_us = now_us != 0u ? now_us : 1u;
     s->fw.flags |= DAN_GW_FW_READING;
+    s->fw.name_hash = name_hash(q->name);
 }
 
 static bool answer_read(dan_gw_node_t *g, const dan_gw_node_file_req_t *q, uint64_t now_us)
@@ -133,7 +160,7 @@ static bool answer_read(dan_gw_node_t *g, const dan_gw_node_file_req_t *q, uint6
     } else {
         g->stats.file_reads++;
         g->stats.file_bytes += (uint32_t)n;
-        note_read(g, q->src, q->offset < (uint64_t)size ? (uint32_t)q->offset : (uint32_t)size,
+        note_read(g, q, q->offset < (uint64_t)size ? (uint32_t)q->offset : (uint32_t)size,
                   (uint32_t)n, (uint32_t)size, now_us);
     }
     return true;

@@ -140,6 +140,10 @@ bool dan_gwn_file_service(const dan_gw_node_t *g, uint16_t dtid);
 void dan_gwn_on_file_request(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);
 /* Answers the requests that waited for room in the bulk queue. */
 void dan_gwn_file_poll(dan_gw_node_t *g, uint64_t now_us);
+/* True while a node of the table reads committed file name (it read within
+ * DAN_GW_NODE_READER_US and not to its end): replacing it would give that
+ * node a mix of two images. */
+bool dan_gwn_file_in_use(const dan_gw_node_t *g, const char *name, uint64_t now_us);
 uint64_t dan_gwn_file_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t);
 
 /* ---- DAN side (gw_node_dan*.c) ---- */

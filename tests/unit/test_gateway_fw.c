@@ -209,6 +209,55 @@ static void test_crc_refused_not_served(void **state)
     assert_int_equal(len, 256);
 }
 
+/* NODE reads fw.bin at offset off; the answer's data length. */
+static size_t read_at(uint64_t off)
+{
+    size_t from = R->ncap, len;
+    file_read_from(NODE, off, "fw.bin");
+    drain();
+    assert_int_equal(read_error(&from, &len), DAN_DC_FILE_OK);
+    return len;
+}
+
+/* A new image committed over the one a node is reading would give that
+ * node the first part of one and the rest of the other: the commit answers
+ * IN_USE (the upload stays, nothing replaced) until the reader has read to
+ * the end, or has read nothing for DAN_GW_NODE_READER_US (it failed). A
+ * reader of another file does not hold it. */
+static void test_commit_waits_for_reader(void **state)
+{
+    uint32_t crc = dan_gw_crc32(0, img, IMG_SIZE);
+    uint32_t off;
+    (void)state;
+    node_status_from(NODE, 10, DAN_DC_HEALTH_OK, DAN_DC_MODE_SOFTWARE_UPDATE);
+    upload("fw.bin", IMG_SIZE);
+    upload("other.bin", IMG_SIZE);
+    assert_int_equal(read_at(0), 256);
+    assert_int_equal(open_file("fw.bin", IMG_SIZE, true, NULL), DAN_GW_FILE_OK);
+    upload_range(0, IMG_SIZE);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_IN_USE);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_IN_USE); /* still held */
+    for (off = 256; off < IMG_SIZE; off += 256) {
+        assert_int_equal(read_at(off), off + 256u <= IMG_SIZE ? 256u : IMG_SIZE - off);
+    }
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_OK); /* read to the end */
+    /* a reader that stops halfway holds it for DAN_GW_NODE_READER_US */
+    assert_int_equal(read_at(0), 256);
+    assert_int_equal(open_file("fw.bin", IMG_SIZE, true, NULL), DAN_GW_FILE_OK);
+    upload_range(0, IMG_SIZE);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_IN_USE);
+    assert_int_equal(R->g.stats.file_commits, 3);
+    advance(DAN_GW_NODE_READER_US / 2u);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_IN_USE);
+    advance(DAN_GW_NODE_READER_US / 2u + 1000u);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_OK);
+    /* reading fw.bin does not hold other.bin */
+    assert_int_equal(read_at(0), 256);
+    assert_int_equal(open_file("other.bin", IMG_SIZE, true, NULL), DAN_GW_FILE_OK);
+    upload_range(0, IMG_SIZE);
+    assert_int_equal(commit(crc, NULL), DAN_GW_FILE_OK);
+}
+
 /* The DSDL codec against pydronecan's bytes (tests/vectors/dronecan_fw.txt):
  * decoded to the fields, encoded back byte for byte. */
 static void fw_dsdl_row(vec_file_t *v, void *ctx)
@@ -248,7 +297,7 @@ int main(void)
 {
     int failed = UNIT_RUN("gateway_fw", setup_files, teardown, test_fw_begin_and_follow,
                           test_fw_begin_refused, test_fw_begin_not_a_file, test_fw_begin_timeout,
-                          test_crc_refused_not_served);
+                          test_crc_refused_not_served, test_commit_waits_for_reader);
     failed += UNIT_RUN("gateway_fw_codec", NULL, NULL, test_fw_dsdl_vectors);
     return failed;
 }

@@ -35,6 +35,7 @@ extern "C" {
 #define DAN_GW_FILE_NOT_FOUND 6u
 #define DAN_GW_FILE_IO_ERROR  7u /* the store failed */
 #define DAN_GW_FILE_NO_STORE  8u /* the gateway has no file store */
+#define DAN_GW_FILE_IN_USE    9u /* commit over a file a node is reading: the upload stays */
 
 #define DAN_GW_FILE_RESTART 0x01u /* FILE_OPEN flags: start over even if resumable */
 

@@ -95,6 +95,10 @@ extern "C" {
 #define DAN_GW_NODE_FLAP_COUNT      3u
 #define DAN_GW_NODE_FOREIGN_US      60000000u /* HEALTH shows another allocator this long */
 #define DAN_GW_NODE_FILE_WAIT_US    1000000u  /* a file request waits this long for room */
+/* A node that read a file this recently, and not to its end, is reading it:
+ * FILE_COMMIT over that name answers IN_USE (danprobe fw-update's --stall
+ * default: after it the reader counts as failed). */
+#define DAN_GW_NODE_READER_US       10000000u
 
 #define DAN_GW_NODE_DEFAULT_ID            10u
 #define DAN_GW_NODE_DEFAULT_ESC_TIMEOUT   500u  /* ms */
@@ -244,6 +248,7 @@ typedef struct {
     uint32_t bytes_read;   /* highest offset + length served */
     uint32_t file_size;    /* of the file it read (0 none) */
     uint64_t last_read_us; /* 0: never */
+    uint32_t name_hash;    /* FNV-1a of the name it read (DAN_GW_NODE_READER_US) */
 } dan_gw_node_fw_t;
 
 /* A file request waiting for room in the bulk queue (gw_node_file.c). */
