@@ -42,7 +42,8 @@ LIST_END = 0xFF
     FILE_IO_ERROR,
     FILE_NO_STORE,
     FILE_IN_USE,
-) = range(10)
+    FILE_NO_SPACE,
+) = range(11)
 RESULT_NAMES = (
     "ok",
     "no upload open",
@@ -54,6 +55,7 @@ RESULT_NAMES = (
     "i/o error in the store",
     "no file store",
     "in use (a node is reading the file it would replace)",
+    "no space (the store is full: remove files)",
 )
 
 # FW_BEGIN result: uavcan.protocol.file.BeginFirmwareUpdate.Response error

@@ -20,6 +20,9 @@ static uint8_t store_result(dan_gw_node_t *g, int32_t rc)
     if (rc == DAN_GW_FS_EFBIG) {
         return DAN_GW_FILE_TOO_LARGE;
     }
+    if (rc == DAN_GW_FS_ENOSPC) {
+        return DAN_GW_FILE_NO_SPACE; /* not the medium failing: remove files */
+    }
     g->stats.upload_errors++;
     return DAN_GW_FILE_IO_ERROR;
 }

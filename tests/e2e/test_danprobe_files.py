@@ -42,7 +42,7 @@ def test_file_messages_bytes():
     # FILE_REMOVE: string name; u8 result
     assert F.encode_name("x").hex() == "0178" and F.decode_name(b"\x01x") == b"x"
     assert F.decode_result(b"\x06") == F.FILE_NOT_FOUND
-    assert F.result_name(F.FILE_NO_STORE) == "no file store" and F.result_name(10) == "result 10"
+    assert F.result_name(F.FILE_NO_STORE) == "no file store" and F.result_name(11) == "result 11"
 
 
 def test_fw_begin_and_node_info_follow_bytes():

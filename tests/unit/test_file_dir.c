@@ -263,9 +263,45 @@ static void test_size_cap(void **state)
     assert_int_equal(fs->up_open(fs->ctx, "big.bin", true), 0);
 }
 
+/* An uploader cannot fill the volume: a commit past max_files files or
+ * max_total bytes (the file it replaces not counted) is ENOSPC and keeps
+ * the partial; after a remove it goes through. */
+static void test_store_caps(void **state)
+{
+    uint8_t data[40];
+    (void)state;
+    memset(data, 0x33, sizeof data);
+    d.max_files = 2;
+    d.max_total = 100;
+    put_file("a.bin", "0123456789");
+    assert_int_equal(fs->up_open(fs->ctx, "b.bin", false), 0);
+    assert_int_equal(fs->up_write(fs->ctx, 0, data, 40), 40);
+    assert_int_equal(fs->up_commit(fs->ctx, "b.bin"), DAN_OK); /* 2 files, 50 bytes */
+    assert_int_equal(fs->up_open(fs->ctx, "c.bin", false), 0);
+    assert_int_equal(fs->up_write(fs->ctx, 0, data, 5), 5);
+    assert_int_equal(fs->up_commit(fs->ctx, "c.bin"), DAN_GW_FS_ENOSPC); /* a third file */
+    assert_true(exists("~c.bin"));
+    assert_false(exists("c.bin"));
+    /* replacing b.bin does not count it twice: 10 + 5 */
+    assert_int_equal(fs->up_commit(fs->ctx, "b.bin"), DAN_OK);
+    assert_int_equal(fs->size(fs->ctx, "b.bin"), 5);
+    /* then the bytes */
+    d.max_files = 3;
+    assert_int_equal(fs->up_open(fs->ctx, "c.bin", false), 0);
+    assert_int_equal(fs->up_write(fs->ctx, 0, data, 40), 40);
+    assert_int_equal(fs->up_commit(fs->ctx, "c.bin"), DAN_OK); /* 10 + 5 + 40 */
+    assert_int_equal(fs->up_open(fs->ctx, "d.bin", false), 0);
+    assert_int_equal(fs->up_write(fs->ctx, 0, data, 40), 40);
+    d.max_files = 4;
+    d.max_total = 90;
+    assert_int_equal(fs->up_commit(fs->ctx, "d.bin"), DAN_GW_FS_ENOSPC); /* 10 + 5 + 40 + 40 */
+    assert_int_equal(fs->remove(fs->ctx, "c.bin"), DAN_OK);
+    assert_int_equal(fs->up_commit(fs->ctx, "d.bin"), DAN_OK); /* 55 */
+}
+
 int main(void)
 {
     return UNIT_RUN("file_dir", setup, teardown, test_open_errors, test_committed,
                     test_symlinks_refused, test_planted_partials_replaced, test_upload,
-                    test_resume_after_restart, test_size_cap);
+                    test_resume_after_restart, test_size_cap, test_store_caps);
 }

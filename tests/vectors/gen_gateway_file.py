@@ -33,7 +33,7 @@ HEADER = """\
 #   node_info rsp     as gateway.txt, then status= fflags= read= size= since=
 #   stats rsp         values=             (with the file counters appended)
 # Results: 0 OK, 1 NO_UPLOAD, 2 GAP, 3 TOO_LARGE, 4 SHORT, 5 CRC, 6 NOT_FOUND,
-#   7 IO_ERROR, 8 NO_STORE, 9 IN_USE.
+#   7 IO_ERROR, 8 NO_STORE, 9 IN_USE, 10 NO_SPACE.
 """
 
 
@@ -100,6 +100,7 @@ def commit_list_remove_vectors(emit):
         (1, 0),
         (7, 1),
         (9, 0xCBF43926),
+        (10, 0xCBF43926),
     ]:
         emit("file_commit", "rsp", ["result=%d" % result, "crc=%d" % crc], u8(result) + u32(crc))
     emit("file_commit", "bad", [], b"\x01\x02\x03")

@@ -115,6 +115,9 @@ static void usage(FILE *o)
                "                        take uploads there (FILE_OPEN..COMMIT); it must exist\n"
                "                        and be writable\n"
                "  --file-max BYTES      largest file uploaded, 1..2147483647 (default 4194304)\n"
+               "  --file-total BYTES    all files together, 1..4294967295 (default 67108864)\n"
+               "  --file-count N        files in the store, 1..254 (default 64); a commit past\n"
+               "                        either cap is refused (NO_SPACE)\n"
                "  --uid HEX32           GetNodeInfo unique ID, 32 hex digits, not all zeros\n"
                "                        (default: derived from /etc/machine-id, FNV-1a of\n"
                "                        \"dan-gatewayd:K:\" + the ID for K=0..3; without one,\n"
@@ -162,6 +165,8 @@ typedef struct {
     uint32_t max_baud;       /* --max-baud, or 0: what the UART takes */
     bool no_fast;            /* --no-fast-bauds */
     uint32_t file_max;       /* --file-max (0: not given) */
+    uint32_t file_total;     /* --file-total (0: not given) */
+    uint32_t file_count;     /* --file-count (0: not given) */
 } opts_t;
 
 static void can_down(gwd_t *d, const char *why, uint64_t now)
@@ -291,6 +296,8 @@ static int number_option(int c, const char *arg, opts_t *o, dan_gw_node_config_t
         {'W', "--reply-window-ms", 1, WINDOW_MS_MAX, &o->window_ms, false},
         {'M', "--max-baud", UART_BAUD_MIN, UART_BAUD_MAX, &o->max_baud, true},
         {'X', "--file-max", 1, DAN_FILE_DIR_MAX_MAX, &o->file_max, true},
+        {'T', "--file-total", 1, UINT32_MAX, &o->file_total, true},
+        {'C', "--file-count", 1, DAN_FILE_DIR_FILES_MAX, &o->file_count, true},
     };
     size_t i;
     for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
@@ -318,8 +325,10 @@ static int check_file_dir(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     char err[DAN_FILE_DIR_ERR_MAX];
     uint32_t max = o->file_max != 0u ? o->file_max : DAN_FILE_DIR_DEFAULT_MAX;
     if (d->file_dir == NULL) {
-        if (o->file_max != 0u) {
-            tool_error("--file-max needs --file-dir");
+        if (o->file_max != 0u || o->file_total != 0u || o->file_count != 0u) {
+            tool_error("%s needs --file-dir", o->file_max != 0u     ? "--file-max"
+                                              : o->file_total != 0u ? "--file-total"
+                                                                    : "--file-count");
             return 2;
         }
         return -1;
@@ -327,6 +336,12 @@ static int check_file_dir(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     if (dan_file_dir_open(&d->files, d->file_dir, max, err, sizeof err) != 0) {
         tool_error("--file-dir %s", err);
         return 2;
+    }
+    if (o->file_total != 0u) {
+        d->files.max_total = o->file_total;
+    }
+    if (o->file_count != 0u) {
+        d->files.max_files = o->file_count;
     }
     nc->files = &d->files.store;
     return -1;
@@ -383,6 +398,8 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
                                          {"no-dna", no_argument, NULL, 'N'},
                                          {"file-dir", required_argument, NULL, 'f'},
                                          {"file-max", required_argument, NULL, 'X'},
+                                         {"file-total", required_argument, NULL, 'T'},
+                                         {"file-count", required_argument, NULL, 'C'},
                                          {"uid", required_argument, NULL, 'U'},
                                          {"syslog", no_argument, NULL, 'S'},
                                          {"verbose", no_argument, NULL, 'v'},
@@ -793,6 +810,8 @@ int main(int argc, char **argv)
                 NULL,
                 0,
                 false,
+                0,
+                0,
                 0};
     int r;
 

@@ -311,6 +311,27 @@ static int32_t up_read_cb(void *ctx, uint32_t offset, uint8_t *buf, size_t cap)
     return n < 0 ? fs_error(d) : (int32_t)n;
 }
 
+/* True when the store can take the partial as name: the files it holds
+ * besides name, plus this one, within max_files and max_total. */
+static bool room_for(dan_file_dir_t *d, const char *name)
+{
+    DIR *dir = open_dir(d);
+    struct dirent *e;
+    uint64_t total = d->up_len;
+    uint32_t files = 1, size;
+    if (dir == NULL) {
+        return false;
+    }
+    while ((e = readdir(dir)) != NULL) {
+        if (strcmp(e->d_name, name) != 0 && listed(d, e->d_name, &size)) {
+            files++;
+            total += size;
+        }
+    }
+    closedir(dir);
+    return files <= d->max_files && total <= d->max_total;
+}
+
 static int32_t up_commit_cb(void *ctx, const char *name)
 {
     dan_file_dir_t *d = (dan_file_dir_t *)ctx;
@@ -320,6 +341,9 @@ static int32_t up_commit_cb(void *ctx, const char *name)
     }
     if (!name_ok(name)) {
         return DAN_GW_FS_ENOENT;
+    }
+    if (!room_for(d, name)) {
+        return DAN_GW_FS_ENOSPC; /* the partial stays: remove files, commit again */
     }
     partial_path(d->up_name, path, sizeof path);
     /* the bytes are on the medium before the name points at them */
@@ -337,6 +361,8 @@ int dan_file_dir_open(dan_file_dir_t *d, const char *dir, uint32_t max_size, cha
     memset(d, 0, sizeof *d);
     d->dirfd = -1;
     d->up_fd = -1;
+    d->max_total = DAN_FILE_DIR_DEFAULT_TOTAL;
+    d->max_files = DAN_FILE_DIR_DEFAULT_FILES;
     if (max_size < 1u || max_size > DAN_FILE_DIR_MAX_MAX) {
         snprintf(err, errlen, "file size cap %u outside 1..%u", max_size, DAN_FILE_DIR_MAX_MAX);
         return -1;

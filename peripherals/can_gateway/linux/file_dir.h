@@ -18,7 +18,11 @@
  * ~partial is removed when an upload opens. up_commit fsyncs it and
  * renames it over DIR/name (a reader sees the old file or the new one),
  * then fsyncs DIR. list pages the regular files of valid names in name
- * order ('~' partials and dot files are not valid names).
+ * order ('~' partials and dot files are not valid names). A commit that
+ * would make the store hold more than max_files files or max_total bytes
+ * (its own files: regular, valid names, the one replaced not counted) is
+ * refused with DAN_GW_FS_ENOSPC, so an uploader cannot fill the volume
+ * the daemon's other state lives on.
  */
 #ifndef DAN_GWD_FILE_DIR_H
 #define DAN_GWD_FILE_DIR_H
@@ -28,9 +32,12 @@
 
 #include "dan/can_gw/file_store.h"
 
-#define DAN_FILE_DIR_DEFAULT_MAX (4u * 1024u * 1024u) /* bytes per file */
-#define DAN_FILE_DIR_MAX_MAX     0x7FFFFFFFu          /* sizes are int32 */
-#define DAN_FILE_DIR_ERR_MAX     320
+#define DAN_FILE_DIR_DEFAULT_MAX   (4u * 1024u * 1024u)  /* bytes per file */
+#define DAN_FILE_DIR_MAX_MAX       0x7FFFFFFFu           /* sizes are int32 */
+#define DAN_FILE_DIR_DEFAULT_TOTAL (64u * 1024u * 1024u) /* bytes of all files */
+#define DAN_FILE_DIR_DEFAULT_FILES 64u
+#define DAN_FILE_DIR_FILES_MAX     254u /* FILE_LIST pages indexes 0..254 */
+#define DAN_FILE_DIR_ERR_MAX       320
 
 typedef struct {
     dan_gw_file_store_t store; /* give &store to dan_gw_node_config_t.files */
@@ -38,12 +45,14 @@ typedef struct {
     int up_fd;                 /* the partial ~up_name; -1 none open */
     uint32_t up_len;           /* its bytes */
     char up_name[DAN_GW_FILE_NAME_MAX + 1u];
-    uint32_t errors; /* callbacks that failed on the medium (EIO/ENOSPC) */
+    uint32_t errors;    /* callbacks that failed on the medium (EIO/ENOSPC) */
+    uint32_t max_total; /* bytes of all files (default DAN_FILE_DIR_DEFAULT_TOTAL) */
+    uint32_t max_files; /* files (default DAN_FILE_DIR_DEFAULT_FILES, at most _FILES_MAX) */
 } dan_file_dir_t;
 
 /* Opens DIR (it must exist, be a directory and be writable); max_size is
- * the cap per file (1..DAN_FILE_DIR_MAX_MAX). 0, or -1 with a one-line
- * reason in err. */
+ * the cap per file (1..DAN_FILE_DIR_MAX_MAX); max_total and max_files get
+ * their defaults (set them after). 0, or -1 with a one-line reason in err. */
 int dan_file_dir_open(dan_file_dir_t *d, const char *dir, uint32_t max_size, char *err,
                       size_t errlen);
 void dan_file_dir_close(dan_file_dir_t *d);

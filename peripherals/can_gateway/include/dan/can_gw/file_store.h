@@ -57,7 +57,9 @@ typedef struct {
     /* Reads the partial back (for the CRC after a gateway restart). */
     int32_t (*up_read)(void *ctx, uint32_t offset, uint8_t *buf, size_t cap);
     /* The partial becomes file name at once, replacing an older file of
-     * that name (a reader never sees a mix); the partial is gone. */
+     * that name (each read sees the old file or the new one; the node does
+     * not commit over a file a node is reading); the partial is gone.
+     * DAN_GW_FS_ENOSPC: the store is full (the partial stays). */
     int32_t (*up_commit)(void *ctx, const char *name);
 
     void *ctx;

@@ -33,9 +33,10 @@ extern "C" {
 #define DAN_GW_FILE_SHORT     4u /* commit with have != size */
 #define DAN_GW_FILE_CRC       5u /* the bytes held have another CRC-32 */
 #define DAN_GW_FILE_NOT_FOUND 6u
-#define DAN_GW_FILE_IO_ERROR  7u /* the store failed */
-#define DAN_GW_FILE_NO_STORE  8u /* the gateway has no file store */
-#define DAN_GW_FILE_IN_USE    9u /* commit over a file a node is reading: the upload stays */
+#define DAN_GW_FILE_IO_ERROR  7u  /* the store failed */
+#define DAN_GW_FILE_NO_STORE  8u  /* the gateway has no file store */
+#define DAN_GW_FILE_IN_USE    9u  /* commit over a file a node is reading: the upload stays */
+#define DAN_GW_FILE_NO_SPACE  10u /* the store is full (its caps, or the medium) */
 
 #define DAN_GW_FILE_RESTART 0x01u /* FILE_OPEN flags: start over even if resumable */
 
