@@ -9,7 +9,9 @@
 
 #include "gw_node_internal.h"
 
-#define UP_READ_CHUNK 64u /* bytes read back per step to resume a kept partial */
+/* bytes read back per step to resume a kept partial (on the stack; the
+ * store contract allows reads of 256) */
+#define UP_READ_CHUNK 256u
 
 /* A store's negative code as the result byte (failures counted). */
 static uint8_t store_result(dan_gw_node_t *g, int32_t rc)
