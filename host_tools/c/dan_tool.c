@@ -1,6 +1,7 @@
 /* Chores shared by the C tools and the gateway daemon (see dan_tool.h). */
 #include "dan_tool.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -95,6 +96,15 @@ int tool_parse_ulong(const char *s, int base, unsigned long lo, unsigned long hi
 {
     char *end;
     unsigned long v;
+    if (base == 0 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
+        s += 2; /* hex; any other leading 0 is decimal, not C's octal */
+        base = 16;
+    } else if (base == 0) {
+        base = 10;
+    }
+    if (!isxdigit((unsigned char)s[0])) {
+        return -1; /* strtoul would take a sign or white space: -1 is ULONG_MAX */
+    }
     errno = 0;
     v = strtoul(s, &end, base);
     if (errno != 0 || end == s || *end != '\0' || v < lo || v > hi) {

@@ -50,8 +50,9 @@ void tool_fine_timers(void);
 /* s as a JSON string on f, escaped as libdan's dan_json_str() does. */
 void tool_json_str(FILE *f, const char *s);
 
-/* All of s is one number in base (0: C syntax, 0x.. hex) from lo to hi:
- * 0 with *out set, else -1 (empty, trailing characters, out of range). */
+/* All of s is one number in base (0: decimal, or hex after 0x; a leading
+ * 0 is not octal: "0500" is 500) from lo to hi: 0 with *out set, else -1
+ * (empty, a sign or white space, trailing characters, out of range). */
 int tool_parse_ulong(const char *s, int base, unsigned long lo, unsigned long hi,
                      unsigned long *out);
 /* The same in base 0 for a uint32_t. */

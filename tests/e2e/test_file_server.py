@@ -211,6 +211,10 @@ def test_updates_through_the_gateway(frig):
         (["--file-dir", "{tmp}", "--file-max", "3000000000"], "--file-max must be 1..2147483647"),
         (["--file-dir", "{tmp}", "--file-max", "4M"], "--file-max must be 1..2147483647"),
         (["--file-max", "1000"], "--file-max needs --file-dir"),
+        (["--file-total", "1000"], "--file-total needs --file-dir"),
+        (["--file-dir", "{tmp}", "--file-total", "-1"], "--file-total must be 1..4294967295"),
+        (["--file-dir", "{tmp}", "--file-count", "255"], "--file-count must be 1..254"),
+        (["--file-dir", "{tmp}", "--file-count", " 5"], "--file-count must be 1..254"),
     ],
 )
 def test_bad_file_options_exit_2(args, message, tmp_path):

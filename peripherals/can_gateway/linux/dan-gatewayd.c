@@ -99,7 +99,7 @@ static void usage(FILE *o)
                "                        default 1000000); SocketCAN: set it with ip link\n"
                "                        (ip link set can0 type can bitrate 1000000)\n"
                "  --no-echo             the UART does not hear its own bytes\n"
-               "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod)\n"
+               "  --de-gpio CHIP:LINE   RS-485 direction pin (libgpiod); implies --no-echo\n"
                "  --de-active-low       the pin is active low\n"
                "  --esc-timeout-ms N    failsafe after N ms without ESC commands (50..60000, "
                "default 500)\n"
@@ -449,9 +449,10 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
 static int open_devices(gwd_t *d, const opts_t *o)
 {
     char err[256];
+    /* a direction pin hides our echo (dan/posix.h; dan-master does the same) */
+    bool no_echo = o->no_echo || o->de_gpio != NULL;
     if (dan_posix_open(&d->uart, d->uart_path, o->baud,
-                       o->no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err,
-                       sizeof err) != DAN_OK) {
+                       no_echo ? DAN_POSIX_NO_ECHO : DAN_POSIX_ECHO, err, sizeof err) != DAN_OK) {
         logmsg(LOG_ERR, "%s", err);
         return 2;
     }
@@ -831,7 +832,14 @@ int main(int argc, char **argv)
     tool_catch_signal(SIGQUIT);
     signal(SIGPIPE, SIG_IGN);
     tool_fine_timers();
-    if (open_devices(d, &o) != 0 || start_engines(d, &o, &nc) != 0) {
+    if (open_devices(d, &o) != 0) {
+        return 2;
+    }
+    if (start_engines(d, &o, &nc) != 0) {
+        /* e.g. a --dna-db that cannot be read: the UART and the SLCAN
+         * adapter get their termios (and the adapter its "C") back */
+        dan_canif_close(&d->can);
+        dan_posix_close(&d->uart);
         return 2;
     }
     if (dan_sd_open(&d->sd, dan_posix_now_us()) != 0) {
