@@ -38,6 +38,10 @@ its port at will. Stale output is discarded when a client sends C.
                 is removed. "ok"
   attach K   -> plugs adapter K in again: a NEW pty, the symlink re-created
                 pointing at it, the port closed with default settings. "ok"
+  stall K    -> adapter K stays plugged in but stops reading (wedged
+                firmware): its client's writes fill the pty and then block
+                (EAGAIN). "ok"
+  resume K   -> it reads again (what queued meanwhile is taken). "ok"
   quit       -> "ok", then the hub exits 0.
 Errors are answered "error: ...".
 
@@ -82,6 +86,7 @@ class Port:
         self.slave = -1
         self.path = None
         self.counters = dict(frames_in=0, frames_out=0, dropped=0, errors=0)
+        self.stalled = False  # control "stall K": reads nothing
         self.reset_state()
 
     def reset_state(self):
@@ -360,10 +365,20 @@ class Hub:
                     return "error: port %d is already attached" % k
                 p.attach()
             return "ok"
+        if cmd in ("stall", "resume") and len(words) == 2:
+            try:
+                k = int(words[1])
+                if k < 0:
+                    raise IndexError
+                p = self.ports[k]
+            except (ValueError, IndexError):
+                return "error: no port %s" % words[1]
+            p.stalled = cmd == "stall"
+            return "ok"
         if cmd == "quit" and len(words) == 1:
             self.stop = True
             return "ok"
-        return "error: unknown command (stats, detach K, attach K, quit)"
+        return "error: unknown command (stats, detach K, attach K, stall K, resume K, quit)"
 
     def on_control_client(self, fd):
         s, buf = self.ctl_clients[fd]
@@ -401,9 +416,10 @@ class Hub:
             fdmap = {}
             for p in self.ports:
                 if p.attached:
-                    ev = select.POLLIN | (select.POLLOUT if p.outbuf else 0)
-                    poller.register(p.master, ev)
-                    fdmap[p.master] = p
+                    ev = (0 if p.stalled else select.POLLIN) | (select.POLLOUT if p.outbuf else 0)
+                    if ev:
+                        poller.register(p.master, ev)
+                        fdmap[p.master] = p
             if self.ctl:
                 poller.register(self.ctl.fileno(), select.POLLIN)
                 for fd in self.ctl_clients:
@@ -418,7 +434,11 @@ class Hub:
                     p = fdmap[fd]
                     if ev & select.POLLOUT:
                         p.flush()
-                    if ev & (select.POLLIN | select.POLLHUP | select.POLLERR) and p.attached:
+                    if (
+                        ev & (select.POLLIN | select.POLLHUP | select.POLLERR)
+                        and p.attached
+                        and not p.stalled
+                    ):
                         self.on_readable(p)
                 elif self.ctl and fd == self.ctl.fileno():
                     try:

@@ -404,20 +404,64 @@ def test_can_adapter_unplugged_and_back(rig):
 
     on_line = in_thread_after("configure", unplug_and_back)
     rc, out = r.fcsim("discover", "configure", "esc:12,13,14,15@6000@100", "stats", on_line=on_line)
-    e = steps_of(out, "esc")[0]
-    log = r.gwd.log_path.read_text()
-    assert "adapter lost" in log and "reopened" in log, log[-2000:]
-    after = r.esc_events(since=marks["attach"] + 1.2)  # reopen retries every second
-    wrong = r.wrong_values()
-    report_esc(
+    flowing_again(
+        r,
+        out,
+        "adapter lost",
         "CAN adapter detach/attach",
-        e,
-        len(wrong),
-        f"commands at the ESCs after re-attach: {len(after)}, "
+        marks["attach"],
         f"can_tx_dropped {steps_of(out, 'stats')[0]['can_tx_dropped']}",
     )
+
+
+def flowing_again(r, out, logged, name, back, note):
+    """After the adapter came back (time back): the gateway logged why it
+    lost it and that it reopened it, commands 12..15 reached the ESCs again
+    (the reopen retries every second), and no wrong value did."""
+    e = steps_of(out, "esc")[0]
+    log = r.gwd.log_path.read_text()
+    assert logged in log and "reopened" in log, log[-2000:]
+    after = r.esc_events(since=back + 1.2)
+    wrong = r.wrong_values()
+    report_esc(name, e, len(wrong), f"commands at the ESCs after it: {len(after)}, {note}")
     assert any(ev["cmd"] == [12, 13, 14, 15] for ev in after), "ESC commands did not flow again"
     assert not wrong, wrong[:5]
+
+
+def test_can_adapter_stops_taking_bytes(rig):
+    """An SLCAN adapter that stays plugged in but stops reading (wedged
+    firmware): the gateway's writes fill the pty and block. Within 500 ms
+    of that the adapter counts as lost (it was CAN_OK forever, every frame
+    dropped unseen), is reopened once it reads again, and the ESC commands
+    flow on."""
+    r = rig()
+    marks = {}
+
+    def stall_and_back():
+        time.sleep(0.8)
+        assert control(r.tmp / "hub.ctl", "stall 0") == "ok"
+        marks["stall"] = time.monotonic()
+
+        def stuck():
+            return "adapter takes no bytes" in r.gwd.log_path.read_text()
+
+        wait_for(stuck, 60, 0.1, what="the gateway to see the adapter stuck")
+        marks["seen"] = time.monotonic()
+        assert control(r.tmp / "hub.ctl", "resume 0") == "ok"
+        marks["resume"] = time.monotonic()
+
+    on_line = in_thread_after("configure", stall_and_back)
+    rc, out = r.fcsim(
+        "discover", "configure", "esc:12,13,14,15@20000@400", "stats", on_line=on_line
+    )
+    flowing_again(
+        r,
+        out,
+        "adapter takes no bytes",
+        "CAN adapter stops reading",
+        marks["resume"],
+        f"stuck seen after {marks['seen'] - marks['stall']:.1f} s (the pty's buffer filled)",
+    )
 
 
 def test_can_flood_while_esc_commands_flow(rig):

@@ -18,6 +18,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/ioctl.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
@@ -339,7 +340,7 @@ static void restore_and_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
         if (c->have_old_tio) {
-            tcsetattr(c->fd, TCSADRAIN, &c->old_tio);
+            tcsetattr(c->fd, TCSANOW, &c->old_tio); /* drained above, with a deadline */
         }
         close(c->fd);
     }
@@ -651,6 +652,21 @@ int dan_canif_slcan_recv(dan_canif_t *c, dan_can_frame_t *f)
     return 0;
 }
 
+/* tcdrain() with a deadline: an adapter that takes no more bytes must not
+ * hold the daemon's stop (tcdrain ignores O_NONBLOCK). What is still
+ * queued at the deadline is dropped. */
+static void drain_until(dan_canif_t *c, uint64_t deadline)
+{
+    int queued = 0;
+    while (ioctl(c->fd, TIOCOUTQ, &queued) == 0 && queued > 0 && dan_posix_now_us() < deadline) {
+        struct timespec tick = {0, 1000000L};
+        (void)nanosleep(&tick, NULL);
+    }
+    if (queued > 0) {
+        (void)tcflush(c->fd, TCOFLUSH);
+    }
+}
+
 void dan_canif_slcan_close(dan_canif_t *c)
 {
     if (c->fd >= 0) {
@@ -666,12 +682,12 @@ void dan_canif_slcan_close(dan_canif_t *c)
             (void)write_all(c->fd, "\r", 1, deadline);
         }
         c->tx_len = 0;
-        (void)tcdrain(c->fd);
+        drain_until(c, deadline);
         (void)nanosleep(&settle, NULL); /* the adapter sends them on CAN */
         if (write_all(c->fd, "C\r", 2, deadline) == 0) {
             (void)wait_ack(c, deadline);
         }
-        (void)tcdrain(c->fd);
+        drain_until(c, deadline);
     }
     restore_and_close(c);
 }

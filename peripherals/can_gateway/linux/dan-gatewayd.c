@@ -40,6 +40,7 @@
 #include "sd_notify.h"
 
 #define REOPEN_US           1000000u /* a lost CAN adapter is tried again once a second */
+#define CAN_STALL_US        500000u  /* an SLCAN adapter that took no byte this long is lost */
 #define REOPEN_HANDSHAKE_MS 100u     /* a reopen's SLCAN handshake: DAN waits at most this */
 #define SHUTDOWN_FLUSH_US   500000u  /* on exit, the failsafe frames get this long to leave */
 #define SHUTDOWN_POLL_MS    10       /* meanwhile, how often the CAN output is retried */
@@ -139,6 +140,7 @@ typedef struct {
     const char *can_spec;
     bool can_up;
     uint64_t reopen_us;
+    uint64_t can_stuck_us; /* SLCAN: since when no byte could be written (0: none) */
     dan_canif_opts_t can_opts;
     const char *stats_file;
     uint64_t stats_due_us;
@@ -182,6 +184,27 @@ static void can_down(gwd_t *d, const char *why, uint64_t now)
 /* Sends queued frames (dan_gw_node_tx_sent: the raw capture may include
  * them); while the CAN side is down they are dropped (stale ESC commands
  * must not go out late). */
+/* An SLCAN adapter that is there but takes no bytes (wedged firmware): its
+ * writes would be EAGAIN forever with CAN_OK still reported; after
+ * CAN_STALL_US it counts as lost and is reopened. SocketCAN is left out: a
+ * full queue there is a bus without ACKs, which the kernel reports. */
+static bool can_stuck(gwd_t *d, int r, uint64_t now)
+{
+    if (r != DAN_ERR_BUSY || d->can.kind != DAN_CANIF_SLCAN) {
+        d->can_stuck_us = 0;
+        return false;
+    }
+    if (d->can_stuck_us == 0) {
+        d->can_stuck_us = now;
+    }
+    if (now - d->can_stuck_us < CAN_STALL_US) {
+        return false;
+    }
+    d->can_stuck_us = 0;
+    can_down(d, "adapter takes no bytes (writes blocked 500 ms)", now);
+    return true;
+}
+
 static void can_drain(gwd_t *d, uint64_t now)
 {
     dan_can_frame_t f;
@@ -198,13 +221,13 @@ static void can_drain(gwd_t *d, uint64_t now)
             can_down(d, "adapter lost (write failed)", now);
             return;
         }
-        if (r == DAN_ERR_BUSY) {
+        if (can_stuck(d, r, now) || r == DAN_ERR_BUSY) {
             return;
         }
     }
     while (dan_gw_node_tx_peek(&d->node, &f)) {
         int r = dan_canif_send(&d->can, &f);
-        if (r == DAN_ERR_BUSY) {
+        if (can_stuck(d, r, now) || r == DAN_ERR_BUSY) {
             break;
         }
         if (r == DAN_ERR_IO) {
