@@ -219,6 +219,14 @@ void dan_dc_tid_table_init(dan_dc_tid_table_t *tab)
     }
 }
 
+static int take_tid(dan_dc_tid_table_t *tab, size_t i, uint32_t key)
+{
+    uint8_t tid = tab->next[i];
+    tab->key[i] = key;
+    tab->next[i] = (uint8_t)((tid + 1u) & DAN_DC_TRANSFER_ID_MASK);
+    return tid;
+}
+
 int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id, uint8_t transfer_type,
                     uint8_t destination_node)
 {
@@ -233,10 +241,20 @@ int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id, uint8_t tran
           data_type_id;
     for (i = 0; i < DAN_DC_TX_TIDS; i++) {
         if (tab->key[i] == key || tab->key[i] == 0u) {
-            uint8_t tid = tab->next[i];
-            tab->key[i] = key;
-            tab->next[i] = (uint8_t)((tid + 1u) & DAN_DC_TRANSFER_ID_MASK);
-            return tid;
+            return take_tid(tab, i, key);
+        }
+    }
+    /* Full: a service request's flow gives way, in turn (calls to many
+     * nodes would otherwise fill the table for good and leave no room for
+     * RawCommand). Its successor starts at that counter: a request is
+     * matched by its response's transfer ID, and one that a server took
+     * for a duplicate (1 in 32) is retried by its caller. Broadcast flows
+     * are a fixed few and never give way. */
+    for (i = 0; i < DAN_DC_TX_TIDS; i++) {
+        size_t k = (tab->evict + i) % DAN_DC_TX_TIDS;
+        if (((tab->key[k] >> 16) & 3u) == DAN_DC_TRANSFER_REQUEST) {
+            tab->evict = (uint8_t)((k + 1u) % DAN_DC_TX_TIDS);
+            return take_tid(tab, k, key);
         }
     }
     return DAN_ERR_OVERFLOW;

@@ -28,6 +28,8 @@ void dan_gw_node_tx_pop(dan_gw_node_t *g)
 {
     dan_gw_node_txq_t *q = g->q_urgent.len > 0u ? &g->q_urgent : &g->q_bulk;
     if (q->len > 0u) {
+        const dan_can_frame_t *f = &q->f[q->head];
+        q->mid = f->dlc > 0u && (f->data[f->dlc - 1u] & DAN_DC_TAIL_EOT) == 0u;
         q->head = (uint16_t)((q->head + 1u) % DAN_GW_NODE_TXQ);
         q->len--;
     }
@@ -59,17 +61,24 @@ size_t dan_gw_node_tx_pending(const dan_gw_node_t *g)
 
 /* Throttle, arming and our status are states: only the newest matters,
  * and an old one waiting behind a stalled bus must never go out after a
- * newer one (nor crowd out the failsafe's zeros). A transfer cut in the
- * middle is dropped by its receivers, which then take the new one. */
+ * newer one (nor crowd out the failsafe's zeros). A transfer whose first
+ * frames are already on the bus is not cut, though: its receivers would
+ * drop it, and with commands coming faster than a multi-frame transfer
+ * takes (20 ESCs: 6 frames) no command would ever arrive whole. */
 void dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid)
 {
     size_t i, kept = 0, n = q->len;
+    bool in_flight = q->mid; /* frames at head finish the transfer on the bus */
     for (i = 0; i < n; i++) {
         dan_can_frame_t f = q->f[(q->head + i) % DAN_GW_NODE_TXQ];
         dan_dc_transfer_t id;
-        bool ours = (f.flags & DAN_CAN_EXT) != 0u && dan_dc_parse_id(f.id, &id) == DAN_OK &&
+        bool ours = !in_flight && (f.flags & DAN_CAN_EXT) != 0u &&
+                    dan_dc_parse_id(f.id, &id) == DAN_OK &&
                     id.transfer_type == DAN_DC_TRANSFER_BROADCAST && id.data_type_id == dtid &&
                     id.source_node == g->cfg.node_id;
+        if (in_flight && f.dlc > 0u && (f.data[f.dlc - 1u] & DAN_DC_TAIL_EOT) != 0u) {
+            in_flight = false; /* that transfer's last frame: kept, the rest as usual */
+        }
         if (!ours) {
             q->f[(q->head + kept) % DAN_GW_NODE_TXQ] = f;
             kept++;
@@ -129,6 +138,7 @@ int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uin
     }
     tid = dan_dc_tid_next(&g->tids, dtid, DAN_DC_TRANSFER_BROADCAST, 0);
     if (tid < 0) {
+        g->stats.can_tx_dropped++; /* never silent */
         return tid;
     }
     dan_dc_transfer_init(&t, dtid, sig, DAN_DC_TRANSFER_BROADCAST, payload, (size_t)len);

@@ -23,9 +23,16 @@ static bool lis_accept(void *user, uint16_t dtid, uint8_t tt, uint8_t src, uint6
 
 void drain(void)
 {
+    (void)send_frames(SIZE_MAX);
+}
+
+size_t send_frames(size_t max)
+{
     dan_can_frame_t f;
     dan_dc_transfer_t t;
-    while (dan_gw_node_tx_peek(&R->g, &f)) {
+    size_t sent = 0;
+    while (sent < max && dan_gw_node_tx_peek(&R->g, &f)) {
+        sent++;
         dan_gw_node_tx_sent(&R->g, R->bus.now); /* on the bus: a capture may keep it */
         R->nframes++;
         if (dan_dc_rx_frame(&R->lis, &f, R->bus.now, &t) == 1 && R->ncap < MAX_CAP) {
@@ -40,6 +47,7 @@ void drain(void)
             memcpy(c->payload, t.payload, t.payload_len);
         }
     }
+    return sent;
 }
 
 /* Runs the wire, the node's timers and the CAN drain for us microseconds. */

@@ -42,6 +42,9 @@ extern rig_t *R;
 void advance(uint64_t us);
 /* Sends what the node queued to the listener (captured in R->cap). */
 void drain(void);
+/* The same for at most max frames (the bus takes some, then stalls): the
+ * count sent. */
+size_t send_frames(size_t max);
 /* Starts a hand-built request, sealed as the client would. */
 int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 /* Completes the client's transaction in flight. */

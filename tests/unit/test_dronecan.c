@@ -962,8 +962,39 @@ static void test_tid_table(void **state)
     for (i = 3; i < DAN_DC_TX_TIDS; i++) {
         assert_int_equal(dan_dc_tid_next(&tab, (uint16_t)(2000 + i), 0, 0), 0);
     }
-    assert_int_equal(dan_dc_tid_next(&tab, 9, 0, 0), DAN_ERR_OVERFLOW);
+    /* full: the request flows give way in turn (calls to many nodes once
+     * filled it for good and RawCommand found no room), their counters
+     * going on; broadcast flows never do */
+    assert_int_equal(dan_dc_tid_next(&tab, 9, 0, 0), 2);  /* took dst 5's flow (next 2) */
+    assert_int_equal(dan_dc_tid_next(&tab, 10, 0, 0), 1); /* dst 6's */
+    assert_int_equal(dan_dc_tid_next(&tab, 9, 0, 0), 3);  /* its own now */
+    assert_int_equal(dan_dc_tid_next(&tab, 11, 0, 0), DAN_ERR_OVERFLOW);
+    assert_int_equal(dan_dc_tid_next(&tab, 1, DAN_DC_TRANSFER_REQUEST, 5), DAN_ERR_OVERFLOW);
     assert_int_equal(dan_dc_tid_next(&tab, 1, DAN_DC_TRANSFER_REQUEST, 128), DAN_ERR_ARG);
+}
+
+/* Service calls to 20 nodes, each its own flow, through a table of 16 that
+ * also holds the broadcasts: every call gets a transfer ID, and so does
+ * every broadcast after them. */
+static void test_tid_table_requests_give_way(void **state)
+{
+    dan_dc_tid_table_t tab;
+    unsigned i, round;
+    (void)state;
+    dan_dc_tid_table_init(&tab);
+    for (i = 0; i < 4; i++) {
+        assert_true(dan_dc_tid_next(&tab, (uint16_t)(1030 + i), DAN_DC_TRANSFER_BROADCAST, 0) >= 0);
+    }
+    for (round = 0; round < 3; round++) {
+        for (i = 0; i < 20; i++) {
+            assert_true(dan_dc_tid_next(&tab, 11, DAN_DC_TRANSFER_REQUEST, (uint8_t)(20 + i)) >= 0);
+        }
+        for (i = 0; i < 4; i++) {
+            assert_int_equal(
+                dan_dc_tid_next(&tab, (uint16_t)(1030 + i), DAN_DC_TRANSFER_BROADCAST, 0),
+                (int)(round + 1u));
+        }
+    }
 }
 
 /* ---- tests: RX ---- */
@@ -1476,7 +1507,8 @@ int main(void)
 {
     return UNIT_RUN("dronecan", NULL, NULL, test_brief_vectors, test_vector_file_tx,
                     test_vector_file_rx, test_crc, test_scalar_bits, test_float16, test_ids,
-                    test_tx_misc, test_tid_table, test_rx_interleaved, test_rx_lost_and_toggle,
-                    test_rx_crc, test_rx_timeout, test_rx_destination, test_rx_overflow_and_slots,
-                    test_fuzz, test_decode_fuzz, test_codec_errors);
+                    test_tx_misc, test_tid_table, test_tid_table_requests_give_way,
+                    test_rx_interleaved, test_rx_lost_and_toggle, test_rx_crc, test_rx_timeout,
+                    test_rx_destination, test_rx_overflow_and_slots, test_fuzz, test_decode_fuzz,
+                    test_codec_errors);
 }

@@ -681,6 +681,45 @@ static int finish_stalled(void)
     return dan_gw_complete(&R->gw, R->bus.now);
 }
 
+/* Latest wins, but not by cutting a transfer already on the bus: a
+ * RawCommand for 20 ESCs is 6 frames, and with commands coming faster than
+ * they leave, each was cut after its first frames and none reached the
+ * ESCs whole (review finding). The one in flight finishes, the newest
+ * follows; anything older still waiting is dropped. */
+static void test_throttle_in_flight_not_cut(void **state)
+{
+    int16_t v[20];
+    dan_dc_esc_raw_command_t rc;
+    size_t from, i;
+    cap_t *c;
+    int16_t seen[2];
+    int n = 0;
+    (void)state;
+    advance(1000);
+    from = R->ncap;
+    for (i = 0; i < 3; i++) {
+        int16_t k;
+        for (k = 0; k < 20; k++) {
+            v[k] = (int16_t)(1000 * (int16_t)(i + 1u));
+        }
+        assert_int_equal(dan_gw_esc_command(&R->gw, v, 20, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+        if (i == 0u) {
+            assert_int_equal(send_frames(2), 2); /* 1000's first frames leave, then CAN stalls */
+        }
+    }
+    drain();
+    while ((c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
+        assert_int_equal(rc.count, 20);
+        assert_true(n < 2);
+        seen[n++] = rc.cmd[19];
+    }
+    assert_int_equal(n, 2);
+    assert_int_equal(seen[0], 1000); /* whole */
+    assert_int_equal(seen[1], 3000); /* 2000 waited, and was dropped for 3000 */
+}
+
 /* CAN stalls while the FC keeps commanding: only the newest throttle waits
  * to go out, never a stale one, and the failsafe's zeros always fit and are
  * the last throttle on the bus (found by review: the queue once held 126
@@ -936,10 +975,10 @@ int main(void)
     return UNIT_RUN(
         "tests", setup, teardown, test_discover_and_identity, test_esc_command_raw_command,
         test_bad_seal_dropped, test_stalled_can_latest_throttle_wins,
-        test_full_pages_leave_room_for_the_seal, test_can_send_seq_reuse_after_reboot,
-        test_arm_during_failsafe, test_can_recv_follows_gateway_restart, test_bus_off_reported,
-        test_node_table_full, test_telemetry_round_robin, test_telemetry_paging, test_arming,
-        test_failsafe, test_tunnel_targetted_retries, test_tunnel_broadcast_and_drops,
-        test_raw_frames_and_filters, test_raw_send_exact, test_node_table,
-        test_own_node_status_and_info, test_malformed);
+        test_throttle_in_flight_not_cut, test_full_pages_leave_room_for_the_seal,
+        test_can_send_seq_reuse_after_reboot, test_arm_during_failsafe,
+        test_can_recv_follows_gateway_restart, test_bus_off_reported, test_node_table_full,
+        test_telemetry_round_robin, test_telemetry_paging, test_arming, test_failsafe,
+        test_tunnel_targetted_retries, test_tunnel_broadcast_and_drops, test_raw_frames_and_filters,
+        test_raw_send_exact, test_node_table, test_own_node_status_and_info, test_malformed);
 }

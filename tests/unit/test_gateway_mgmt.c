@@ -553,6 +553,45 @@ static void test_call_timeout_and_busy(void **state)
     assert_int_equal(R->gw.call.state, DAN_GW_CALL_BUSY);
 }
 
+/* Parameter reads from 20 nodes, each call a transfer-ID flow of its own:
+ * with the table's 16 flows full of them, RawCommand (and the failsafe's
+ * zeros) found no room and never went out, counted nowhere (review
+ * finding). Request flows now give way; throttle and zeros go out. */
+static void test_calls_to_many_nodes_leave_room_for_throttle(void **state)
+{
+    static const int16_t v[4] = {4000, 4000, 4000, 4000};
+    dan_dc_esc_raw_command_t rc;
+    size_t from;
+    cap_t *c;
+    uint16_t k;
+    (void)state;
+    for (k = 0; k < 20; k++) {
+        call_ok(
+            dan_gw_param_get_index(&R->gw, (uint16_t)(200 + k), (uint8_t)(60 + k), 0, R->bus.now));
+        if (k % DAN_GW_NODE_CALLS == DAN_GW_NODE_CALLS - 1u) {
+            advance(3500000); /* unanswered: the slots free */
+        }
+    }
+    advance(3500000);
+    from = R->ncap;
+    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    drain();
+    c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
+    assert_non_null(c);
+    assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
+    assert_int_equal(rc.count, 4);
+    assert_int_equal(rc.cmd[0], 4000);
+    advance(700000); /* the FC stops: the zeros go out too */
+    assert_true(R->g.esc.failsafe);
+    c = find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
+    assert_non_null(c);
+    assert_int_equal(dan_dc_esc_raw_command_decode(&rc, c->payload, c->len), DAN_OK);
+    assert_int_equal(rc.cmd[0], 0);
+    assert_int_equal(R->g.stats.can_tx_dropped, 0);
+    assert_int_equal(R->g.stats.calls, 20);
+}
+
 static void test_restart_magic(void **state)
 {
     size_t from = R->ncap;
@@ -696,6 +735,7 @@ int main(void)
                     test_dna_flood, test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard,
                     test_dna_storage, test_dna_blob_reasons, test_dna_table_id_taken,
                     test_dna_table_full, test_param_get_pipelined, test_param_set_retry_sent_once,
-                    test_call_timeout_and_busy, test_restart_magic, test_health_verdicts,
-                    test_own_id_claimed, test_health_esc_telemetry, test_own_frames_and_times);
+                    test_call_timeout_and_busy, test_calls_to_many_nodes_leave_room_for_throttle,
+                    test_restart_magic, test_health_verdicts, test_own_id_claimed,
+                    test_health_esc_telemetry, test_own_frames_and_times);
 }

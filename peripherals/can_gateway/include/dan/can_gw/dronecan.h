@@ -152,16 +152,18 @@ int dan_dc_tx_build(const dan_dc_transfer_t *t, dan_can_frame_t *frames, size_t 
 
 /* Transfer-ID counters of outgoing messages and requests, one per (data type,
  * transfer type, destination). Responses reuse the request's transfer ID and
- * need no entry. Zero-initialize or dan_dc_tid_table_init. */
+ * need no entry. When the table is full, request flows give way in turn
+ * (broadcast flows never do). Zero-initialize or dan_dc_tid_table_init. */
 typedef struct {
     uint32_t key[DAN_DC_TX_TIDS]; /* 0 = unused; else key built internally */
     uint8_t next[DAN_DC_TX_TIDS];
+    uint8_t evict; /* the next request flow to give way */
 } dan_dc_tid_table_t;
 
 void dan_dc_tid_table_init(dan_dc_tid_table_t *tab);
 /* Returns the transfer ID (0..31) to use for the next transfer of this flow
- * and advances the counter; DAN_ERR_OVERFLOW when the table is full,
- * DAN_ERR_ARG for a bad argument. */
+ * and advances the counter; DAN_ERR_OVERFLOW when the table is full of
+ * broadcast flows, DAN_ERR_ARG for a bad argument. */
 int dan_dc_tid_next(dan_dc_tid_table_t *tab, uint16_t data_type_id, uint8_t transfer_type,
                     uint8_t destination_node);
 

@@ -194,6 +194,7 @@ typedef struct {
 typedef struct {
     dan_can_frame_t f[DAN_GW_NODE_TXQ];
     uint16_t head, len;
+    bool mid; /* the last frame taken did not end its transfer: the rest is at head */
 } dan_gw_node_txq_t;
 
 /* One ESC index's newest telemetry (gw_node_esc.c). */
