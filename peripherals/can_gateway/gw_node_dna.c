@@ -203,9 +203,10 @@ static void answer(dan_gw_node_t *g, uint8_t node_id)
     m.uid_len = g->dna.query_len;
     memcpy(m.uid, g->dna.query, g->dna.query_len);
     /* only the newest answer matters (it carries the one query in
-     * progress): a flood of requests never fills the queue */
-    dan_gwn_drop_own(g, &g->q_urgent, DAN_DC_ALLOCATION_ID);
-    (void)dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE,
+     * progress): a flood of requests never fills the queue; bulk, so
+     * that a CAN node's request never puts frames in front of throttle */
+    dan_gwn_drop_own(g, &g->q_bulk, DAN_DC_ALLOCATION_ID);
+    (void)dan_gwn_broadcast(g, &g->q_bulk, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE,
                             DAN_DC_PRIORITY_LOW, buf,
                             dan_dc_allocation_encode(&m, buf, sizeof buf));
 }

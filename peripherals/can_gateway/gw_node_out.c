@@ -164,8 +164,9 @@ void dan_gwn_lights(dan_gw_node_t *g, const dan_gw_light_t *l, size_t n)
         m.light[i].light_id = l[i].light_id;
         m.light[i].rgb565 = l[i].rgb565;
     }
-    dan_gwn_drop_own(g, &g->q_urgent, DAN_DC_LIGHTS_COMMAND_ID);
-    (void)dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_LIGHTS_COMMAND_ID,
+    /* bulk: up to 9 frames of low priority never wait in front of throttle */
+    dan_gwn_drop_own(g, &g->q_bulk, DAN_DC_LIGHTS_COMMAND_ID);
+    (void)dan_gwn_broadcast(g, &g->q_bulk, DAN_DC_LIGHTS_COMMAND_ID,
                             DAN_DC_LIGHTS_COMMAND_SIGNATURE, DAN_DC_PRIORITY_LOW, buf,
                             dan_dc_lights_command_encode(&m, buf, sizeof buf));
 }

@@ -45,6 +45,8 @@ void drain(void);
 /* The same for at most max frames (the bus takes some, then stalls): the
  * count sent. */
 size_t send_frames(size_t max);
+/* Completes the client's call with the CAN bus stalled (nothing drained). */
+int finish_stalled(void);
 /* Starts a hand-built request, sealed as the client would. */
 int request_sealed(uint32_t code, const uint8_t *payload, size_t n);
 /* Completes the client's transaction in flight. */

@@ -673,14 +673,6 @@ static void test_bad_seal_dropped(void **state)
 
 /* Runs the client's transaction and the gateway without draining CAN: the
  * CAN bus is stalled (nothing acknowledges, or the adapter is slow). */
-static int finish_stalled(void)
-{
-    int r = sim_run_master(&R->bus, &R->m, 3000000);
-    assert_int_not_equal(r, 1);
-    dan_gw_node_poll(&R->g, R->bus.now);
-    return dan_gw_complete(&R->gw, R->bus.now);
-}
-
 /* Latest wins, but not by cutting a transfer already on the bus: a
  * RawCommand for 20 ESCs is 6 frames, and with commands coming faster than
  * they leave, each was cut after its first frames and none reached the

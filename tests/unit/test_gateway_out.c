@@ -196,6 +196,33 @@ static void test_servo_failsafe_slots_freed(void **state)
     assert_int_equal(R->g.stats.servo_dropped, 0);
 }
 
+/* A LightsCommand of 20 lights is 9 frames of low priority, and an
+ * Allocation answer comes whenever a CAN node asks: queued in front of
+ * throttle they delayed it (review finding). They take the bulk queue:
+ * the next RawCommand is the first frame out. */
+static void test_lights_wait_behind_throttle(void **state)
+{
+    static const int16_t v[4] = {500, 500, 500, 500};
+    dan_gw_light_t l[20];
+    dan_can_frame_t f;
+    dan_dc_transfer_t id;
+    size_t i;
+    (void)state;
+    advance(1000);
+    for (i = 0; i < 20; i++) {
+        l[i].light_id = (uint8_t)i;
+        l[i].rgb565 = 0xFFFF;
+    }
+    assert_int_equal(dan_gw_lights(&R->gw, l, 20, R->bus.now), DAN_OK);
+    assert_int_equal(finish_stalled(), DAN_OK);
+    assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+    assert_int_equal(finish_stalled(), DAN_OK);
+    assert_true(dan_gw_node_tx_peek(&R->g, &f));
+    assert_int_equal(dan_dc_parse_id(f.id, &id), DAN_OK);
+    assert_int_equal(id.data_type_id, DAN_DC_ESC_RAW_COMMAND_ID);
+    assert_true(R->g.q_bulk.len >= 9u);
+}
+
 static void test_lights_and_beep(void **state)
 {
     const dan_gw_light_t l[3] = {{0, 0xF800}, {1, 0x07E0}, {19, 0x001F}};
@@ -366,6 +393,6 @@ int main(void)
     return UNIT_RUN("gateway_out", setup, teardown, test_safety_state,
                     test_arm_refuses_other_values, test_servos_and_failsafe, test_servo_table_full,
                     test_servo_failsafe_slots_freed, test_lights_and_beep,
-                    test_temperature_in_telemetry, test_tunnel_default_serial,
-                    test_tunnel_any_channel, test_malformed_outputs);
+                    test_lights_wait_behind_throttle, test_temperature_in_telemetry,
+                    test_tunnel_default_serial, test_tunnel_any_channel, test_malformed_outputs);
 }
