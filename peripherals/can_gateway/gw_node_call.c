@@ -171,7 +171,7 @@ static int32_t fw_file_size(const dan_gw_node_t *g, const dan_gw_call_t *c)
     return size < 0 ? DAN_ERR_NOTFOUND : size;
 }
 
-int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest,
+int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint32_t digest,
                        dan_gw_call_state_t *st, uint64_t now_us)
 {
     dan_gw_node_call_t *k = dan_gwn_call_find(g, c->call_id);

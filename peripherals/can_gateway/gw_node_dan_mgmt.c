@@ -10,11 +10,13 @@ DAN_GWN_HANDLER(dan_gwn_h_node_call)
     dan_gw_call_t c;
     dan_gw_call_state_t st;
     int rc;
+    (void)code;
     if (dan_gw_msg_call_decode(&c, req, len) != DAN_OK) {
         return dan_gwn_refuse(err, "bad node call");
     }
-    /* the digest tells a retry (same content) from a new call reusing an id */
-    rc = dan_gwn_call_start(g, &c, dan_gw_check(code, DAN_GW_REQUEST, req, len), &st, now_us);
+    /* the digest tells a retry (same content) from a new call reusing an id:
+     * a CRC-32, so a new call passes for a retry 1 in 2^32, not 1 in 2^16 */
+    rc = dan_gwn_call_start(g, &c, dan_gw_crc32(0, req, len), &st, now_us);
     if (rc == DAN_ERR_UNSUPPORTED) {
         *err = "not RestartNode magic: force";
         return rc;

@@ -101,7 +101,7 @@ void dan_gwn_hear(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
 /* CAN_SEND: all or nothing; a retry (same seq and digest) is not sent
  * again. Fills s->count (accepted) and s->queue_free. */
 void dan_gwn_raw_send(dan_gw_node_t *g, dan_gw_can_send_t *s, const dan_can_frame_t *f,
-                      uint16_t digest);
+                      uint32_t digest);
 /* CAN_RECV: acknowledges frames before q->seq; fills a (first_seq,
  * dropped, count for the room left in a response of cap bytes). The
  * frames are dan_gwn_raw_at(g, 0 .. a->count - 1). */
@@ -127,7 +127,7 @@ void dan_gwn_dna_page(const dan_gw_node_t *g, uint8_t first, size_t room, dan_gw
 void dan_gwn_calls_init(dan_gw_node_t *g);
 /* NODE_CALL: starts a call, or reports the state of the same call already
  * held (a retry). DAN_ERR_UNSUPPORTED: a restart magic refused. */
-int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint16_t digest,
+int dan_gwn_call_start(dan_gw_node_t *g, const dan_gw_call_t *c, uint32_t digest,
                        dan_gw_call_state_t *st, uint64_t now_us);
 dan_gw_node_call_t *dan_gwn_call_find(dan_gw_node_t *g, uint16_t call_id);
 void dan_gwn_on_call_response(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64_t now_us);

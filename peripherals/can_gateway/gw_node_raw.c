@@ -35,7 +35,7 @@ uint32_t dan_gwn_raw_time(const dan_gw_node_t *g, size_t i)
  * other frames: those are new. The digest tells them apart. All or
  * nothing, so a refused request can simply be sent again. */
 void dan_gwn_raw_send(dan_gw_node_t *g, dan_gw_can_send_t *s, const dan_can_frame_t *f,
-                      uint16_t digest)
+                      uint32_t digest)
 {
     dan_gw_node_raw_t *r = &g->raw;
     size_t i;

@@ -592,6 +592,50 @@ static void test_calls_to_many_nodes_leave_room_for_throttle(void **state)
     assert_int_equal(R->g.stats.calls, 20);
 }
 
+/* PARAM_SET of value v to LISTEN_NODE as call 7: its payload into out. */
+static int param_set_req(int64_t v, uint8_t *out, size_t cap)
+{
+    dan_gw_call_t c;
+    memset(&c, 0, sizeof c);
+    c.call_id = 7;
+    c.node_id = LISTEN_NODE;
+    c.op = DAN_GW_CALL_PARAM_SET;
+    c.name = "gain";
+    c.name_len = 4;
+    c.value.tag = DAN_GW_VALUE_INTEGER;
+    c.value.integer = v;
+    return dan_gw_msg_call_encode(&c, out, cap);
+}
+
+/* An FC that reuses a call_id: a new request is told from the master's
+ * retry by a digest of its bytes. That was the seal's CRC-16, so 1 new
+ * call in 65536 was taken for a retry and never sent (review finding);
+ * here two PARAM_SETs whose CRC-16 collide both go out. */
+static void test_call_id_reuse_crc16_collision_is_new(void **state)
+{
+    uint8_t a[64], b[64];
+    int na = param_set_req(1000000, a, sizeof a), nb = 0;
+    int64_t v;
+    size_t from = R->ncap, sent = 0;
+    (void)state;
+    for (v = 1000001; v < 1000000 + 1000000; v++) {
+        nb = param_set_req(v, b, sizeof b);
+        if (nb == na && dan_gw_check(DAN_GW_CODE_NODE_CALL, DAN_GW_REQUEST, a, (size_t)na) ==
+                            dan_gw_check(DAN_GW_CODE_NODE_CALL, DAN_GW_REQUEST, b, (size_t)nb)) {
+            break;
+        }
+    }
+    assert_true(v < 2000000); /* found: a CRC-16 collision */
+    call_ok(request_sealed(DAN_GW_CODE_NODE_CALL, a, (size_t)na));
+    drain();
+    call_ok(request_sealed(DAN_GW_CODE_NODE_CALL, b, (size_t)nb));
+    drain();
+    while (find_cap(DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_REQUEST, &from) != NULL) {
+        sent++;
+    }
+    assert_int_equal(sent, 2);
+}
+
 static void test_restart_magic(void **state)
 {
     size_t from = R->ncap;
@@ -736,6 +780,7 @@ int main(void)
                     test_dna_storage, test_dna_blob_reasons, test_dna_table_id_taken,
                     test_dna_table_full, test_param_get_pipelined, test_param_set_retry_sent_once,
                     test_call_timeout_and_busy, test_calls_to_many_nodes_leave_room_for_throttle,
-                    test_restart_magic, test_health_verdicts, test_own_id_claimed,
-                    test_health_esc_telemetry, test_own_frames_and_times);
+                    test_call_id_reuse_crc16_collision_is_new, test_restart_magic,
+                    test_health_verdicts, test_own_id_claimed, test_health_esc_telemetry,
+                    test_own_frames_and_times);
 }

@@ -299,7 +299,7 @@ typedef struct {
     uint8_t attempts;
     uint8_t tids[DAN_GW_NODE_CALL_ATTEMPTS];
     uint16_t call_id;
-    uint16_t digest;    /* of the NODE_CALL request (retry check) */
+    uint32_t digest;    /* CRC-32 of the NODE_CALL request (retry check) */
     uint64_t due_us;    /* this attempt times out */
     uint64_t done_us;   /* finished at (the oldest makes room) */
     uint32_t file_size; /* FW_BEGIN: of the file named */
@@ -338,7 +338,7 @@ typedef struct {
     dan_gw_filter_t filters[DAN_GW_FILTERS_MAX];
     uint8_t nfilters;
     bool send_seq_valid;
-    uint16_t send_digest; /* of the last accepted CAN_SEND (retry check) */
+    uint32_t send_digest; /* CRC-32 of the last accepted CAN_SEND (retry check) */
     uint8_t send_seq;     /* last CAN_SEND seq accepted */
     uint8_t send_accepted;
     dan_can_frame_t ring[DAN_GW_NODE_RAW_RX];
