@@ -291,6 +291,7 @@ def test_can_bitrate_sets_the_slcan_adapter(procs, tmp_path):
         (["--uid", "00" * 16], "--uid must be 32 hex digits (16 bytes), not all zeros"),
         (["--uid", "0123"], "--uid must be 32 hex digits"),
         (["--dna-db", "/nonexistent/dna.db"], "directory /nonexistent does not exist"),
+        (["--stats-file", "/tmp/" + "s" * 600], "--stats-file path longer than 507 bytes"),
         (
             ["--can", "socketcan:can0", "--can-bitrate", "500000"],
             "set a SocketCAN interface's bitrate with ip link",

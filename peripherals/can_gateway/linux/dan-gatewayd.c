@@ -40,6 +40,7 @@
 #include "sd_notify.h"
 
 #define REOPEN_US           1000000u /* a lost CAN adapter is tried again once a second */
+#define STATS_PATH_MAX      512u     /* --stats-file, with its ".tmp" */
 #define CAN_STALL_US        500000u  /* an SLCAN adapter that took no byte this long is lost */
 #define REOPEN_HANDSHAKE_MS 100u     /* a reopen's SLCAN handshake: DAN waits at most this */
 #define SHUTDOWN_FLUSH_US   500000u  /* on exit, the failsafe frames get this long to leave */
@@ -265,7 +266,7 @@ static void can_read(gwd_t *d, uint64_t now)
 
 static void write_stats(gwd_t *d)
 {
-    char tmp[512];
+    char tmp[STATS_PATH_MAX];
     FILE *f;
     uint32_t v[DAN_GW_STAT_COUNT];
     unsigned i;
@@ -290,8 +291,12 @@ static void write_stats(gwd_t *d)
             d->periph.link.stats.collisions, d->periph.link.stats.echo_timeouts,
             d->periph.link.stats.port_errors);
     fprintf(f, "\"can_up\": %d, \"baud\": %u}\n", d->can_up ? 1 : 0, dan_periph_baud(&d->periph));
-    fclose(f);
-    (void)rename(tmp, d->stats_file); /* readers never see a half-written file */
+    /* readers never see a half-written file, nor one a full disk cut short */
+    if (ferror(f) | fclose(f)) {
+        (void)unlink(tmp);
+        return;
+    }
+    (void)rename(tmp, d->stats_file);
 }
 
 /* A number option: its getopt letter, range, where it goes, and whether
@@ -376,6 +381,10 @@ static int check_file_dir(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
 static int check_options(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
 {
     char err[DAN_DNA_FILE_ERR_MAX];
+    if (d->stats_file != NULL && strlen(d->stats_file) + sizeof ".tmp" > STATS_PATH_MAX) {
+        tool_error("--stats-file path longer than %u bytes", STATS_PATH_MAX - 5u);
+        return 2;
+    }
     if (o->can_bitrate != NULL &&
         (tool_parse_u32(o->can_bitrate, 1, UINT32_MAX, &d->can_opts.bitrate) != 0 ||
          dan_slcan_bitrate_code(d->can_opts.bitrate) < 0)) {
@@ -801,20 +810,31 @@ static void run(gwd_t *d)
     }
 }
 
-/* Zero throttle and DISARMED on the bus before leaving. */
-static void shutdown_failsafe(gwd_t *d)
+/* Zero throttle and DISARMED on the bus before leaving: what the log
+ * says about it. */
+static const char *shutdown_failsafe(gwd_t *d)
 {
     uint64_t now = dan_posix_now_us();
     uint64_t end = now + SHUTDOWN_FLUSH_US;
     dan_gw_node_failsafe(&d->node, now);
     while (d->can_up && (dan_gw_node_tx_pending(&d->node) > 0u || dan_canif_tx_pending(&d->can)) &&
            dan_posix_now_us() < end) {
+        struct timespec tick = {0, 1000000L};
         can_drain(d, dan_posix_now_us());
         if (!d->can_up) {
             break;
         }
         tool_wait_fd(dan_canif_fd(&d->can), POLLOUT, UINT64_MAX, SHUTDOWN_POLL_MS);
+        /* a CAN_RAW socket is always writable, ENOBUFS or not: no spin */
+        (void)nanosleep(&tick, NULL);
     }
+    if (!d->can_up) {
+        return "CAN down: failsafe not sent";
+    }
+    if (dan_gw_node_tx_pending(&d->node) > 0u || dan_canif_tx_pending(&d->can)) {
+        return "failsafe queued, CAN did not take it all in time";
+    }
+    return "failsafe sent";
 }
 
 static gwd_t g_d; /* large (tunnel buffers): static storage, used only by main */
@@ -823,6 +843,7 @@ int main(int argc, char **argv)
 {
     gwd_t *d = &g_d;
     dan_gw_node_config_t nc;
+    const char *why;
     opts_t o = {NULL,
                 DEFAULT_BAUD,
                 DEFAULT_GAP_MS,
@@ -872,11 +893,11 @@ int main(int argc, char **argv)
     (void)dan_sd_send(&d->sd, "READY=1");
     run(d);
     (void)dan_sd_send(&d->sd, "STOPPING=1");
-    shutdown_failsafe(d);
+    why = shutdown_failsafe(d);
     if (d->stats_file) {
         write_stats(d);
     }
-    logmsg(LOG_INFO, "stopped (failsafe sent)");
+    logmsg(LOG_INFO, "stopped (%s)", why);
     dan_sd_close(&d->sd);
     dan_canif_close(&d->can);
     dan_posix_close(&d->uart);
