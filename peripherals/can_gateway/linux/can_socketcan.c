@@ -41,6 +41,7 @@ static int fail(dan_canif_t *c, char *err, size_t errlen, int code, const char *
 int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname, char *err, size_t errlen)
 {
     struct ifreq ifr;
+    int ifindex;
     struct sockaddr_can addr;
     can_err_mask_t errmask = CAN_ERR_MASK;
     int fd, fl;
@@ -72,9 +73,16 @@ int dan_canif_socketcan_open(dan_canif_t *c, const char *ifname, char *err, size
         return fail(c, err, errlen, e == ENODEV ? DAN_ERR_NOTFOUND : DAN_ERR_IO, ifname,
                     "no such CAN interface (SIOCGIFINDEX)", e);
     }
+    ifindex = ifr.ifr_ifindex; /* ifr is a union: SIOCGIFFLAGS overwrites it */
+    /* bind() takes an interface that is down, and every write then fails
+     * (ENETDOWN): lost, reopened, lost again each second. Down is "not yet". */
+    if (ioctl(fd, SIOCGIFFLAGS, &ifr) < 0 || (ifr.ifr_flags & IFF_UP) == 0) {
+        return fail(c, err, errlen, DAN_ERR_NOTFOUND, ifname,
+                    "CAN interface is down (ip link set IF up)", ENETDOWN);
+    }
     memset(&addr, 0, sizeof addr);
     addr.can_family = AF_CAN;
-    addr.can_ifindex = ifr.ifr_ifindex;
+    addr.can_ifindex = ifindex;
     if (bind(fd, (struct sockaddr *)&addr, sizeof addr) < 0) {
         int e = errno;
         return fail(c, err, errlen, DAN_ERR_IO, ifname, "bind", e);
