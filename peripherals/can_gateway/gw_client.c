@@ -269,6 +269,8 @@ int dan_gwc_resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
 {
     const dan_master_t *m = gw->m;
     if (m->resp_code != code || dan_master_result(m) != DAN_OK) {
+        dan_reader_init(r, NULL, 0); /* a caller that reads anyway gets errors, not garbage */
+        r->error = true;
         return DAN_ERR_NOTFOUND;
     }
     dan_reader_init(r, m->resp, inner_len(m->resp_len));

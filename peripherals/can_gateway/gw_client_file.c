@@ -92,7 +92,7 @@ int dan_gw_file_result(const dan_gw_t *gw, uint8_t *result, uint32_t *value)
         *value = c.crc32;
     } else {
         rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_FILE_REMOVE, &r);
-        *result = dan_get_u8(&r);
+        *result = rc == DAN_OK ? dan_get_u8(&r) : 0u;
         *value = 0;
         rc = rc != DAN_OK ? rc : dan_reader_finish(&r);
     }

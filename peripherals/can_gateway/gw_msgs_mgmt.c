@@ -113,8 +113,10 @@ int dan_gw_msg_call_encode(const dan_gw_call_t *c, uint8_t *out, size_t cap)
 {
     dan_writer_t w;
     if (c == NULL || !call_ok(c) ||
-        (c->op == DAN_GW_CALL_PARAM_SET && c->value.tag > DAN_GW_VALUE_STRING)) {
-        return DAN_ERR_ARG;
+        (c->op == DAN_GW_CALL_PARAM_SET &&
+         (c->value.tag > DAN_GW_VALUE_STRING || (c->value.tag == DAN_GW_VALUE_STRING &&
+                                                 c->value.string_len > DAN_GW_VALUE_STRING_MAX)))) {
+        return DAN_ERR_ARG; /* string_len past string[]: never read beyond it */
     }
     dan_writer_init(&w, out, cap);
     call_put(&w, c);

@@ -259,10 +259,46 @@ static void test_store_failures(void **state)
     assert_int_equal(R->g.stats.upload_errors, 3);
 }
 
+/* dan_gw_file_result() after a call that was not a file call, and a list
+ * walk after a call that was not FILE_LIST: a clear error, and a reader
+ * that only gives errors (it was left uninitialised: valgrind showed reads
+ * of garbage; review finding). A NODE_CALL string past DAN_GW_VALUE_STRING_MAX
+ * is refused, not copied from beyond string[]. */
+static void test_results_of_the_wrong_call(void **state)
+{
+    dan_reader_t r;
+    dan_gw_file_list_hdr_t h;
+    dan_gw_call_t c;
+    uint8_t result = 99, out[200];
+    uint32_t v = 99;
+    (void)state;
+    assert_int_equal(dan_gw_stats(&R->gw, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(dan_gw_file_result(&R->gw, &result, &v), DAN_ERR_NOTFOUND);
+    assert_int_equal(result, 0);
+    assert_int_equal(v, 0);
+    memset(&r, 0x5A, sizeof r);
+    assert_int_equal(dan_gw_file_list_begin(&R->gw, &r, &h), DAN_ERR_NOTFOUND);
+    assert_true(r.error);
+    assert_int_equal(dan_get_u8(&r), 0);
+    assert_int_equal(dan_reader_remaining(&r), 0);
+    memset(&c, 0, sizeof c);
+    c.call_id = 1;
+    c.node_id = 42;
+    c.op = DAN_GW_CALL_PARAM_SET;
+    c.name = "x";
+    c.name_len = 1;
+    c.value.tag = DAN_GW_VALUE_STRING;
+    c.value.string_len = DAN_GW_VALUE_STRING_MAX + 1u;
+    assert_int_equal(dan_gw_msg_call_encode(&c, out, sizeof out), DAN_ERR_ARG);
+    c.value.string_len = DAN_GW_VALUE_STRING_MAX;
+    assert_true(dan_gw_msg_call_encode(&c, out, sizeof out) > 0);
+}
+
 int main(void)
 {
     return UNIT_RUN("gateway_files", setup_files, teardown, test_upload_commit, test_retried_writes,
                     test_gap_and_too_large, test_resume_after_restart, test_crc_and_short,
-                    test_list_paging_and_remove, test_no_store, test_bad_names,
-                    test_store_failures);
+                    test_list_paging_and_remove, test_no_store, test_bad_names, test_store_failures,
+                    test_results_of_the_wrong_call);
 }
