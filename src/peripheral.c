@@ -109,6 +109,20 @@ static void handle_configure(dan_periph_t *p, const dan_ptype_t *t, const dan_fr
     queue_reply(p, f->code, 1, now_us);
 }
 
+/* A request that will be answered: it supersedes a reply not sent yet
+ * (the master moved on: answer the newest) and a baud switch not made.
+ * Only then: a frame that is ignored (no handler, a bad seal) changes
+ * nothing, as a bad CRC changes nothing. */
+static void take_request(dan_periph_t *p)
+{
+    if (p->pending) {
+        p->stats.overruns++;
+        p->pending = false;
+    }
+    p->next_baud = 0;
+    p->stats.requests++;
+}
+
 /* Runs a handler inside the type's envelope (if any) and queues its reply. */
 static void serve(dan_periph_t *p, const dan_ptype_t *t, const dan_handler_t *h,
                   const dan_frame_t *f, uint64_t now_us)
@@ -127,6 +141,7 @@ static void serve(dan_periph_t *p, const dan_ptype_t *t, const dan_handler_t *h,
         len = (size_t)r;
         room = room > env->trailer ? room - env->trailer : 0u;
     }
+    take_request(p);
     dan_writer_init(&w, p->reply, room);
     r = h->fn(t->user, f->code, f->payload, len, &w, &text, now_us);
     if (r == DAN_PERIPH_NO_REPLY) {
@@ -162,13 +177,8 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
         p->stats.unknown++;
         return;
     }
-    if (p->pending) {
-        p->stats.overruns++; /* the master moved on: answer the newest */
-        p->pending = false;
-    }
-    p->next_baud = 0;
-    p->stats.requests++;
     if (f->code == DAN_TYPE_IDENTIFY(t->first)) {
+        take_request(p);
         int n = dan_identity_encode(t->identity, p->reply, sizeof p->reply);
         if (n < 0) {
             queue_error(p, f->code, "identity too large", now_us);
@@ -178,6 +188,7 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
         return;
     }
     if (f->code == DAN_TYPE_CONFIGURE(t->first)) {
+        take_request(p);
         handle_configure(p, t, f, now_us);
         return;
     }
@@ -187,7 +198,6 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
             return;
         }
     }
-    p->stats.requests--;
     p->stats.unknown++; /* in our block but not served: ignored, per the spec */
 }
 

@@ -627,6 +627,27 @@ static void periph_wait_tx(sim_cap_t *cap, dan_periph_t *p, uint64_t *now)
     }
 }
 
+/* A test-a/test-b peripheral at 9600 on a capture port. */
+static void cap_periph(sim_cap_t *cap, dan_periph_t *p, uint64_t now)
+{
+    dan_port_t port;
+    rig_setup(true); /* for types_dev1 */
+    sim_cap_port(cap, &port);
+    assert_int_equal(dan_periph_init(p, &port, types_dev1, 2, NULL, 9600, now), DAN_OK);
+}
+
+/* CONFIGURE(baud) to test-a, encoded into out: its length. */
+static size_t configure_a(uint32_t baud, uint8_t *out, size_t cap)
+{
+    uint8_t pl[8];
+    int n;
+    pl[0] = DAN_CONFIGURE_BPS;
+    n = dan_frame_encode(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_A_FIRST), pl,
+                         1u + dan_uvarint_put(baud, pl + 1), out, cap);
+    assert_true(n > 0);
+    return (size_t)n;
+}
+
 /* A loaded peripheral reads the echo of its IDENTIFY reply and the
  * master's CONFIGURE in one go: the end of that reply must not cancel the
  * switch the CONFIGURE asked for (it did: the ACK went out, the baud
@@ -635,15 +656,12 @@ static void test_configure_in_same_read_as_echo(void **state)
 {
     static sim_cap_t cap;
     static dan_periph_t p;
-    dan_port_t port;
-    uint8_t rx[128], pl[8];
+    uint8_t rx[128];
     uint64_t now = 1000;
     size_t len;
     int n;
     (void)state;
-    rig_setup(true); /* for types_dev1 */
-    sim_cap_port(&cap, &port);
-    assert_int_equal(dan_periph_init(&p, &port, types_dev1, 2, NULL, 9600, now), DAN_OK);
+    cap_periph(&cap, &p, now);
     n = dan_frame_encode(DAN_TYPE_IDENTIFY(DAN_TYPE_TEST_A_FIRST), NULL, 0, rx, sizeof rx);
     dan_periph_rx(&p, rx, (size_t)n, now);
     periph_wait_tx(&cap, &p, &now);
@@ -651,10 +669,7 @@ static void test_configure_in_same_read_as_echo(void **state)
     /* one read: the echo of the identity, then CONFIGURE(115200) */
     memcpy(rx, cap.buf, cap.len);
     len = cap.len;
-    pl[0] = DAN_CONFIGURE_BPS;
-    n = dan_frame_encode(DAN_TYPE_CONFIGURE(DAN_TYPE_TEST_A_FIRST), pl,
-                         1u + dan_uvarint_put(115200u, pl + 1), rx + len, sizeof rx - len);
-    len += (size_t)n;
+    len += configure_a(115200u, rx + len, sizeof rx - len);
     cap.len = 0;
     now += 20000u;
     dan_periph_rx(&p, rx, len, now);
@@ -667,6 +682,31 @@ static void test_configure_in_same_read_as_echo(void **state)
     dan_periph_poll(&p, now + 10001u);
     assert_int_equal(dan_periph_baud(&p), 115200);
     assert_int_equal(p.stats.baud_changes, 1);
+}
+
+/* A frame the peripheral ignores (a code of its block with no handler, like
+ * one whose seal fails) arrives between a CONFIGURE and its ACK: it changes
+ * nothing, as a bad CRC changes nothing. It cancelled the queued ACK and
+ * the switch (review finding): the master then lost the peripheral. */
+static void test_ignored_frame_keeps_configure_ack(void **state)
+{
+    static sim_cap_t cap;
+    static dan_periph_t p;
+    uint8_t rx[32];
+    uint64_t now = 1000;
+    int n;
+    (void)state;
+    cap_periph(&cap, &p, now);
+    dan_periph_rx(&p, rx, configure_a(115200u, rx, sizeof rx), now);
+    n = dan_frame_encode(0x64, (const uint8_t *)"x", 1, rx, sizeof rx); /* no handler */
+    dan_periph_rx(&p, rx, (size_t)n, now + 100u);
+    periph_wait_tx(&cap, &p, &now);
+    assert_true(cap.len > 0u); /* the ACK */
+    assert_int_equal(p.stats.configures, 1);
+    assert_int_equal(p.stats.overruns, 0);
+    dan_periph_rx(&p, cap.buf, cap.len, now + 2000u); /* its echo: it has left */
+    dan_periph_poll(&p, now + 2001u);
+    assert_int_equal(dan_periph_baud(&p), 115200);
 }
 
 /* A collision breaks a peripheral's reply; the rest of that reply (it has
@@ -742,6 +782,6 @@ int main(void)
                     test_discovery_configure_time, test_late_echo_is_not_a_reply,
                     test_reply_in_same_read_as_echo, test_direction_pin_reply_before_poll,
                     test_request_after_40_minutes_idle, test_partial_frame_next_us_waits_for_gap,
-                    test_configure_in_same_read_as_echo,
+                    test_configure_in_same_read_as_echo, test_ignored_frame_keeps_configure_ack,
                     test_peripheral_ignores_own_reply_after_collision, test_api_errors);
 }
