@@ -211,6 +211,17 @@ def test_code_names():
     assert registry.lookup("0x40").name == "can-gw" and registry.lookup("nope") is None
 
 
+def test_json_has_no_nan(capsys):
+    """--json documents are JSON: a float16 NaN or infinity (an ESC's
+    "unknown" voltage) is null, not the NaN json.dumps writes by default."""
+    from danprobe.commands.common import Context, json_safe
+
+    doc = {"voltage": float("nan"), "esc": [{"current": float("inf")}, 1.5], "n": 3}
+    assert json_safe(doc) == {"voltage": None, "esc": [{"current": None}, 1.5], "n": 3}
+    Context.emit_json(None, doc)
+    assert json.loads(capsys.readouterr().out) == json_safe(doc)
+
+
 def test_sleep_until_reads_the_clock_once_per_pass():
     """A loop that runs late must not ask for a negative sleep (danprobe esc
     crashed with ValueError under load): the clock jumps past `due` between

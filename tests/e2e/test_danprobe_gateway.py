@@ -971,3 +971,17 @@ def test_errors_and_exit_codes(stack, procs, tmp_path):
     assert esc["fields"] == {"values": [1, 2]}
     stats = next(f for f in frames if f["name"] == "can-gw STATS" and f["role"] == "response")
     assert list(stats["fields"])[:3] == ["dan_frames", "dan_crc_errors", "dan_unknown"]
+
+    # a --link that cannot be made: exit 2, and the tunnel it had opened is
+    # closed again (it stayed open: review finding)
+    rc, out, err = danprobe(
+        "tunnel", "--port", s.dan, "--target", "30", "--link", s.tmp / "no" / "dir" / "gps"
+    )
+    assert rc == 2 and "Traceback" not in err, err
+    rc, out, err = danprobe("sniff", "--capture", s.tmp / "bus.cap", "--json")
+    opens = [
+        json.loads(x)["fields"]
+        for x in out.splitlines()
+        if '"can-gw TUN_OPEN"' in x and '"request"' in x
+    ]
+    assert len(opens) == 2 and opens[0]["mode"] != 0 and opens[1]["mode"] == 0, opens

@@ -5,6 +5,7 @@ add_arguments(parser) and run(ctx) -> exit code (see commands/__init__.py).
 
 import argparse
 import json
+import math
 import os
 import signal
 import sys
@@ -270,7 +271,20 @@ class Context:
         return m
 
     def emit_json(self, obj: dict):
-        print(json.dumps(obj), flush=True)
+        print(json.dumps(json_safe(obj), allow_nan=False), flush=True)
+
+
+def json_safe(v):
+    """v with every NaN or infinity as None: float16 telemetry is NaN for
+    "unknown" (DroneCAN ESCs send it), and JSON has no NaN (json.dumps would
+    write one that jq and strict parsers refuse)."""
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    if isinstance(v, dict):
+        return {k: json_safe(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [json_safe(x) for x in v]
+    return v
 
 
 def error_fields(e: Optional[DanError]) -> dict:

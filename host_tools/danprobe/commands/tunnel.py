@@ -155,17 +155,21 @@ def run(ctx) -> int:
     def op(m, gw):
         gw.tunnel_open(cfg)
         what = f" <-> {describe(cfg)}, gateway port {cfg.port}"
-        with bridge_pty(ctx, res, what, tunnel=cfg.as_dict()) as pty:
-            try:
-                _bridge(ctx, m, gw, cfg, pty, res)
-            finally:
-                st = gw.tun.get(cfg.port, gateway_client.TunnelState())
-                res["rd_lost"] += st.rd_lost
-                res["rd_dropped"] = st.rd_dropped
+        # the tunnel is closed again whatever comes after its opening: a
+        # --link that cannot be made, a Ctrl-C before the bridge runs
+        try:
+            with bridge_pty(ctx, res, what, tunnel=cfg.as_dict()) as pty:
                 try:
-                    gw.tunnel_open(gateway_msgs.TunOpen(cfg.port, gateway_msgs.TUN_CLOSED))
-                except DanError as e:
-                    ctx.error(f"could not close tunnel port {cfg.port}: {e}")
+                    _bridge(ctx, m, gw, cfg, pty, res)
+                finally:
+                    st = gw.tun.get(cfg.port, gateway_client.TunnelState())
+                    res["rd_lost"] += st.rd_lost
+                    res["rd_dropped"] = st.rd_dropped
+        finally:
+            try:
+                gw.tunnel_open(gateway_msgs.TunOpen(cfg.port, gateway_msgs.TUN_CLOSED))
+            except DanError as e:
+                ctx.error(f"could not close tunnel port {cfg.port}: {e}")
 
     m, failure, ms = gateway_operation(ctx, op)
 
