@@ -40,6 +40,7 @@ TURNAROUND_CHARS = 2  # a peripheral replies no sooner than this after our last 
 GAP_CHARS = 10  # libdan's inter-byte gap: max(10 C, 2 ms)
 GAP_MIN_S = 0.002
 ECHO_LATE_HOLD_S = 1.0  # after an echo timeout or a collision, a copy of our frame is our echo
+RECOVER_S = 10.0  # a configure cut short (--timeout, Ctrl-C) gets this long to recover the bus
 
 
 def char_s(baud: int) -> float:
@@ -571,7 +572,23 @@ class Master:
         one there. On failure, recovers the bus to 9600 and raises the
         original error. A fast baud some peer refuses (ACK-FAIL) leaves the
         bus where it was: for an explicit baud the refusal is raised.
-        Returns the bus baud."""
+        Running out of time (--timeout) or a Ctrl-C mid-way also recovers,
+        within RECOVER_S more, before it is raised: a configure cut short
+        left the bus split over two bauds. Returns the bus baud."""
+        try:
+            return self._configure(baud)
+        except (OperationTimeout, KeyboardInterrupt) as e:
+            deadline = self.link.deadline
+            self.link.deadline = now() + RECOVER_S
+            try:
+                self._recover(e if isinstance(e, DanError) else OperationTimeout("interrupted"))
+            except DanError:
+                pass  # recovered as far as it could: the cause is what counts
+            finally:
+                self.link.deadline = deadline
+            raise
+
+    def _configure(self, baud: int) -> int:
         if baud and baud > BASE_BAUD and baud not in payloads.MASK_BAUDS:
             if not self._try_fast(baud):
                 raise Nack(f"a peripheral refused {baud} baud; bus kept at {self.baud}")

@@ -343,6 +343,37 @@ def test_discover_after_configure_finds_higher_baud(bus3):
     assert {p["baud"] for p in disc["peers"]} == {115200} and len(disc["peers"]) == 3
 
 
+def test_configure_cut_short_leaves_one_baud(bus3, monkeypatch):
+    """--timeout (or Ctrl-C) ending a configure after the first peer moved
+    left the bus split over two bauds (review finding: --timeout 0.17-0.35 s
+    of a 0.4 s configure did it): the configure now recovers before it
+    raises. The limit is made to hit at the second CONFIGURE, every time."""
+    from danprobe import master as MM
+    from danprobe.port import SerialPort
+
+    real = MM.Master._configure_peer
+    calls = []
+
+    def cut_at_second(self, p, target):
+        calls.append(p.type.name)
+        if len(calls) == 2 and target != MM.BASE_BAUD:
+            raise MM.OperationTimeout("operation timed out")
+        return real(self, p, target)
+
+    monkeypatch.setattr(MM.Master, "_configure_peer", cut_at_second)
+    types = [registry.lookup(t) for t in TYPES.split(",")]
+    with SerialPort(bus3[0], 9600) as port:
+        m = MM.Master(port, types, 9600, MM.MasterConfig(resp_latency_s=0.4))
+        m.discover()
+        with pytest.raises(MM.OperationTimeout):
+            m.configure(115200)
+        assert m.stats.recoveries == 1 and m.baud == 9600
+    doc = danprobe_json("discover", "--port", bus3[0], "--types", TYPES, "-q")
+    assert {p["type"]: p["baud"] for p in doc["peers"]} == dict.fromkeys(
+        ("test-a", "test-b", "can-gw"), 9600
+    )
+
+
 def test_configure_then_sniff_capture(bus3, tmp_path):
     rc, out, err = danprobe("configure", "--port", bus3[0], "--types", TYPES, "--baud", "115200")
     assert rc == 0, err
