@@ -35,8 +35,8 @@ class SerialPort:
             raise PortError(f"{path}: No such file or directory")
         try:
             self.ser = serial.Serial(port=path, baudrate=baud, timeout=0, exclusive=True)
-        except (serial.SerialException, OSError, ValueError) as e:
-            raise PortError(_reason(path, e)) from None
+        except (serial.SerialException, OSError, ValueError, OverflowError) as e:
+            raise PortError(_reason(path, e)) from None  # OverflowError: --baud 3000000000
         self.ser.reset_input_buffer()
         self._empty_reads = 0
         # ASYNC_LOW_LATENCY, as libdan's POSIX port asks for: the serial

@@ -492,11 +492,31 @@ def test_silent_busy_and_missing_ports(procs, tmp_path):
         (["sniff"], "--port or --capture"),
         (["sniff", "--port", "/dev/null", "--capture", "x"], "not both"),
         (["sniff", "--capture", "x", "--count", "0"], "at least 1"),
+        # were tracebacks (review finding)
+        (["tunnel", "--port", "/dev/null", "--tunnel-port", "256"], "must be 0..255"),
+        (["param", "get", "x" * 93, "--port", "/dev/null", "--node", "5"], "1..92 bytes"),
+        (
+            ["lights", "--port", "/dev/null"] + ["--light=%d=ff0000" % i for i in range(21)],
+            "at most 20 lights",
+        ),
     ],
 )
 def test_bad_arguments(args, message):
     rc, out, err = danprobe(*args)
-    assert rc == 2 and message in err, (rc, err)
+    assert rc == 2 and message in err and "Traceback" not in err, (rc, err)
+
+
+def test_baud_beyond_the_driver_is_a_clear_error():
+    """--baud 3000000000 raised OverflowError from pyserial (a traceback)."""
+    import pty
+
+    m, s = pty.openpty()
+    try:
+        rc, out, err = danprobe("discover", "--port", os.ttyname(s), "--baud", "3000000000")
+    finally:
+        os.close(m)
+        os.close(s)
+    assert rc == 2 and "Traceback" not in err and "danprobe:" in err, err
 
 
 def test_help():

@@ -10,7 +10,9 @@ Deadlines are generous and catch hangs; nothing here asserts a speed.
 import json
 import os
 import re
+import signal
 import struct
+import sys
 
 import pytest
 
@@ -713,6 +715,21 @@ def test_can_dump_filter_and_send(stack):
         "-q",
     )
     assert doc["frames"] == 0 and doc["result"] == 0
+    # Ctrl-C before --count frames came: exit 0 like any long-running
+    # command (it was 1, "0 of 1000 frame(s) received")
+    p = s.procs.start(
+        [sys.executable, "-m", "danprobe", "can", "dump", "--port", s.dan, "--baud", "9600"]
+        + ["--filter", "155:7FF", "--count", "1000"],
+        name="danprobe-dump-count",
+    )
+    wait_for(lambda: b"Ctrl-C to stop" in p.log_path.read_bytes(), 60, what="can dump running")
+    assert s.procs.stop(p, signal.SIGINT, timeout=30) == 0, p.log_path.read_text()
+    # a --rate below 1/--duration still ends at --duration (it ran 1/rate)
+    doc = danprobe_json(
+        "esc", "--port", s.dan, "--baud", "9600", "--values", "0", "--rate", "0.2",
+        "--duration", "1", "-q",
+    )  # fmt: skip
+    assert doc["result"] == 0 and doc["seconds"] < 2.5, doc
 
     # can send: dan-cantool on the hub receives the frames
     rec = s.procs.start(

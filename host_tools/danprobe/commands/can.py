@@ -129,6 +129,7 @@ def _dump(ctx) -> int:
     if len(filters) > gateway_msgs.FILTERS_MAX:
         raise CliError(f"at most {gateway_msgs.FILTERS_MAX} filters", EXIT_USAGE)
     res = {"frames": 0, "lost": 0, "dropped": 0}
+    halted = []
 
     stamps = Stamps()
 
@@ -170,6 +171,7 @@ def _dump(ctx) -> int:
                     if not frames:
                         time.sleep(IDLE_POLL_S)
             finally:
+                halted.append(stop.stop)  # Ctrl-C: done, whatever --count said
                 res["lost"], res["dropped"] = gw.can_rx_lost, gw.can_rx_dropped
                 try:
                     gw.can_filter(gateway_msgs.FILTER_REPLACE, previous)
@@ -187,7 +189,7 @@ def _dump(ctx) -> int:
         {"event": "summary", **res},
         lambda: ctx.progress(f"{res['frames']} frame(s)"),
     )
-    if rc == 0 and a.count is not None and res["frames"] < a.count:
+    if rc == 0 and a.count is not None and res["frames"] < a.count and not any(halted):
         ctx.error(f"can dump: {res['frames']} of {a.count} frame(s) received")
         return EXIT_FAIL
     return rc

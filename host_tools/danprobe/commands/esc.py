@@ -279,7 +279,7 @@ def _drive(ctx, m, gw, values_at, res):
                     print(_live_line(t_rx - t0, values, gw, rate), flush=True)
                     last_line, count_at_line = t_rx, res["exchanges"]
                 due = max(due + period, now() - period)
-                sleep_until(due, stop)
+                sleep_until(min(due, t0 + a.duration), stop)  # a low --rate keeps --duration
         finally:
             res["seconds"] = now() - t0
             _stop_motors(ctx, gw, n_values, a.arm)

@@ -1,7 +1,14 @@
 """danprobe lights: LightsCommand through the gateway."""
 
 from danprobe import gateway_out as O
-from danprobe.commands.common import add_gateway_options, assignments, flags_command, flat
+from danprobe.commands.common import (
+    EXIT_USAGE,
+    CliError,
+    add_gateway_options,
+    assignments,
+    flags_command,
+    flat,
+)
 
 NAME = "lights"
 HELP = "CAN gateway: set lights' colours (uavcan.equipment.indication.LightsCommand)"
@@ -43,6 +50,8 @@ def add_arguments(p):
 
 def run(ctx) -> int:
     lights = flat(ctx.args.light)
+    if len(lights) > O.LIGHTS_MAX:
+        raise CliError(f"at most {O.LIGHTS_MAX} lights ({len(lights)} given)", EXIT_USAGE)
     return flags_command(
         ctx,
         lambda gw: gw.lights(lights),

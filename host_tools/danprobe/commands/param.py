@@ -1,6 +1,8 @@
 """danprobe param: a DroneCAN node's parameters, through the gateway's
 service calls (NODE_CALL / CALL_RESULT)."""
 
+import argparse
+
 from danprobe import gateway_calls, gateway_mgmt
 from danprobe.commands.common import (
     EXIT_USAGE,
@@ -47,6 +49,15 @@ def add_node_option(p, what: str = "the node"):
     )
 
 
+def param_name(s: str) -> str:
+    """An argument type: a parameter name of 1..92 bytes (DroneCAN's)."""
+    if not 1 <= len(s.encode()) <= gateway_mgmt.PARAM_NAME_MAX:
+        raise argparse.ArgumentTypeError(
+            f"a parameter name is 1..{gateway_mgmt.PARAM_NAME_MAX} bytes: {s[:20]!r}..."
+        )
+    return s
+
+
 def add_arguments(p):
     helps = {
         "list": "every parameter, by index",
@@ -58,7 +69,7 @@ def add_arguments(p):
     for name, g in gateway_actions(p, "param", helps, DESCRIPTION):
         add_node_option(g)
         if name in ("get", "set"):
-            g.add_argument("name", metavar="NAME", help="the parameter's name")
+            g.add_argument("name", metavar="NAME", type=param_name, help="the parameter's name")
         if name == "set":
             g.add_argument("value", metavar="VALUE", help="the new value")
             g.add_argument(

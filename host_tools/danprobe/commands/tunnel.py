@@ -11,6 +11,7 @@ from danprobe.commands.common import (
     bridge_pty,
     gateway_operation,
     gateway_report,
+    int_range,
     long_running,
     non_negative_int,
     time_left,
@@ -86,7 +87,7 @@ def add_arguments(p):
     )
     g.add_argument(
         "--tunnel-port",
-        type=non_negative_int,
+        type=int_range(0, 255, "the tunnel port"),
         default=0,
         metavar="N",
         help="the gateway's tunnel port to use (default 0)",
