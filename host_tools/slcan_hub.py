@@ -348,7 +348,7 @@ class Hub:
             return json.dumps(
                 {"ports": [p.stats() for p in self.ports], "bus_frames": self.bus_frames}
             )
-        if cmd in ("detach", "attach") and len(words) == 2:
+        if cmd in ("detach", "attach", "stall", "resume") and len(words) == 2:
             try:
                 k = int(words[1])
                 p = self.ports[k]
@@ -356,7 +356,9 @@ class Hub:
                     raise IndexError
             except (ValueError, IndexError):
                 return "error: no port %s" % words[1]
-            if cmd == "detach":
+            if cmd in ("stall", "resume"):
+                p.stalled = cmd == "stall"
+            elif cmd == "detach":
                 if not p.attached:
                     return "error: port %d is already detached" % k
                 p.detach()
@@ -364,16 +366,6 @@ class Hub:
                 if p.attached:
                     return "error: port %d is already attached" % k
                 p.attach()
-            return "ok"
-        if cmd in ("stall", "resume") and len(words) == 2:
-            try:
-                k = int(words[1])
-                if k < 0:
-                    raise IndexError
-                p = self.ports[k]
-            except (ValueError, IndexError):
-                return "error: no port %s" % words[1]
-            p.stalled = cmd == "stall"
             return "ok"
         if cmd == "quit" and len(words) == 1:
             self.stop = True

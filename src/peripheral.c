@@ -178,8 +178,9 @@ static void on_frame(void *owner, const dan_frame_t *f, uint64_t now_us)
         return;
     }
     if (f->code == DAN_TYPE_IDENTIFY(t->first)) {
+        int n;
         take_request(p);
-        int n = dan_identity_encode(t->identity, p->reply, sizeof p->reply);
+        n = dan_identity_encode(t->identity, p->reply, sizeof p->reply);
         if (n < 0) {
             queue_error(p, f->code, "identity too large", now_us);
         } else {

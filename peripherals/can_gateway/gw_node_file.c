@@ -86,15 +86,11 @@ static bool answer_getinfo(dan_gw_node_t *g, const dan_gw_node_file_req_t *q)
     return true;
 }
 
-/* FNV-1a 32 of a name: which file a node reads, in 4 bytes per slot (a
+/* Which file a node reads, in 4 bytes per slot: the CRC-32 of its name (a
  * collision only makes a commit wait for another file's reader). */
 static uint32_t name_hash(const char *name)
 {
-    uint32_t h = 2166136261u;
-    while (*name != '\0') {
-        h = (h ^ (uint8_t)*name++) * 16777619u;
-    }
-    return h;
+    return dan_gw_crc32(0, (const uint8_t *)name, strlen(name));
 }
 
 bool dan_gwn_file_in_use(const dan_gw_node_t *g, const char *name, uint64_t now_us)

@@ -182,30 +182,26 @@ static void can_down(gwd_t *d, const char *why, uint64_t now)
     d->reopen_us = now + REOPEN_US;
 }
 
-/* Sends queued frames (dan_gw_node_tx_sent: the raw capture may include
- * them); while the CAN side is down they are dropped (stale ESC commands
- * must not go out late). */
-/* An SLCAN adapter that is there but takes no bytes (wedged firmware): its
- * writes would be EAGAIN forever with CAN_OK still reported; after
- * CAN_STALL_US it counts as lost and is reopened. SocketCAN is left out: a
- * full queue there is a bus without ACKs, which the kernel reports. */
-static bool can_stuck(gwd_t *d, int r, uint64_t now)
+/* After each write's result r: an SLCAN adapter that is there but takes
+ * no bytes (wedged firmware) would be EAGAIN forever with CAN_OK still
+ * reported; after CAN_STALL_US it counts as lost and is reopened. SocketCAN
+ * is left out: a full queue there is a bus without ACKs, which the kernel
+ * reports. */
+static void watch_stall(gwd_t *d, int r, uint64_t now)
 {
     if (r != DAN_ERR_BUSY || d->can.kind != DAN_CANIF_SLCAN) {
         d->can_stuck_us = 0;
-        return false;
-    }
-    if (d->can_stuck_us == 0) {
+    } else if (d->can_stuck_us == 0) {
         d->can_stuck_us = now;
+    } else if (now - d->can_stuck_us >= CAN_STALL_US) {
+        d->can_stuck_us = 0;
+        can_down(d, "adapter takes no bytes (writes blocked 500 ms)", now);
     }
-    if (now - d->can_stuck_us < CAN_STALL_US) {
-        return false;
-    }
-    d->can_stuck_us = 0;
-    can_down(d, "adapter takes no bytes (writes blocked 500 ms)", now);
-    return true;
 }
 
+/* Sends queued frames (dan_gw_node_tx_sent: the raw capture may include
+ * them); while the CAN side is down they are dropped (stale ESC commands
+ * must not go out late). */
 static void can_drain(gwd_t *d, uint64_t now)
 {
     dan_can_frame_t f;
@@ -222,13 +218,15 @@ static void can_drain(gwd_t *d, uint64_t now)
             can_down(d, "adapter lost (write failed)", now);
             return;
         }
-        if (can_stuck(d, r, now) || r == DAN_ERR_BUSY) {
+        watch_stall(d, r, now);
+        if (r == DAN_ERR_BUSY) {
             return;
         }
     }
     while (dan_gw_node_tx_peek(&d->node, &f)) {
         int r = dan_canif_send(&d->can, &f);
-        if (can_stuck(d, r, now) || r == DAN_ERR_BUSY) {
+        watch_stall(d, r, now);
+        if (r == DAN_ERR_BUSY) {
             break;
         }
         if (r == DAN_ERR_IO) {

@@ -249,7 +249,7 @@ typedef struct {
     uint32_t bytes_read;   /* highest offset + length served */
     uint32_t file_size;    /* of the file it read (0 none) */
     uint64_t last_read_us; /* 0: never */
-    uint32_t name_hash;    /* FNV-1a of the name it read (DAN_GW_NODE_READER_US) */
+    uint32_t name_hash;    /* CRC-32 of the name it read (DAN_GW_NODE_READER_US) */
 } dan_gw_node_fw_t;
 
 /* A file request waiting for room in the bulk queue (gw_node_file.c). */
