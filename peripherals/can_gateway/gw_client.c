@@ -114,11 +114,6 @@ int dan_gw_stats(dan_gw_t *gw, uint64_t now_us)
     return dan_gwc_start_byte(gw, DAN_GW_CODE_STATS, dan_gwc_done_stats, 0u, 0u, now_us);
 }
 
-int dan_gw_nodes(dan_gw_t *gw, uint8_t first, uint64_t now_us)
-{
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_NODES, NULL, first, 1u, now_us);
-}
-
 int dan_gw_node_info(dan_gw_t *gw, uint8_t node_id, uint64_t now_us)
 {
     return dan_gwc_start_byte(gw, DAN_GW_CODE_NODE_INFO, NULL, node_id, 1u, now_us);
@@ -277,16 +272,8 @@ int dan_gwc_resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r)
     return DAN_OK;
 }
 
-int dan_gw_nodes_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_nodes_hdr_t *hdr)
-{
-    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_NODES, r);
-    return rc != DAN_OK ? rc : dan_gw_msg_nodes_hdr_get(r, hdr);
-}
-
-int dan_gw_nodes_next(dan_reader_t *r, dan_gw_node_entry_t *node)
-{
-    return dan_gw_msg_node_get(r, node);
-}
+DAN_GWC_PAGED(nodes, DAN_GW_CODE_NODES, dan_gw_nodes_hdr_t, dan_gw_msg_nodes_hdr_get,
+              dan_gw_node_entry_t, dan_gw_msg_node_get)
 
 int dan_gw_node_info_get(const dan_gw_t *gw, dan_gw_node_info_t *info)
 {

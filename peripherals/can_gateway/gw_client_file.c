@@ -99,21 +99,8 @@ int dan_gw_file_result(const dan_gw_t *gw, uint8_t *result, uint32_t *value)
     return rc;
 }
 
-int dan_gw_file_list(dan_gw_t *gw, uint8_t first, uint64_t now_us)
-{
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_FILE_LIST, NULL, first, 1u, now_us);
-}
-
-int dan_gw_file_list_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_file_list_hdr_t *hdr)
-{
-    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_FILE_LIST, r);
-    return rc != DAN_OK ? rc : dan_gw_msg_file_list_hdr_get(r, hdr);
-}
-
-int dan_gw_file_list_next(dan_reader_t *r, dan_gw_file_entry_t *e)
-{
-    return dan_gw_msg_file_entry_get(r, e);
-}
+DAN_GWC_PAGED(file_list, DAN_GW_CODE_FILE_LIST, dan_gw_file_list_hdr_t,
+              dan_gw_msg_file_list_hdr_get, dan_gw_file_entry_t, dan_gw_msg_file_entry_get)
 
 int dan_gw_fw_begin(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
                     uint64_t now_us)

@@ -28,6 +28,22 @@ bool dan_gwc_idle(const dan_gw_t *gw);
 void dan_gwc_call_init(dan_gw_call_t *c, uint16_t call_id, uint8_t node_id, uint8_t op);
 /* A reader over the completed response of code (inner payload). */
 int dan_gwc_resp_reader(const dan_gw_t *gw, uint32_t code, dan_reader_t *r);
+/* The three calls of a paged listing (first entry index in, a header and
+ * entries out): the request, the header's reader and the entry reader. */
+#define DAN_GWC_PAGED(name, code, hdr_t, hdr_get, entry_t, entry_get)          \
+    int dan_gw_##name(dan_gw_t *gw, uint8_t first, uint64_t now_us)            \
+    {                                                                          \
+        return dan_gwc_start_byte(gw, code, NULL, first, 1u, now_us);          \
+    }                                                                          \
+    int dan_gw_##name##_begin(const dan_gw_t *gw, dan_reader_t *r, hdr_t *hdr) \
+    {                                                                          \
+        int rc = dan_gwc_resp_reader(gw, code, r);                             \
+        return rc != DAN_OK ? rc : hdr_get(r, hdr);                            \
+    }                                                                          \
+    int dan_gw_##name##_next(dan_reader_t *r, entry_t *e)                      \
+    {                                                                          \
+        return entry_get(r, e);                                                \
+    }
 /* The response decoders (dan_gw_done_fn), by the calls that use them. */
 #define DAN_GWC_DONE(name) \
     int dan_gwc_done_##name(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)

@@ -106,21 +106,8 @@ int dan_gw_health(dan_gw_t *gw, uint64_t now_us)
     return dan_gwc_start_byte(gw, DAN_GW_CODE_HEALTH, dan_gwc_done_health, 0u, 0u, now_us);
 }
 
-int dan_gw_dna(dan_gw_t *gw, uint8_t first, uint64_t now_us)
-{
-    return dan_gwc_start_byte(gw, DAN_GW_CODE_DNA, NULL, first, 1u, now_us);
-}
-
-int dan_gw_dna_begin(const dan_gw_t *gw, dan_reader_t *r, dan_gw_dna_hdr_t *hdr)
-{
-    int rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_DNA, r);
-    return rc != DAN_OK ? rc : dan_gw_msg_dna_hdr_get(r, hdr);
-}
-
-int dan_gw_dna_next(dan_reader_t *r, dan_gw_dna_entry_t *e)
-{
-    return dan_gw_msg_dna_entry_get(r, e);
-}
+DAN_GWC_PAGED(dna, DAN_GW_CODE_DNA, dan_gw_dna_hdr_t, dan_gw_msg_dna_hdr_get, dan_gw_dna_entry_t,
+              dan_gw_msg_dna_entry_get)
 
 int dan_gwc_done_call(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
 {
