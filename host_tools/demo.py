@@ -111,16 +111,9 @@ def start_wires(stack, tmp):
     )
     stack.start(
         "slcan_hub",
-        [
-            PY,
-            ROOT / "host_tools" / "slcan_hub.py",
-            "-n",
-            "5",
-            "--link",
-            tmp / "can",
-            "--log",
-            tmp / "can-bus.log",
-        ],
+        procgroup.host_tool(
+            "slcan_hub.py", "-n", "5", "--link", tmp / "can", "--log", tmp / "can-bus.log"
+        ),
     )
     print(f"DAN wire endpoints {tmp}/dan0 (the FC side: danprobe) and {tmp}/dan1 (the gateway)")
     print(f"CAN adapters {tmp}/can0 (gateway) and {tmp}/can1..4 (ESCs)")
@@ -130,13 +123,12 @@ def start_escs_and_gateway(stack, tmp):
     step("Four DroneCAN ESCs (pydronecan nodes 20..23) and the CAN-over-DAN gateway (node 10)")
     stack.start(
         "esc_sim",
-        [
-            PY,
-            ROOT / "host_tools" / "esc_sim.py",
+        procgroup.host_tool(
+            "esc_sim.py",
             "--log",
             tmp / "escs.jsonl",
             *sum((["--port", tmp / f"can{i}"] for i in range(1, 5)), []),
-        ],
+        ),
     )
     stack.start(
         "dan-gatewayd",

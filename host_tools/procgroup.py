@@ -7,7 +7,16 @@ fixture and the benchmarks. Standard library only.
 import os
 import signal
 import subprocess
+import sys
 import time
+
+HOST_TOOLS = os.path.dirname(os.path.realpath(__file__))
+
+
+def host_tool(name: str, *args) -> list:
+    """The command that runs the Python tool host_tools/NAME (slcan_hub.py,
+    esc_sim.py, demo.py) with this interpreter, then args."""
+    return [sys.executable, os.path.join(HOST_TOOLS, name), *args]
 
 
 def start(args, log, stdout=subprocess.PIPE, **kw) -> subprocess.Popen:

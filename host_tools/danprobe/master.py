@@ -69,9 +69,11 @@ class DanTimeout(DanError):
 
 
 class OperationTimeout(DanError):
-    """The whole operation ran past its time limit (--timeout)."""
+    """The whole operation ran past its time limit (--timeout). Not a
+    DanTimeout (those are retried), but libdan's code and reason are the
+    same."""
 
-    code, reason = -4, "timeout"
+    code, reason = DanTimeout.code, DanTimeout.reason
 
 
 class Busy(DanError):

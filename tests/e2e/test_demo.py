@@ -3,22 +3,14 @@ starts the whole stack on virtual wires, drives it with danprobe and stops
 everything. Here with a short ramp."""
 
 import subprocess
-import sys
 
-from conftest import ROOT
+import procgroup  # host_tools, on sys.path by conftest
 
 
 def test_demo_runs_to_completion(tmp_path):
     plot = tmp_path / "esc.png"
     r = subprocess.run(
-        [
-            sys.executable,
-            str(ROOT / "host_tools" / "demo.py"),
-            "--ramp-seconds",
-            "2",
-            "--plot",
-            str(plot),
-        ],
+        procgroup.host_tool("demo.py", "--ramp-seconds", "2", "--plot", str(plot)),
         stdin=subprocess.DEVNULL,
         capture_output=True,
         timeout=300,

@@ -9,7 +9,6 @@ behaviour, not speed (the rates are printed for the report). The QEMU
 firmware runs at its fastest baud."""
 
 import json
-import os
 
 import dronecan
 import pytest
@@ -18,7 +17,6 @@ from bus_util import (
     danprobe,
     periph_stats,
     read_capture,
-    start_mixed_periphs,
     start_periph,
     start_vbus,
     vbus_stats,
@@ -26,7 +24,7 @@ from bus_util import (
 from conftest import closing_factory, wait_for
 from gw_rig import ESC_LOOP, Rig, f16, step
 from test_bus import master
-from test_firmware import FW_ELF, QEMU, run_firmware
+from test_firmware import firmware_bus, need_qemu, run_firmware
 
 U = dronecan.uavcan
 
@@ -301,10 +299,8 @@ def test_firmware_at_its_fastest_baud(procs, tmp_path):
     (board_fast_bauds(): QEMU's tty backend turns 1000000 into 921600 at
     the pty, so the board leaves it out) and the bus ends at 1500000: the
     divisor 17 gives 1470588, which QEMU sets on the pty as 1500000."""
-    if QEMU is None or not os.path.exists(FW_ELF):
-        pytest.fail(f"needs qemu-system-arm and {FW_ELF}: make test installs and builds both")
-    _, eps, ctl = start_vbus(procs, tmp_path, 4)
-    ps = start_mixed_periphs(procs, eps)
+    need_qemu()
+    eps, ctl, ps = firmware_bus(procs, tmp_path)
     rc, steps, text = run_firmware(procs, tmp_path, eps[0], append="fast=on gw=off")
     assert rc == 0, text
     assert steps["boot"]["fast_max"] > 0

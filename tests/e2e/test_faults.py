@@ -167,6 +167,12 @@ class Rig:
     def gw_stats(self):
         return json.loads((self.tmp / "gw.stats").read_text())
 
+    def hub_control(self, command):
+        """Gives the SLCAN hub a control command ("detach 0", "stall 0"...),
+        which it must answer ok; returns the time it did."""
+        assert control(self.tmp / "hub.ctl", command) == "ok"
+        return time.monotonic()
+
 
 @pytest.fixture
 def rig(procs, tmp_path):
@@ -396,11 +402,9 @@ def test_can_adapter_unplugged_and_back(rig):
 
     def unplug_and_back():
         time.sleep(0.8)
-        assert control(r.tmp / "hub.ctl", "detach 0") == "ok"
-        marks["detach"] = time.monotonic()
+        marks["detach"] = r.hub_control("detach 0")
         time.sleep(1.5)
-        assert control(r.tmp / "hub.ctl", "attach 0") == "ok"
-        marks["attach"] = time.monotonic()
+        marks["attach"] = r.hub_control("attach 0")
 
     on_line = in_thread_after("configure", unplug_and_back)
     rc, out = r.fcsim("discover", "configure", "esc:12,13,14,15@6000@100", "stats", on_line=on_line)
@@ -439,16 +443,14 @@ def test_can_adapter_stops_taking_bytes(rig):
 
     def stall_and_back():
         time.sleep(0.8)
-        assert control(r.tmp / "hub.ctl", "stall 0") == "ok"
-        marks["stall"] = time.monotonic()
+        marks["stall"] = r.hub_control("stall 0")
 
         def stuck():
             return "adapter takes no bytes" in r.gwd.log_path.read_text()
 
         wait_for(stuck, 60, 0.1, what="the gateway to see the adapter stuck")
         marks["seen"] = time.monotonic()
-        assert control(r.tmp / "hub.ctl", "resume 0") == "ok"
-        marks["resume"] = time.monotonic()
+        marks["resume"] = r.hub_control("resume 0")
 
     on_line = in_thread_after("configure", stall_and_back)
     rc, out = r.fcsim(

@@ -31,10 +31,15 @@ QEMU = shutil.which("qemu-system-arm")
 RUN_TIMEOUT = 180  # seconds: QEMU on a loaded 2-core machine
 
 
-@pytest.fixture(autouse=True)
-def need_firmware():
+def need_qemu():
+    """Fails the test unless QEMU and the firmware are there."""
     if QEMU is None or not os.path.exists(FW_ELF):
         pytest.fail(f"needs qemu-system-arm and {FW_ELF}: make test installs and builds both")
+
+
+@pytest.fixture(autouse=True)
+def need_firmware():
+    need_qemu()
 
 
 def qemu_command(serials, append=None):
@@ -81,13 +86,18 @@ def run_firmware(procs, tmp_path, endpoint, append=None):
     return rc, {d["step"]: d for d in lines if "step" in d}, text
 
 
-@pytest.fixture
-def fc_bus(procs, tmp_path):
+def firmware_bus(procs, tmp_path):
     """dan-vbus: endpoint 0 for the firmware, then test-a, test-b and a
-    can-gw without 57600 (mask 0x0B)."""
+    can-gw without 57600 (mask 0x0B). Returns (endpoints, vbus control,
+    peripherals)."""
     vbus, eps, ctl = start_vbus(procs, tmp_path, 4)
     ps = start_mixed_periphs(procs, eps)
     return eps, ctl, ps
+
+
+@pytest.fixture
+def fc_bus(procs, tmp_path):
+    return firmware_bus(procs, tmp_path)
 
 
 def test_firmware_discovers_configures_and_transacts(fc_bus, procs, tmp_path):

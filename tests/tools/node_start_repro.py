@@ -27,6 +27,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "host_tools"))
+import procgroup  # noqa: E402
 import pydronecan_nodes  # noqa: E402
 
 
@@ -88,14 +89,7 @@ class BusyLogger:
 
 def start_hub(tmp):
     p = subprocess.Popen(
-        [
-            sys.executable,
-            str(ROOT / "host_tools" / "slcan_hub.py"),
-            "-n",
-            "2",
-            "--link",
-            str(Path(tmp) / "can"),
-        ],
+        procgroup.host_tool("slcan_hub.py", "-n", "2", "--link", str(Path(tmp) / "can")),
         stdout=subprocess.PIPE,
         stdin=subprocess.DEVNULL,
     )

@@ -5,8 +5,7 @@ from typing import Optional
 
 from danprobe import gateway_msgs, gateway_out
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     add_gateway_options,
     flags_command,
     non_negative_int,
@@ -48,7 +47,7 @@ def set_arming(ctx, status: Optional[int], safety_off: Optional[bool] = None) ->
     arming, on after disarming); the result is reported for arm, disarm and
     safety alike."""
     if status is not None and status > 255:
-        raise CliError("--status must be 0..255", EXIT_USAGE)
+        raise UsageError("--status must be 0..255")
 
     def send(gw):
         if safety_off:

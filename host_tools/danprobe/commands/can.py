@@ -8,10 +8,10 @@ import time
 from danprobe import gateway_can, gateway_msgs
 from danprobe.commands.common import (
     EXIT_FAIL,
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     add_duration_option,
     add_gateway_options,
+    append_option,
     gateway_operation,
     gateway_report,
     long_running,
@@ -71,9 +71,7 @@ def add_arguments(p):
     g = add_gateway_options(d, long_running=True, own="dump")
     g.add_argument(
         "--filter",
-        type=filter_spec,
-        action="append",
-        metavar="ID:MASK[:ext]",
+        **append_option(filter_spec, "ID:MASK[:ext]"),
         help="pass frames with (id & MASK) == (ID & MASK) (hex; repeatable, up to "
         f"{gateway_msgs.FILTERS_MAX}); default: every frame",
     )
@@ -127,7 +125,7 @@ def _dump(ctx) -> int:
     if a.own:
         filters = [dataclasses.replace(f, own=True) for f in filters]
     if len(filters) > gateway_msgs.FILTERS_MAX:
-        raise CliError(f"at most {gateway_msgs.FILTERS_MAX} filters", EXIT_USAGE)
+        raise UsageError(f"at most {gateway_msgs.FILTERS_MAX} filters")
     res = {"frames": 0, "lost": 0, "dropped": 0}
     halted = []
 

@@ -43,6 +43,14 @@ class CliError(Exception):
         self.exit_code = exit_code
 
 
+class UsageError(CliError):
+    """A CliError for bad arguments or a port that cannot be opened: exit
+    code EXIT_USAGE."""
+
+    def __init__(self, message: str):
+        super().__init__(message, EXIT_USAGE)
+
+
 # ---- argument types ----
 
 
@@ -103,6 +111,18 @@ def assignments(parse_one: Callable[[int, str], object], what: str, id_max: int 
         return out
 
     return parse
+
+
+def append_option(parse: Callable[[str], object], metavar: str) -> dict:
+    """The add_argument() keywords of an option that may be given several
+    times: the list of its values, each parse(text) (None if never given)."""
+    return {"action": "append", "type": parse, "metavar": metavar}
+
+
+def id_list_option(parse_one: Callable[[int, str], object], what: str, metavar: str) -> dict:
+    """append_option() of ID=SPEC lists (assignments(parse_one, what)):
+    flat() joins them."""
+    return append_option(assignments(parse_one, what), metavar)
 
 
 def flat(groups) -> list:
@@ -252,11 +272,11 @@ class Context:
 
     def open_port(self, baud: int) -> SerialPort:
         if not self.args.port:
-            raise CliError("--port is required", EXIT_USAGE)
+            raise UsageError("--port is required")
         try:
             return SerialPort(self.args.port, baud)
         except PortError as e:
-            raise CliError(str(e), EXIT_USAGE) from None
+            raise UsageError(str(e)) from None
 
     def master(self, port: SerialPort, baud: int) -> Master:
         a = self.args
@@ -632,7 +652,7 @@ def bridge_pty(ctx: Context, res: dict, what: str, **ready) -> Iterator[Pty]:
     try:
         pty = Pty(a.link)
     except PortError as e:
-        raise CliError(str(e), EXIT_USAGE) from None
+        raise UsageError(str(e)) from None
     res["pty"] = pty.path
     # SIGTERM right after "ready" (a supervisor that waited for it) must
     # still end the command cleanly: the handlers go in before the news

@@ -4,8 +4,7 @@ import argparse
 
 from danprobe import gateway_msgs
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     add_gateway_options,
     dev_temp_text,
     gateway_operation,
@@ -148,9 +147,7 @@ def _plot_module():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        raise CliError(
-            "--plot needs matplotlib (pip install 'danprobe[plot]')", EXIT_USAGE
-        ) from None
+        raise UsageError("--plot needs matplotlib (pip install 'danprobe[plot]')") from None
     return plt
 
 
@@ -209,9 +206,9 @@ def run(ctx) -> int:
     a = ctx.args
     values_at = _values_function(a)
     if a.count > gateway_msgs.ESC_MAX:
-        raise CliError(f"--count: at most {gateway_msgs.ESC_MAX} ESCs", EXIT_USAGE)
+        raise UsageError(f"--count: at most {gateway_msgs.ESC_MAX} ESCs")
     if a.telem_every < 0:
-        raise CliError("--telem-every: 0 or more", EXIT_USAGE)
+        raise UsageError("--telem-every: 0 or more")
     plt = _plot_module() if a.plot else None
     res = {"exchanges": 0, "failed": 0, "seconds": 0.0, "samples": [], "client": None}
 

@@ -7,8 +7,7 @@ import os
 from danprobe import file_update
 from danprobe import gateway_file as F
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     format_table,
     gateway_actions,
     gateway_operation,
@@ -76,21 +75,21 @@ def add_arguments(p):
 
 
 def read_image(ctx, path: str, name: str = None) -> tuple[bytes, str]:
-    """(the file's bytes, its store name); bad input: CliError, exit 2."""
+    """(the file's bytes, its store name); bad input: UsageError (exit 2)."""
     try:
         with open(path, "rb") as f:
             data = f.read(F.SIZE_MAX + 1)
     except OSError as e:
-        raise CliError(f"{ctx.args.command}: {path}: {e.strerror}", EXIT_USAGE) from None
+        raise UsageError(f"{ctx.args.command}: {path}: {e.strerror}") from None
     if not data:
-        raise CliError(f"{ctx.args.command}: {path} is empty", EXIT_USAGE)
+        raise UsageError(f"{ctx.args.command}: {path} is empty")
     if len(data) > F.SIZE_MAX:
-        raise CliError(f"{ctx.args.command}: {path} is over 4 GiB", EXIT_USAGE)
+        raise UsageError(f"{ctx.args.command}: {path} is over 4 GiB")
     name = name or os.path.basename(path)
     try:
         F.file_name(name)
     except ValueError as e:
-        raise CliError(f"{ctx.args.command}: {e}: give --name", EXIT_USAGE) from None
+        raise UsageError(f"{ctx.args.command}: {e}: give --name") from None
     return data, name
 
 

@@ -7,6 +7,7 @@ import time
 from danprobe import file_update
 from danprobe.commands.common import (
     add_gateway_options,
+    append_option,
     gateway_operation,
     int_range,
     positive_float,
@@ -58,10 +59,8 @@ def add_arguments(p):
     g = p.add_argument_group("fw-update options")
     g.add_argument(
         "--node",
-        type=int_range(1, NODE_ID_MAX, "--node"),
-        action="append",
         required=True,
-        metavar="N",
+        **append_option(int_range(1, NODE_ID_MAX, "--node"), "N"),
         help="the node to update (repeat for several nodes)",
     )
     g.add_argument("image", metavar="IMAGE", help="the firmware image file")

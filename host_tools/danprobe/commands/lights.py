@@ -2,12 +2,11 @@
 
 from danprobe import gateway_out as O
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     add_gateway_options,
-    assignments,
     flags_command,
     flat,
+    id_list_option,
 )
 
 NAME = "lights"
@@ -40,10 +39,8 @@ def parse_colour(light_id: int, spec: str) -> O.Light:
 def add_arguments(p):
     add_gateway_options(p, own="lights").add_argument(
         "--light",
-        action="append",
         required=True,
-        type=assignments(parse_colour, "rrggbb"),
-        metavar="ID=RRGGBB|ID=565:XXXX",
+        **id_list_option(parse_colour, "rrggbb", "ID=RRGGBB|ID=565:XXXX"),
         help="a light and its colour; repeat or comma-separate (at most 20)",
     )
 
@@ -51,7 +48,7 @@ def add_arguments(p):
 def run(ctx) -> int:
     lights = flat(ctx.args.light)
     if len(lights) > O.LIGHTS_MAX:
-        raise CliError(f"at most {O.LIGHTS_MAX} lights ({len(lights)} given)", EXIT_USAGE)
+        raise UsageError(f"at most {O.LIGHTS_MAX} lights ({len(lights)} given)")
     return flags_command(
         ctx,
         lambda gw: gw.lights(lights),

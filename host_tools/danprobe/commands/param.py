@@ -5,8 +5,7 @@ import argparse
 
 from danprobe import gateway_calls, gateway_mgmt
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     format_table,
     gateway_actions,
     gateway_operation,
@@ -155,7 +154,7 @@ def _set(ctx, gw, res):
     try:
         value = parse_value(a.value, tag)
     except ValueError as e:
-        raise CliError(f"param set: {a.name}: {e}", EXIT_USAGE) from None
+        raise UsageError(f"param set: {a.name}: {e}") from None
     call = NodeCall(0, a.node, gateway_mgmt.CALL_PARAM_SET, name=a.name.encode(), value=value)
     p = gateway_calls.param_result(gw, call)
     if not p.exists:
@@ -191,7 +190,7 @@ def run(ctx) -> int:
         try:
             parse_value(a.value, TYPES[a.type])  # a bad VALUE is found before the bus is
         except ValueError as e:
-            raise CliError(f"param set: {e}", EXIT_USAGE) from None
+            raise UsageError(f"param set: {e}") from None
     res = {}
 
     def op(m, gw):

@@ -2,12 +2,11 @@
 
 from danprobe import gateway_out as O
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     add_gateway_options,
-    assignments,
     flags_command,
     flat,
+    id_list_option,
 )
 
 NAME = "servo"
@@ -68,18 +67,14 @@ def add_arguments(p):
     g = add_gateway_options(p, own="servo")
     g.add_argument(
         "--set",
-        action="append",
-        type=assignments(servo_item, "value[:type]"),
-        metavar="ID=VALUE[:TYPE]",
+        **id_list_option(servo_item, "value[:type]", "ID=VALUE[:TYPE]"),
         help="command actuator ID (0..255); TYPE unitless (default), position, force, "
         "speed or pwm; repeat or comma-separate (at most 32)",
     )
     fs = g.add_mutually_exclusive_group()
     fs.add_argument(
         "--failsafe",
-        action="append",
-        type=assignments(failsafe_item, "hold|value[:type]"),
-        metavar="ID=hold|VALUE[:TYPE]",
+        **id_list_option(failsafe_item, "hold|value[:type]", "ID=hold|VALUE[:TYPE]"),
         help="the failsafe table (replaced as a whole): hold the last command, or send "
         "VALUE; actuators not listed hold",
     )
@@ -95,9 +90,9 @@ def run(ctx) -> int:
     commands, table = flat(a.set), flat(a.failsafe)
     send_table = bool(table) or a.failsafe_clear
     if not commands and not send_table:
-        raise CliError("give --set ID=VALUE[:TYPE], --failsafe or --failsafe-clear", EXIT_USAGE)
+        raise UsageError("give --set ID=VALUE[:TYPE], --failsafe or --failsafe-clear")
     if len(commands) > O.SERVO_MAX or len(table) > O.SERVO_MAX:
-        raise CliError(f"at most {O.SERVO_MAX} actuators per --set / --failsafe", EXIT_USAGE)
+        raise UsageError(f"at most {O.SERVO_MAX} actuators per --set / --failsafe")
     kept = []
 
     def send(gw):

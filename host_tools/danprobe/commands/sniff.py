@@ -5,8 +5,8 @@ from danprobe.commands.common import (
     DEFAULT_BAUD,
     EXIT_FAIL,
     EXIT_OK,
-    EXIT_USAGE,
     CliError,
+    UsageError,
     add_common_options,
     add_gap_option,
     positive_float,
@@ -100,7 +100,7 @@ def _sniff_capture(ctx, printer: _Printer) -> int:
     try:
         bursts = read_capture(a.capture)
     except OSError as e:
-        raise CliError(f"{a.capture}: {e.strerror}", EXIT_USAGE) from None
+        raise UsageError(f"{a.capture}: {e.strerror}") from None
     except CaptureError as e:
         raise CliError(str(e)) from None
     start = bursts[0].time if bursts else 0.0
@@ -173,9 +173,9 @@ def run(ctx) -> int:
     a = ctx.args
     if bool(a.capture) == bool(a.port):
         raise (
-            CliError("give --port (a live line) or --capture FILE, not both", EXIT_USAGE)
+            UsageError("give --port (a live line) or --capture FILE, not both")
             if a.capture
-            else CliError("--port or --capture is required", EXIT_USAGE)
+            else UsageError("--port or --capture is required")
         )
     printer = _Printer(ctx, Sniffer())
     return _sniff_capture(ctx, printer) if a.capture else _sniff_live(ctx, printer)

@@ -4,8 +4,7 @@ import time
 
 from danprobe import gateway_client, gateway_msgs
 from danprobe.commands.common import (
-    EXIT_USAGE,
-    CliError,
+    UsageError,
     add_gateway_options,
     add_pty_options,
     bridge_pty,
@@ -95,18 +94,25 @@ def add_arguments(p):
     add_pty_options(g)
 
 
-def tunnel_config(a) -> gateway_msgs.TunOpen:
+def options_problem(a) -> str:
+    """What is wrong with the tunnel options ("" if nothing)."""
     if (a.target is None) == (a.protocol is None and a.channel is None):
-        raise CliError(
-            "give --target NODE (Targetted) or --protocol P --channel C (Broadcast)", EXIT_USAGE
-        )
+        return "give --target NODE (Targetted) or --protocol P --channel C (Broadcast)"
+    if a.target is None:
+        if a.protocol is None or a.channel is None or a.protocol > 255 or a.channel > 255:
+            return "Broadcast needs --protocol P and --channel C (0..255)"
+    elif a.any_channel:
+        return "--any-channel is a Broadcast option (--protocol/--channel)"
+    elif not 1 <= a.target <= 127 or not -1 <= a.serial_id <= 15 or a.serial_baud > 0xFFFFFF:
+        return "--target 1..127, --serial-id -1..15, --serial-baud up to 16777215"
+    return ""
+
+
+def tunnel_config(a) -> gateway_msgs.TunOpen:
+    problem = options_problem(a)
+    if problem:
+        raise UsageError(problem)
     if a.target is not None:
-        if a.any_channel:
-            raise CliError("--any-channel is a Broadcast option (--protocol/--channel)", EXIT_USAGE)
-        if not 1 <= a.target <= 127 or not -1 <= a.serial_id <= 15 or a.serial_baud > 0xFFFFFF:
-            raise CliError(
-                "--target 1..127, --serial-id -1..15, --serial-baud up to 16777215", EXIT_USAGE
-            )
         return gateway_msgs.TunOpen(
             a.tunnel_port,
             gateway_msgs.TUN_TARGETTED,
@@ -116,8 +122,6 @@ def tunnel_config(a) -> gateway_msgs.TunOpen:
             gateway_msgs.TUN_LOCK_PORT if a.lock else 0,
             a.serial_baud,
         )
-    if a.protocol is None or a.channel is None or a.protocol > 255 or a.channel > 255:
-        raise CliError("Broadcast needs --protocol P and --channel C (0..255)", EXIT_USAGE)
     return gateway_msgs.TunOpen(
         a.tunnel_port,
         gateway_msgs.TUN_BROADCAST,
