@@ -144,6 +144,15 @@ void fcsim_sleep_us(uint64_t us)
     }
 }
 
+int fcsim_ok(const char *step, const char *name, int rc)
+{
+    if (rc != DAN_OK) {
+        return fcsim_fail(step, rc);
+    }
+    printf("{\"step\": \"%s\", \"ok\": true", name);
+    return 0;
+}
+
 int fcsim_fail(const char *step, int rc)
 {
     dan_error_msg_t e;
@@ -486,12 +495,12 @@ static int step_arm(const char *name, const char *step, char *args)
 static int config_run(const char *name, const char *step, const dan_gw_config_t *c)
 {
     int rc = fcsim_finish(dan_gw_config(&g_gw, c, dan_posix_now_us()));
-    if (rc != DAN_OK) {
-        return fcsim_fail(step, rc);
+    if (fcsim_ok(step, name, rc) != 0) {
+        return 1;
     }
-    printf("{\"step\": \"%s\", \"ok\": true, \"node_id\": %u, \"esc_timeout_ms\": %u, "
-           "\"arming_rate_hz\": %u, \"flags\": %u, \"telem_timeout_ms\": %u, \"dna\": %u}\n",
-           name, g_gw.config.node_id, g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz,
+    printf(", \"node_id\": %u, \"esc_timeout_ms\": %u, \"arming_rate_hz\": %u, \"flags\": %u, "
+           "\"telem_timeout_ms\": %u, \"dna\": %u}\n",
+           g_gw.config.node_id, g_gw.config.esc_timeout_ms, g_gw.config.arming_rate_hz,
            g_gw.config.gw_flags, g_gw.config.telem_timeout_ms, g_gw.config.dna);
     return 0;
 }
@@ -718,12 +727,11 @@ static int step_nodes(const char *name, const char *step, char *args)
     static dan_gw_node_entry_t list[NODES_MAX];
     size_t nn, i;
     int rc = read_nodes(list, NODES_MAX, &nn);
-    (void)name;
     (void)args;
-    if (rc != DAN_OK) {
-        return fcsim_fail(step, rc);
+    if (fcsim_ok(step, name, rc) != 0) {
+        return 1;
     }
-    printf("{\"step\": \"nodes\", \"ok\": true, \"nodes\": [");
+    printf(", \"nodes\": [");
     for (i = 0; i < nn; i++) {
         print_node(&list[i], i == 0);
     }
@@ -735,12 +743,10 @@ static int step_stats(const char *name, const char *step, char *args)
 {
     unsigned i;
     int rc = fcsim_finish(dan_gw_stats(&g_gw, dan_posix_now_us()));
-    (void)name;
     (void)args;
-    if (rc != DAN_OK) {
-        return fcsim_fail(step, rc);
+    if (fcsim_ok(step, name, rc) != 0) {
+        return 1;
     }
-    printf("{\"step\": \"stats\", \"ok\": true");
     for (i = 0; i < DAN_GW_STAT_COUNT; i++) {
         printf(", \"%s\": %u", dan_gw_stat_name(i), g_gw.stats[i]);
     }
@@ -938,11 +944,10 @@ static int step_candump(const char *name, const char *step, char *args)
 /* The result of a call answered with the gateway flags, as JSON. */
 static int flags_result(const char *name, const char *step, int rc, size_t count)
 {
-    if (rc != DAN_OK) {
-        return fcsim_fail(step, rc);
+    if (fcsim_ok(step, name, rc) != 0) {
+        return 1;
     }
-    printf("{\"step\": \"%s\", \"ok\": true, \"flags\": %u, \"count\": %zu}\n", name, g_gw.gw_flags,
-           count);
+    printf(", \"flags\": %u, \"count\": %zu}\n", g_gw.gw_flags, count);
     return 0;
 }
 

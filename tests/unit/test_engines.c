@@ -618,22 +618,32 @@ static void test_partial_frame_next_us_waits_for_gap(void **state)
     assert_true(polls <= 4);
 }
 
-/* Polls p every 100 us from *now until it has written something. */
-static void periph_wait_tx(sim_cap_t *cap, dan_periph_t *p, uint64_t *now)
-{
-    while (cap->len == 0u && *now < 10000000u) {
-        *now += 100u;
-        dan_periph_poll(p, *now);
-    }
-}
+/* A test-a/test-b peripheral at 9600 on a capture port, its clock at
+ * 1000 us. */
+typedef struct {
+    sim_cap_t cap;
+    dan_periph_t p;
+    uint64_t now;
+} cap_rig_t;
 
-/* A test-a/test-b peripheral at 9600 on a capture port. */
-static void cap_periph(sim_cap_t *cap, dan_periph_t *p, uint64_t now)
+static cap_rig_t *cap_periph(void)
 {
+    static cap_rig_t r;
     dan_port_t port;
     rig_setup(true); /* for types_dev1 */
-    sim_cap_port(cap, &port);
-    assert_int_equal(dan_periph_init(p, &port, types_dev1, 2, NULL, 9600, now), DAN_OK);
+    sim_cap_port(&r.cap, &port);
+    r.now = 1000u;
+    assert_int_equal(dan_periph_init(&r.p, &port, types_dev1, 2, NULL, 9600, r.now), DAN_OK);
+    return &r;
+}
+
+/* Polls the peripheral every 100 us until it has written something. */
+static void periph_wait_tx(cap_rig_t *r)
+{
+    while (r->cap.len == 0u && r->now < 10000000u) {
+        r->now += 100u;
+        dan_periph_poll(&r->p, r->now);
+    }
 }
 
 /* CONFIGURE(baud) to test-a, encoded into out: its length. */
@@ -654,34 +664,31 @@ static size_t configure_a(uint32_t baud, uint8_t *out, size_t cap)
  * stayed, the master's verification failed; seen in make test). */
 static void test_configure_in_same_read_as_echo(void **state)
 {
-    static sim_cap_t cap;
-    static dan_periph_t p;
+    cap_rig_t *r = cap_periph();
     uint8_t rx[128];
-    uint64_t now = 1000;
     size_t len;
     int n;
     (void)state;
-    cap_periph(&cap, &p, now);
     n = dan_frame_encode(DAN_TYPE_IDENTIFY(DAN_TYPE_TEST_A_FIRST), NULL, 0, rx, sizeof rx);
-    dan_periph_rx(&p, rx, (size_t)n, now);
-    periph_wait_tx(&cap, &p, &now);
-    assert_true(cap.len > 0u);
+    dan_periph_rx(&r->p, rx, (size_t)n, r->now);
+    periph_wait_tx(r);
+    assert_true(r->cap.len > 0u);
     /* one read: the echo of the identity, then CONFIGURE(115200) */
-    memcpy(rx, cap.buf, cap.len);
-    len = cap.len;
+    memcpy(rx, r->cap.buf, r->cap.len);
+    len = r->cap.len;
     len += configure_a(115200u, rx + len, sizeof rx - len);
-    cap.len = 0;
-    now += 20000u;
-    dan_periph_rx(&p, rx, len, now);
-    periph_wait_tx(&cap, &p, &now);
-    assert_int_equal(p.stats.configures, 1);
-    assert_int_equal(p.stats.nacks, 0);
-    assert_int_equal(dan_periph_baud(&p), 9600); /* the ACK goes out at the old baud */
+    r->cap.len = 0;
+    r->now += 20000u;
+    dan_periph_rx(&r->p, rx, len, r->now);
+    periph_wait_tx(r);
+    assert_int_equal(r->p.stats.configures, 1);
+    assert_int_equal(r->p.stats.nacks, 0);
+    assert_int_equal(dan_periph_baud(&r->p), 9600); /* the ACK goes out at the old baud */
     /* the ACK's echo: it has left, the switch follows */
-    dan_periph_rx(&p, cap.buf, cap.len, now + 10000u);
-    dan_periph_poll(&p, now + 10001u);
-    assert_int_equal(dan_periph_baud(&p), 115200);
-    assert_int_equal(p.stats.baud_changes, 1);
+    dan_periph_rx(&r->p, r->cap.buf, r->cap.len, r->now + 10000u);
+    dan_periph_poll(&r->p, r->now + 10001u);
+    assert_int_equal(dan_periph_baud(&r->p), 115200);
+    assert_int_equal(r->p.stats.baud_changes, 1);
 }
 
 /* A frame the peripheral ignores (a code of its block with no handler, like
@@ -690,23 +697,20 @@ static void test_configure_in_same_read_as_echo(void **state)
  * the switch (review finding): the master then lost the peripheral. */
 static void test_ignored_frame_keeps_configure_ack(void **state)
 {
-    static sim_cap_t cap;
-    static dan_periph_t p;
+    cap_rig_t *r = cap_periph();
     uint8_t rx[32];
-    uint64_t now = 1000;
     int n;
     (void)state;
-    cap_periph(&cap, &p, now);
-    dan_periph_rx(&p, rx, configure_a(115200u, rx, sizeof rx), now);
+    dan_periph_rx(&r->p, rx, configure_a(115200u, rx, sizeof rx), r->now);
     n = dan_frame_encode(0x64, (const uint8_t *)"x", 1, rx, sizeof rx); /* no handler */
-    dan_periph_rx(&p, rx, (size_t)n, now + 100u);
-    periph_wait_tx(&cap, &p, &now);
-    assert_true(cap.len > 0u); /* the ACK */
-    assert_int_equal(p.stats.configures, 1);
-    assert_int_equal(p.stats.overruns, 0);
-    dan_periph_rx(&p, cap.buf, cap.len, now + 2000u); /* its echo: it has left */
-    dan_periph_poll(&p, now + 2001u);
-    assert_int_equal(dan_periph_baud(&p), 115200);
+    dan_periph_rx(&r->p, rx, (size_t)n, r->now + 100u);
+    periph_wait_tx(r);
+    assert_true(r->cap.len > 0u); /* the ACK */
+    assert_int_equal(r->p.stats.configures, 1);
+    assert_int_equal(r->p.stats.overruns, 0);
+    dan_periph_rx(&r->p, r->cap.buf, r->cap.len, r->now + 2000u); /* its echo: it has left */
+    dan_periph_poll(&r->p, r->now + 2001u);
+    assert_int_equal(dan_periph_baud(&r->p), 115200);
 }
 
 /* A collision breaks a peripheral's reply; the rest of that reply (it has

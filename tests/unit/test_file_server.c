@@ -23,6 +23,7 @@
 #include "dan/codes.h"
 #include "file_dir.h"
 #include "gw_rig.h"
+#include "hostile_paths.h"
 #include "unit_run.h"
 
 #define IMG_SIZE 600u
@@ -179,15 +180,6 @@ static void test_read_chunks(void **state)
 
 static void test_read_errors(void **state)
 {
-    static const char *const bad[] = {
-        "../etc/passwd",
-        "/etc/passwd",
-        "a/b/c",
-        ".hidden",
-        "//fw.bin",
-        "",
-        "abcdefghijklmnopqrstuvwxyz0123456", /* 33 */
-    };
     static dan_dc_file_read_rsp_t r;
     size_t i;
     (void)state;
@@ -195,13 +187,13 @@ static void test_read_errors(void **state)
     assert_int_equal(r.error, DAN_DC_FILE_NOT_FOUND);
     assert_int_equal(r.data_len, 0);
     calls = 0;
-    for (i = 0; i < sizeof bad / sizeof bad[0]; i++) {
-        read_at(0, bad[i], &r);
+    for (i = 0; i < HOSTILE_PATH_COUNT; i++) {
+        read_at(0, HOSTILE_PATHS[i], &r);
         assert_int_equal(r.error, DAN_DC_FILE_INVALID_VALUE);
         assert_int_equal(r.data_len, 0);
     }
     assert_int_equal(calls, 0); /* never handed to the store */
-    assert_int_equal(R->g.stats.file_errors, 1u + sizeof bad / sizeof bad[0]);
+    assert_int_equal(R->g.stats.file_errors, 1u + HOSTILE_PATH_COUNT);
     assert_int_equal(R->g.stats.file_reads, 0);
 }
 

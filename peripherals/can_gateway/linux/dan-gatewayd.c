@@ -406,6 +406,23 @@ static int check_options(gwd_t *d, const opts_t *o, dan_gw_node_config_t *nc)
     return check_file_dir(d, o, nc);
 }
 
+/* Where the option c that takes a text (a path, a spec) keeps it; NULL
+ * for the other options. */
+static const char **text_option(int c, gwd_t *d, opts_t *o)
+{
+    switch (c) {
+    case 'u': return &d->uart_path;
+    case 'c': return &d->can_spec;
+    case 'g': return &o->de_gpio;
+    case 's': return &d->stats_file;
+    case 'D': return &d->dna_db;
+    case 'f': return &d->file_dir;
+    case 'U': return &o->uid;
+    case 'B': return &o->can_bitrate;
+    default: return NULL;
+    }
+}
+
 /* Returns -1 to go on, else the exit code. */
 static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node_config_t *nc)
 {
@@ -436,6 +453,7 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
                                          {"help", no_argument, NULL, 'h'},
                                          {NULL, 0, NULL, 0}};
     int c, r;
+    const char **text;
     while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
         r = number_option(c, optarg, o, nc);
         if (r >= 0) {
@@ -444,19 +462,16 @@ static int parse_options(int argc, char **argv, gwd_t *d, opts_t *o, dan_gw_node
             }
             continue;
         }
+        text = text_option(c, d, o);
+        if (text != NULL) {
+            *text = optarg; /* checked by check_options() */
+            continue;
+        }
         switch (c) {
-        case 'u': d->uart_path = optarg; break;
-        case 'c': d->can_spec = optarg; break;
         case 'E': o->no_echo = true; break;
         case 'F': o->no_fast = true; break;
-        case 'g': o->de_gpio = optarg; break;
         case 'L': o->de_low = true; break;
-        case 's': d->stats_file = optarg; break;
-        case 'D': d->dna_db = optarg; break;
         case 'N': nc->dna = false; break;
-        case 'f': d->file_dir = optarg; break;
-        case 'U': o->uid = optarg; break;
-        case 'B': o->can_bitrate = optarg; break;
         case 'S': g_syslog = 1; break;
         case 'v': g_verbose = 1; break;
         case 'h': usage(stdout); return 0;

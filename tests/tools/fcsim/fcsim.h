@@ -17,6 +17,10 @@ extern dan_gw_t g_gw;
 int fcsim_finish(int rc);
 /* Prints the step's failure line; returns 1. */
 int fcsim_fail(const char *step, int rc);
+/* rc not DAN_OK: fcsim_fail(step, rc). Else the start of the step's line,
+ * {"step": "<name>", "ok": true (the caller adds its fields and the
+ * closing brace), and 0. */
+int fcsim_ok(const char *step, const char *name, int rc);
 /* Waits us, dropping whatever the port receives meanwhile. */
 void fcsim_sleep_us(uint64_t us);
 
