@@ -185,7 +185,8 @@ class Record:
     @classmethod
     def decode(cls, payload):
         r = Reader(payload)
-        return cls(**{f[0]: getattr(r, f[1])(f[-1]) for f in cls.LAYOUT})
+        # an error names the entry's label, else its attribute (not its kind)
+        return cls(**{f[0]: getattr(r, f[1])(f[2] if len(f) > 2 else f[0]) for f in cls.LAYOUT})
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -484,6 +484,13 @@ def test_seal_vectors():
     assert G.reply_check(0x40, b"") and not G.reply_check(0x42, b"\x00")
 
 
+def test_record_decode_error_names_the_field():
+    """A truncated record names the field it ran out at, not its kind
+    (Record.decode passed the kind, 'u8', for two-item layout entries)."""
+    with pytest.raises(PayloadError, match=r"^accepted: needs 1 byte"):
+        GC.CanSendResponse.decode(b"\x07")
+
+
 def test_client_can_send_sequence_numbers():
     def ok(code, payload):
         req = GC.CanSendRequest.decode(payload)
