@@ -9,6 +9,7 @@ Bus management added two things ("Bus management" in the document): bit
 (Filter.own); CAN_RECV's optional opts byte asks for receive times (the
 gateway's microsecond clock, low 32 bits: t0_us, then dt_us per frame)."""
 
+import re
 from dataclasses import asdict, dataclass, field
 
 from danprobe.gateway_msgs import (
@@ -96,6 +97,7 @@ class CanFrame:
 
 
 _HEX = set("0123456789abcdefABCDEF")
+_CANSEND_DATA = re.compile(r"\.?(?:[0-9A-Fa-f]{2}\.?)*")
 
 
 def parse_cansend(text: str) -> CanFrame:
@@ -111,9 +113,11 @@ def parse_cansend(text: str) -> CanFrame:
         if len(n) > 1 or (n and n not in "012345678"):
             raise ValueError(f"{text!r}: remote frame length must be R or R0..R8")
         return CanFrame(int(ident, 16), b"", ext, True, int(n or "0")).check()
-    digits = rest.replace(".", "")
-    if len(digits) % 2 or not set(digits) <= _HEX:
+    # a '.' only between whole bytes (and one at either end), as cansend
+    # reads it: 123#0.011 is refused, not taken as 00 11
+    if not _CANSEND_DATA.fullmatch(rest):
         raise ValueError(f"{text!r}: data must be whole hex bytes")
+    digits = rest.replace(".", "")
     try:
         return CanFrame(int(ident, 16), bytes.fromhex(digits), ext).check()
     except ValueError as e:

@@ -3,6 +3,7 @@ when known) in, events out. Used on a live port and on dan-vbus capture
 files (docs/VBUS.md, "Capture format")."""
 
 import bisect
+import math
 from dataclasses import dataclass, field
 from typing import NamedTuple, Optional
 
@@ -204,6 +205,8 @@ def read_capture(path) -> list[Burst]:
                 rx = [x[3:] for x in fields[4:] if x.startswith("rx=")]
                 if rx:
                     data = bytes.fromhex(rx[0])
+                if baud <= 0 or not math.isfinite(t):
+                    raise ValueError("baud 0 (char_s divides by it) or no time")
             except (IndexError, ValueError):
                 raise CaptureError(
                     f"{path}:{lineno}: not a dan-vbus capture line: {line[:60]!r}"

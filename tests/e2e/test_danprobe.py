@@ -281,6 +281,16 @@ def test_sniff_capture_counts_errors(tmp_path):
     assert [e.kind for e in events if e.kind != "frame"] == ["crc_errors", "crc_errors", "aborted"]
 
 
+@pytest.mark.parametrize("line", ["1.0 0 0 4420", "1.0 0 -9600 4420", "nan 0 9600 4420"])
+def test_sniff_capture_bad_baud_or_time(tmp_path, line):
+    """A capture line with baud 0 (a hand-edited or foreign file) is a clear
+    error with exit 1, not a ZeroDivisionError traceback."""
+    cap = tmp_path / "bus.cap"
+    cap.write_text(line + "\n")
+    rc, out, err = danprobe("sniff", "--capture", str(cap))
+    assert rc == 1 and "not a dan-vbus capture line" in err and "Traceback" not in err, (out, err)
+
+
 # ---- the CLI on a virtual bus ----
 
 

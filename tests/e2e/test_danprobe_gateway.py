@@ -379,6 +379,7 @@ def test_codec_details_and_malformed_payloads():
     # cansend syntax
     assert GC.parse_cansend("123#DEADBEEF") == GC.CanFrame(0x123, bytes.fromhex("deadbeef"))
     assert GC.parse_cansend("1ABCDE01#01.02.03").ext
+    assert GC.parse_cansend("123#.00.11.").data == b"\x00\x11"
     assert GC.parse_cansend("1404#").ext and not GC.parse_cansend("7FF#").ext
     assert GC.parse_cansend("7FF#R2").candump() == "7FF#R2" and GC.parse_cansend("7FF#R").dlc == 0
     assert (
@@ -393,6 +394,8 @@ def test_codec_details_and_malformed_payloads():
         "20000000#",
         "12G#00",
         "123#R9",
+        "123#0.011",  # a dot inside a byte (cansend refuses it)
+        "123#00..11",
         "#00",
     ):
         with pytest.raises(ValueError):
