@@ -1090,7 +1090,9 @@ def main():
             ("params", lambda: bench_params(build)),
             (
                 "files",
-                lambda: bench_files.bench_files(build, Stack, gw_rig, read_capture, frame_code),
+                lambda: bench_files.bench_files(
+                    build, Stack, gw_rig, read_capture, frame_code, bare_round_trip
+                ),
             ),
             ("chaos", lambda: bench_reliability.bench_chaos(build)),
             ("hostile", lambda: bench_reliability.bench_hostile(PY)),
