@@ -17,6 +17,7 @@
 #include "dan/codes.h"
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/node.h"
+#include "../../peripherals/can_gateway/gw_client_internal.h" /* dan_gwc_done_of (white box) */
 #include "gw_rig.h"
 #include "simbus.h"
 #include "vectors.h"
@@ -296,6 +297,47 @@ static void test_tunnel_targetted_retries(void **state)
             DAN_OK);
         assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_ERR_REMOTE);
     }
+}
+
+/* A TUN_XFER response that claims more of our data than we offered (a
+ * caller advances its buffer by accepted: past its end), or read data
+ * older than we acknowledged, is refused whole and changes nothing; it
+ * once passed up to 128 and committed the write side before the read
+ * check (review finding). */
+static void test_tunnel_response_claims_checked(void **state)
+{
+    static dan_gw_t gw;
+    dan_gw_tunnel_t before;
+    dan_gw_tun_xfer_t x;
+    uint8_t buf[DAN_MAX_PAYLOAD];
+    dan_gw_done_fn done = dan_gwc_done_of(DAN_GW_CODE_TUN_XFER);
+    int n;
+    (void)state;
+    memset(&gw, 0, sizeof gw);
+    gw.port = 1;
+    gw.xfer_len = 10; /* dan_gw_tunnel_xfer() offered 10 bytes */
+    gw.tun[1].wr_offset = 100;
+    gw.tun[1].rd_offset = 500;
+    before = gw.tun[1];
+    memset(&x, 0, sizeof x);
+    x.port = 1;
+    x.wr_offset = 111; /* 11 accepted of 10 */
+    x.rd_offset = 500;
+    n = dan_gw_msg_tun_xfer_rsp_encode(&x, buf, sizeof buf);
+    assert_true(n > 0);
+    assert_int_equal(done(&gw, DAN_GW_CODE_TUN_XFER, buf, (size_t)n), DAN_ERR_MALFORMED);
+    assert_memory_equal(&gw.tun[1], &before, sizeof before);
+    x.wr_offset = 110; /* all 10: fine, but the read side went back */
+    x.rd_offset = 499;
+    n = dan_gw_msg_tun_xfer_rsp_encode(&x, buf, sizeof buf);
+    assert_int_equal(done(&gw, DAN_GW_CODE_TUN_XFER, buf, (size_t)n), DAN_ERR_MALFORMED);
+    assert_memory_equal(&gw.tun[1], &before, sizeof before);
+    x.rd_offset = 502;
+    n = dan_gw_msg_tun_xfer_rsp_encode(&x, buf, sizeof buf);
+    assert_int_equal(done(&gw, DAN_GW_CODE_TUN_XFER, buf, (size_t)n), DAN_OK);
+    assert_int_equal(gw.tun[1].accepted, 10);
+    assert_int_equal(gw.tun[1].wr_offset, 110);
+    assert_int_equal(gw.tun[1].rd_lost, 2);
 }
 
 static void test_tunnel_broadcast_and_drops(void **state)
@@ -971,6 +1013,7 @@ int main(void)
         test_can_send_seq_reuse_after_reboot, test_arm_during_failsafe,
         test_can_recv_follows_gateway_restart, test_bus_off_reported, test_node_table_full,
         test_telemetry_round_robin, test_telemetry_paging, test_arming, test_failsafe,
-        test_tunnel_targetted_retries, test_tunnel_broadcast_and_drops, test_raw_frames_and_filters,
-        test_raw_send_exact, test_node_table, test_own_node_status_and_info, test_malformed);
+        test_tunnel_targetted_retries, test_tunnel_response_claims_checked,
+        test_tunnel_broadcast_and_drops, test_raw_frames_and_filters, test_raw_send_exact,
+        test_node_table, test_own_node_status_and_info, test_malformed);
 }
