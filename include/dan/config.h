@@ -177,8 +177,9 @@
 /* DroneCAN reception (dan/can_gw/dronecan.h): concurrent multi-frame RX
  * sessions, one per (data type, transfer type, source node); a slot stays
  * in use for the transfer timeout after its transfer completes (duplicate
- * detection). 20 ESCs sending esc.Status and StatusExtended need 40, plus
- * GetNodeInfo and tunnels: 64. RAM: DAN_DC_MAX_TRANSFER + ~24 bytes each
+ * detection; a multi-frame start may take such a slot, never one with a
+ * transfer in progress). 20 ESCs sending esc.Status and StatusExtended
+ * need 40, plus GetNodeInfo and tunnels: 64. RAM: DAN_DC_MAX_TRANSFER + ~24 bytes each
  * (25 KiB by default on a Linux gateway; an MCU gateway with fewer ESCs
  * lowers it). 1..255. */
 #ifndef DAN_DC_RX_SESSIONS

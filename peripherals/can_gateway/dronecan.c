@@ -300,11 +300,17 @@ static dan_dc_rx_session_t *find_session(dan_dc_rx_t *rx, const dan_dc_transfer_
     return NULL;
 }
 
-/* A free slot, else the stalest expired one; NULL if all are live. */
+/* A free slot, else the stalest expired one; for a multi-frame transfer
+ * (multi) else the stalest one with no transfer in progress. NULL if none.
+ * Single-frame flows keep a slot only to filter duplicates: a flow that
+ * sends every 2 s keeps it for good, and with enough of them (NodeStatus,
+ * StatusExtended and Temperature of 20 ESCs) every multi-frame transfer
+ * (esc.Status, GetNodeInfo, file.Read) found none (review finding). Taking
+ * such a slot costs that flow its duplicate filter, nothing else. */
 static dan_dc_rx_session_t *alloc_session(dan_dc_rx_t *rx, const dan_dc_transfer_t *t,
-                                          uint64_t now_us)
+                                          uint64_t now_us, bool multi)
 {
-    dan_dc_rx_session_t *best = NULL;
+    dan_dc_rx_session_t *best = NULL, *idle = NULL;
     size_t i;
     for (i = 0; i < DAN_DC_RX_SESSIONS; i++) {
         dan_dc_rx_session_t *s = &rx->sessions[i];
@@ -315,6 +321,12 @@ static dan_dc_rx_session_t *alloc_session(dan_dc_rx_t *rx, const dan_dc_transfer
         if (timed_out(s, now_us) && (best == NULL || s->ts_start_us < best->ts_start_us)) {
             best = s;
         }
+        if (multi && !s->in_progress && (idle == NULL || s->ts_start_us < idle->ts_start_us)) {
+            idle = s;
+        }
+    }
+    if (best == NULL) {
+        best = idle;
     }
     if (best != NULL) {
         if (best->in_progress) {
@@ -413,7 +425,7 @@ static int rx_start(dan_dc_rx_t *rx, dan_dc_rx_session_t *s, const dan_can_frame
             return 0;
         }
     } else if (fr->t.source_node != 0u) {
-        s = alloc_session(rx, &fr->t, now_us);
+        s = alloc_session(rx, &fr->t, now_us, !fr->eot);
         if (s == NULL && !fr->eot) {
             rx->stats.no_slot++;
             return 0;

@@ -1360,6 +1360,68 @@ static void test_rx_overflow_and_slots(void **state)
     free(rx);
 }
 
+/* Single-frame flows that keep every slot (each sends within the 2 s
+ * timeout: NodeStatus, StatusExtended, Temperature of 20 ESCs) must not
+ * lock multi-frame transfers out: esc.Status, GetNodeInfo and file.Read
+ * got no_slot for as long as those flows kept sending (review finding).
+ * A multi-frame start takes the stalest slot with nothing in progress; a
+ * transfer in progress is never taken. */
+static void test_rx_single_frame_flows_leave_room(void **state)
+{
+    static dan_can_frame_t f[80];
+    static const uint8_t data[14] = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14};
+    dan_dc_transfer_t t, out;
+    dan_dc_rx_t *rx = malloc(sizeof *rx);
+    unsigned s;
+    int n, i;
+    (void)state;
+    assert_non_null(rx);
+    dan_dc_rx_init(rx, 9, accept_all, NULL);
+    memset(&t, 0, sizeof t);
+    t.signature = 0x1122334455667788ull;
+    t.payload = data;
+    t.data_type_id = 341;
+    t.payload_len = 7;
+    for (s = 0; s < DAN_DC_RX_SESSIONS; s++) { /* one single-frame flow per slot */
+        t.source_node = (uint8_t)(s + 1u);
+        assert_int_equal(dan_dc_tx_build(&t, f, 80), 1);
+        assert_int_equal(dan_dc_rx_frame(rx, &f[0], 1000u + s, &out), 1);
+    }
+    /* 1 s later (every slot still live): a 3-frame esc.Status from node 100 */
+    t.source_node = 100;
+    t.data_type_id = 1034;
+    t.payload_len = 14;
+    n = dan_dc_tx_build(&t, f, 80);
+    assert_int_equal(n, 3);
+    for (i = 0; i < n; i++) {
+        assert_int_equal(dan_dc_rx_frame(rx, &f[i], 1000000u, &out), i == n - 1 ? 1 : 0);
+    }
+    assert_int_equal(out.source_node, 100);
+    assert_int_equal(rx->stats.no_slot, 0);
+    /* it took the stalest flow's slot (node 1); node 1 still gets through */
+    t.source_node = 1;
+    t.data_type_id = 341;
+    t.payload_len = 7;
+    t.transfer_id = 1;
+    assert_int_equal(dan_dc_tx_build(&t, f, 80), 1);
+    assert_int_equal(dan_dc_rx_frame(rx, &f[0], 1000100u, &out), 1);
+    /* transfers in progress are never taken: start one per slot, then a
+     * new multi-frame start finds none */
+    dan_dc_rx_init(rx, 9, accept_all, NULL);
+    t.data_type_id = 1034;
+    t.payload_len = 14;
+    for (s = 0; s < DAN_DC_RX_SESSIONS; s++) {
+        t.source_node = (uint8_t)(s + 1u);
+        n = dan_dc_tx_build(&t, f, 80);
+        assert_int_equal(dan_dc_rx_frame(rx, &f[0], 1000u, &out), 0);
+    }
+    t.source_node = 100;
+    n = dan_dc_tx_build(&t, f, 80);
+    assert_int_equal(dan_dc_rx_frame(rx, &f[0], 2000u, &out), 0);
+    assert_int_equal(rx->stats.no_slot, 1);
+    free(rx);
+}
+
 /* ---- fuzz ---- */
 
 static uint32_t rnd(uint32_t *s)
@@ -1505,10 +1567,10 @@ static void test_codec_errors(void **state)
 
 int main(void)
 {
-    return UNIT_RUN("dronecan", NULL, NULL, test_brief_vectors, test_vector_file_tx,
-                    test_vector_file_rx, test_crc, test_scalar_bits, test_float16, test_ids,
-                    test_tx_misc, test_tid_table, test_tid_table_requests_give_way,
-                    test_rx_interleaved, test_rx_lost_and_toggle, test_rx_crc, test_rx_timeout,
-                    test_rx_destination, test_rx_overflow_and_slots, test_fuzz, test_decode_fuzz,
-                    test_codec_errors);
+    return UNIT_RUN(
+        "dronecan", NULL, NULL, test_brief_vectors, test_vector_file_tx, test_vector_file_rx,
+        test_crc, test_scalar_bits, test_float16, test_ids, test_tx_misc, test_tid_table,
+        test_tid_table_requests_give_way, test_rx_interleaved, test_rx_lost_and_toggle, test_rx_crc,
+        test_rx_timeout, test_rx_destination, test_rx_overflow_and_slots,
+        test_rx_single_frame_flows_leave_room, test_fuzz, test_decode_fuzz, test_codec_errors);
 }
