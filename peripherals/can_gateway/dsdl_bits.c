@@ -460,7 +460,9 @@ int dan_dc_decode_tao_array(void *m, size_t size, size_t count_offset, size_t ma
         return DAN_ERR_ARG;
     }
     n = dan_dc_tao_count(&r, elem_bits);
-    if (n > max) {
+    /* No encoder leaves 8 or more bits after the last element (pydronecan
+     * refuses such a payload: a 3-byte RawCommand, a 36-byte one). */
+    if (n > max || dan_dc_br_remaining_bits(&r) - n * elem_bits >= 8u) {
         return DAN_ERR_MALFORMED;
     }
     for (i = 0; i < n; i++) {

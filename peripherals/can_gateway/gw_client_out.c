@@ -25,6 +25,14 @@ dan_gw_servo_t dan_gw_servo_make(uint8_t actuator_id, uint8_t command_type, floa
     dan_gw_servo_t s;
     s.actuator_id = actuator_id;
     s.command_type = command_type;
+    /* command_value is a saturated float16: beyond +-65504 (infinity
+     * included, as pydronecan casts) the largest finite value, never an
+     * infinity on the bus */
+    if (value > 65504.0f) {
+        value = 65504.0f;
+    } else if (value < -65504.0f) {
+        value = -65504.0f;
+    }
     s.value_f16 = dan_f16_from_f32(value);
     return s;
 }

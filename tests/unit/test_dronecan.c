@@ -1540,6 +1540,12 @@ static void test_codec_errors(void **state)
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, big, 35), 0);
     assert_int_equal(rc.count, 20);
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, big, 37), DAN_ERR_MALFORMED);
+    /* a byte or more left after the last element: no encoder makes it
+     * (20 commands are 35 bytes, 1 is 2; pydronecan refuses these too) */
+    assert_int_equal(dan_dc_esc_raw_command_decode(&rc, big, 36), DAN_ERR_MALFORMED);
+    assert_int_equal(dan_dc_esc_raw_command_decode(&rc, big, 3), DAN_ERR_MALFORMED);
+    assert_int_equal(dan_dc_esc_raw_command_decode(&rc, big, 2), 0);
+    assert_int_equal(rc.count, 1);
     assert_int_equal(dan_dc_esc_raw_command_decode(&rc, NULL, 0), 0);
     assert_int_equal(rc.count, 0);
     /* Buffers above their maxima. */

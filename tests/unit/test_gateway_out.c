@@ -12,6 +12,7 @@
 
 #include <stdio.h>
 #include <stdlib.h>
+#include <math.h>
 #include <string.h>
 
 #include "dan/can_gw/f16.h"
@@ -118,6 +119,12 @@ static void test_servos_and_failsafe(void **state)
         assert_int_equal(got[i].command_type, DAN_DC_ACTUATOR_UNITLESS);
         assert_true(dan_f16_to_f32(got[i].value_f16) == (float)i / 32.0f);
     }
+    /* a saturated float16: never an infinity on the bus (review finding:
+     * 70000 became +inf) */
+    assert_int_equal(dan_gw_servo_make(1, 0, 70000.0f).value_f16, 0x7BFF);
+    assert_int_equal(dan_gw_servo_make(1, 0, 65520.0f).value_f16, 0x7BFF);
+    assert_int_equal(dan_gw_servo_make(1, 0, -INFINITY).value_f16, 0xFBFF);
+    assert_int_equal(dan_gw_servo_make(1, 0, 65504.0f).value_f16, 0x7BFF);
     /* latest wins per actuator; the others repeat their last command */
     s[0] = dan_gw_servo_make(3, DAN_DC_ACTUATOR_PWM, 1900.0f);
     call_ok(dan_gw_servo(&R->gw, s, 1, R->bus.now));

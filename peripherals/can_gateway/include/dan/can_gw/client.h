@@ -221,7 +221,8 @@ int dan_gw_dna_next(dan_reader_t *r, dan_gw_dna_entry_t *e);
  * outputs), false STATUS_SAFETY_ON (0). The gateway's failsafe sets ON. */
 int dan_gw_safety(dan_gw_t *gw, bool safety_off, uint64_t now_us);
 /* Actuator commands, latest wins per actuator_id (1..DAN_GW_SERVO_MAX
- * entries). Values are binary16 bits: dan_gw_servo_make() converts. */
+ * entries). Values are binary16 bits: dan_gw_servo_make() converts,
+ * saturating beyond +-65504 (infinity too) as DSDL's float16 does. */
 int dan_gw_servo(dan_gw_t *gw, const dan_gw_servo_t *s, size_t n, uint64_t now_us);
 dan_gw_servo_t dan_gw_servo_make(uint8_t actuator_id, uint8_t command_type, float value);
 /* Replaces the servo failsafe table (0..DAN_GW_SERVO_MAX entries; an
