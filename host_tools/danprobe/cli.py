@@ -8,7 +8,8 @@ from typing import Optional
 
 from danprobe import __version__, gateway_client
 from danprobe.commands import COMMANDS
-from danprobe.commands.common import EXIT_FAIL, CliError, Context
+from danprobe.commands.common import EXIT_FAIL, EXIT_INTERRUPTED, CliError, Context
+from danprobe.file_update import Stopped
 from danprobe.master import DanError, OperationTimeout
 from danprobe.port import PortError
 
@@ -80,11 +81,14 @@ def build_parser() -> argparse.ArgumentParser:
             formatter_class=HelpFormatter,
         )
         cmd.add_arguments(sp)
-        sp.set_defaults(run=cmd.run)
+        sp.set_defaults(run=cmd.run, json_events=getattr(cmd, "JSON_EVENTS", False))
     return p
 
 
 def main(argv: Optional[list[str]] = None) -> int:
+    """Runs the command. One that an exception ends (--timeout, Ctrl-C, a
+    port or bus error) still prints its JSON document with --json (see
+    Context.cut_short); bad arguments (exit 2) print none."""
     args = build_parser().parse_args(argv)  # exits 2 on bad arguments
     gateway_client.register_names()  # sniff names and decodes the gateway's codes
     ctx = Context(args)
@@ -94,14 +98,14 @@ def main(argv: Optional[list[str]] = None) -> int:
         ctx.error(str(e))
         return e.exit_code
     except OperationTimeout:
-        ctx.error(f"{args.command}: timed out after {args.timeout:g} s")
-        return EXIT_FAIL
-    except (DanError, PortError) as e:
-        ctx.error(f"{args.command}: {e}")
-        return EXIT_FAIL
+        what = f"timed out after {args.timeout:g} s"
+        return ctx.cut_short(OperationTimeout(what), f"{args.command}: {what}", EXIT_FAIL)
+    except DanError as e:
+        return ctx.cut_short(e, f"{args.command}: {e}", EXIT_FAIL)
+    except PortError as e:
+        return ctx.cut_short(DanError(str(e)), f"{args.command}: {e}", EXIT_FAIL)
     except KeyboardInterrupt:
-        ctx.error("interrupted")
-        return 130
+        return ctx.cut_short(Stopped("interrupted"), "interrupted", EXIT_INTERRUPTED)
     except BrokenPipeError:
         # stdout closed early (| head): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -31,6 +31,7 @@ command again, so they need no sequence numbers.
 
 import random
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
@@ -495,13 +496,24 @@ class GatewayClient:
         """Starts receiving with our filter: empties the filter, drops the
         frames still waiting in the gateway (they passed someone else's
         filter, earlier), then sets filters. Returns the table it replaced,
-        for can_filter(FILTER_REPLACE, previous) at the end."""
+        for can_filter(FILTER_REPLACE, previous) at the end. Cut short
+        after the table was read (a transaction failed, --timeout, Ctrl-C),
+        it puts that table back (best effort) before it raises."""
         previous = self.can_filter(FILTER_READ).filters
-        self.can_filter(FILTER_REPLACE, [])
-        while self.can_recv():
-            pass
-        if self.can_filter(FILTER_REPLACE, filters).op != 0:
-            raise Nack("the gateway's filter table is full")
+        try:
+            self.can_filter(FILTER_REPLACE, [])
+            while self.can_recv():
+                pass
+            if self.can_filter(FILTER_REPLACE, filters).op != 0:
+                raise Nack("the gateway's filter table is full")
+        except BaseException:
+            recover = getattr(self.m, "time_to_recover", nullcontext)
+            with recover():
+                try:
+                    self.can_filter(FILTER_REPLACE, previous)
+                except Exception:
+                    pass  # the gateway or the port is gone: the cause is what counts
+            raise
         return previous
 
     def can_filter(self, op: int, filters: Sequence[Filter] = ()) -> FilterTable:

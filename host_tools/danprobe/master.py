@@ -12,6 +12,7 @@ import os
 import random
 import time
 from collections import deque
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from typing import Callable, Optional
 
@@ -42,7 +43,7 @@ GAP_CHARS = 10  # libdan's inter-byte gap: max(10 C, 2 ms)
 GAP_MIN_S = 0.002
 ECHO_WAKE_CHARS = 4  # send() sleeps until this many characters before its echo's end
 ECHO_LATE_HOLD_S = 1.0  # after an echo timeout or a collision, a copy of our frame is our echo
-RECOVER_S = 10.0  # a configure cut short (--timeout, Ctrl-C) gets this long to recover the bus
+RECOVER_S = 10.0  # to recover from a configure (or a filter) cut short: --timeout, Ctrl-C
 
 
 def char_s(baud: int) -> float:
@@ -593,15 +594,23 @@ class Master:
         try:
             return self._configure(baud)
         except (OperationTimeout, KeyboardInterrupt) as e:
-            deadline = self.link.deadline
-            self.link.deadline = now() + RECOVER_S
-            try:
-                self._recover(e if isinstance(e, DanError) else OperationTimeout("interrupted"))
-            except DanError:
-                pass  # recovered as far as it could: the cause is what counts
-            finally:
-                self.link.deadline = deadline
+            with self.time_to_recover():
+                try:
+                    self._recover(e if isinstance(e, DanError) else OperationTimeout("interrupted"))
+                except DanError:
+                    pass  # recovered as far as it could: the cause is what counts
             raise
+
+    @contextmanager
+    def time_to_recover(self):
+        """RECOVER_S from now for the clean-up of an operation cut short
+        (--timeout, Ctrl-C): the operation's own time limit is back after."""
+        deadline = self.link.deadline
+        self.link.deadline = now() + RECOVER_S
+        try:
+            yield
+        finally:
+            self.link.deadline = deadline
 
     def _configure(self, baud: int) -> int:
         if baud and baud > BASE_BAUD and baud not in payloads.MASK_BAUDS:

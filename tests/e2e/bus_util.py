@@ -4,6 +4,7 @@ import json
 import socket
 import subprocess
 import sys
+from pathlib import Path
 
 from conftest import BIN, PERIPH_WINDOW_MS
 
@@ -101,8 +102,17 @@ def periph_stats(procs, p):
 
 def danprobe(*args, timeout=120):
     """Runs danprobe (this venv's); (exit code, stdout, stderr)."""
+    return _run_python(["-m", "danprobe", *args], timeout)
+
+
+def danprobe_with_fault(fault, *args, timeout=120):
+    """danprobe(*args) with a fault injected (tests/e2e/danprobe_faults.py)."""
+    return _run_python([Path(__file__).with_name("danprobe_faults.py"), fault, *args], timeout)
+
+
+def _run_python(args, timeout):
     r = subprocess.run(
-        [sys.executable, "-m", "danprobe", *map(str, args)],
+        [sys.executable, *map(str, args)],
         stdin=subprocess.DEVNULL,
         capture_output=True,
         timeout=timeout,

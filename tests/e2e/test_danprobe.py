@@ -4,8 +4,10 @@ dan-vbus, dan-testperiph and dan-master."""
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import termios
 from pathlib import Path
 
 import pytest
@@ -527,6 +529,99 @@ def test_baud_beyond_the_driver_is_a_clear_error():
         os.close(m)
         os.close(s)
     assert rc == 2 and "Traceback" not in err and "danprobe:" in err, err
+
+
+def pty_at_19200_cooked():
+    """A pty pair of the test's own whose slave side is at 19200 baud in
+    cooked mode (echo, line editing): a port as another program left it.
+    (master fd, slave fd, slave path, its termios settings)."""
+    master, slave = os.openpty()
+    attrs = termios.tcgetattr(slave)
+    attrs[2] = (attrs[2] & ~termios.CBAUD) | termios.B19200
+    attrs[3] |= termios.ICANON | termios.ECHO
+    attrs[4] = attrs[5] = termios.B19200
+    termios.tcsetattr(slave, termios.TCSANOW, attrs)
+    return master, slave, os.ttyname(slave), termios.tcgetattr(slave)
+
+
+def test_port_settings_restored_at_close():
+    """pyserial makes the port raw at our baud and left it so: danprobe
+    puts the termios settings it found back when it closes the port, as
+    can-utils' tools do (review finding), also after a baud change."""
+    from danprobe.port import SerialPort
+
+    master, slave, path, found = pty_at_19200_cooked()
+    try:
+        rc, out, err = danprobe("sniff", "--port", path, "--baud", "115200", "--timeout", "0.3")
+        assert rc == 1 and "no DAN frame heard" in err, err
+        assert termios.tcgetattr(slave) == found
+        with SerialPort(path, 9600) as port:
+            raw = termios.tcgetattr(slave)
+            assert raw != found and raw[4] == termios.B9600 and not raw[3] & termios.ICANON
+            port.set_baud(115200)
+            assert termios.tcgetattr(slave)[4] == termios.B115200
+        assert termios.tcgetattr(slave) == found
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_vanished_port_is_device_disconnected():
+    """The pty's other side closed (as a USB adapter unplugged): drain,
+    discard and set_baud raised termios.error (a traceback) or named no
+    disconnection; now PortError 'device disconnected', and close() says
+    nothing (the settings cannot go back to a device that is gone)."""
+    from danprobe.port import PortError, SerialPort
+
+    master, slave, path, found = pty_at_19200_cooked()
+    try:
+        port = SerialPort(path, 9600)
+        os.close(master)  # the pty hangs up
+        master = None
+        for what, call in (
+            ("drain", port.drain),
+            ("discard", port.discard_output),
+            ("set baud", lambda: port.set_baud(115200)),
+            ("write", lambda: port.write(b"x")),
+        ):
+            with pytest.raises(PortError, match=rf": device disconnected \({what}: "):
+                call()
+        port.close()
+        assert not port.ser.is_open
+    finally:
+        if master is not None:
+            os.close(master)
+        os.close(slave)
+
+
+def test_json_document_when_cut_short(procs, tmp_path):
+    """--json printed nothing when --timeout or Ctrl-C ended a command
+    (review finding): a script reading stdout now gets one document with
+    result/error/detail as any failure's, and the same exit codes (1, 130)
+    and stderr message as before. Every probe waits 400 ms for an answer
+    that never comes, so the discovery outlasts --timeout 0.5."""
+    _, eps, _ = start_vbus(procs, tmp_path, 2)
+    rc, out, err = danprobe("stats", "--port", eps[0], "--timeout", "0.5", "--json")
+    assert rc == 1 and err.endswith("danprobe: stats: timed out after 0.5 s\n"), err
+    doc = json.loads(out)
+    assert (doc["command"], doc["result"], doc["error"]) == ("stats", -4, "timeout"), doc
+    assert doc["detail"] == "timed out after 0.5 s" and doc["port"] == eps[0], doc
+    assert doc["peers"] == [] and isinstance(doc["baud"], int) and "event" not in doc, doc
+    # a command whose --json is events: the document is its summary
+    rc, out, err = danprobe("esc", "--port", eps[0], "--values", "0", "--timeout", "0.5", "--json")
+    doc = json.loads(out)
+    assert rc == 1 and doc["event"] == "summary" and doc["result"] == -4, (out, err)
+    # Ctrl-C mid-discovery (2 s a probe): exit 130, "interrupted"
+    p = procs.start(
+        [sys.executable, "-m", "danprobe", "discover", "--port", eps[0], "--json"]
+        + ["--latency-ms", "2000"],
+        name="danprobe-discover",
+    )
+    wait_for(lambda: "probing" in p.log_path.read_text(), 60, what="discovery started")
+    assert procs.stop(p, signal.SIGINT, timeout=30) == 130, p.log_path.read_text()
+    doc = json.loads(p.stdout.read().decode())
+    assert (doc["command"], doc["result"], doc["error"]) == ("discover", -12, "interrupted")
+    assert doc["peers"] == [] and p.log_path.read_text().endswith("danprobe: interrupted\n")
 
 
 def test_help():

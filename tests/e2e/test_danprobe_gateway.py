@@ -16,7 +16,7 @@ import sys
 
 import pytest
 
-from bus_util import danprobe, ready
+from bus_util import danprobe, danprobe_with_fault, ready
 from conftest import BIN, VECTORS, closing_factory, wait_for
 from danprobe import gateway_can as GC
 from danprobe import gateway_fast as FAST
@@ -781,6 +781,57 @@ def test_can_dump_filter_and_send(stack):
     danprobe_json("can", "send", "--port", s.dan, "-q", "321#01")
     danprobe_json("can", "send", "--port", s.dan, "-q", "321#01")
     wait_for(lambda: s.hub_frames(0).count((0x321, "01")) == 2, 20, what="both 321#01 on the bus")
+
+
+def test_esc_arm_whose_answer_was_lost_still_disarms(stack):
+    """The ARM reached the gateway but its answer was lost (every retry):
+    the arming was outside the try/finally, so esc failed at once and left
+    the gateway armed (review finding). Now the zero throttle and the
+    disarm follow whatever ended the run. A gateway that never had an ESC
+    command has no failsafe to disarm it."""
+    s = stack(escs=0)
+    rc, out, err = danprobe_with_fault(
+        "arm-answer-lost", "esc", "--port", s.dan, "--baud", "9600", "--values", "0",
+        "--duration", "1", "--arm",
+    )  # fmt: skip
+    assert rc == 1 and "the answer was lost" in err, err
+    doc = danprobe_json("telemetry", "--port", s.dan, "--baud", "9600", "-q")
+    assert doc["armed"] is False, (doc, err)
+    assert "zero throttle sent" in err and "disarm sent" in err, err
+
+
+def gateway_filters(s, replace=None):
+    """The gateway's receive filter table (after making it replace)."""
+    from danprobe import registry
+    from danprobe.master import Master, MasterConfig
+    from danprobe.port import SerialPort
+
+    with SerialPort(s.dan, 9600) as port:
+        m = Master(port, [registry.lookup("can-gw")], 9600, MasterConfig(resp_latency_s=0.4))
+        gw = GatewayClient(m)
+        if replace is not None:
+            assert gw.can_filter(G.FILTER_REPLACE, replace).op == 0
+        return gw.can_filter(G.FILTER_READ).filters
+
+
+def test_can_dump_cut_short_puts_the_filter_back(stack):
+    """can dump emptied the gateway's filter (another tool's, here) before
+    draining and setting its own; a failure or a Ctrl-C in between left it
+    empty (review finding). Now it goes back: after a failed CAN_RECV
+    (exit 1) and after a Ctrl-C (a normal stop of can dump: exit 0)."""
+    s = stack(escs=0)
+    theirs = [GC.Filter(0x155, 0x7FF), GC.Filter(0x40A00, 0xFFFF80, ext=True, own=True)]
+    assert gateway_filters(s, theirs) == theirs
+    args = ("can", "dump", "--port", s.dan, "--baud", "9600", "--filter", "123:7FF")
+    rc, out, err = danprobe_with_fault("recv-fails", *args, "--duration", "30", "--json")
+    assert rc == 1 and "CAN_RECV: no answer" in err, err
+    doc = json.loads(out)
+    assert doc["event"] == "summary" and doc["result"] == -4, doc
+    assert gateway_filters(s) == theirs
+    rc, out, err = danprobe_with_fault("recv-sigint", *args, "--duration", "30", "--json")
+    doc = json.loads(out)
+    assert rc == 0 and doc["event"] == "summary" and doc["result"] == 0, (out, err)
+    assert gateway_filters(s) == theirs
 
 
 def test_tunnel_targetted_and_broadcast(stack):

@@ -16,6 +16,7 @@ from danprobe.commands.common import (
     gateway_report,
     long_running,
     positive_int,
+    stop_signals,
     time_left,
 )
 from danprobe.master import DanError, OperationTimeout, RemoteError
@@ -35,6 +36,11 @@ DESCRIPTION = (
 )
 
 IDLE_POLL_S = 0.01
+
+
+def JSON_EVENTS(a) -> bool:
+    """`can dump --json` is frame events, then the summary."""
+    return a.can_command == "dump"
 
 
 def filter_spec(s: str) -> gateway_can.Filter:
@@ -132,12 +138,14 @@ def _dump(ctx) -> int:
     stamps = Stamps()
 
     def op(m, gw):
-        previous = gw.can_listen(filters)
-        ctx.progress(f"receiving {', '.join(f.text() for f in filters)} (Ctrl-C to stop)")
-        stop, dog = long_running(m, ctx)
-        t0 = now()
-        with stop:
+        # Ctrl-C from here on only stops: the filter always goes back (a
+        # can_listen() cut short puts it back itself)
+        with stop_signals(ctx) as stop:
+            previous = gw.can_listen(filters)
             try:
+                ctx.progress(f"receiving {', '.join(f.text() for f in filters)} (Ctrl-C to stop)")
+                _, dog = long_running(m, ctx)
+                t0 = now()
                 while (
                     not stop.stop
                     and (a.count is None or res["frames"] < a.count)

@@ -30,6 +30,7 @@ from danprobe.ptyport import Pty
 EXIT_OK = 0
 EXIT_FAIL = 1  # the operation failed: no answer, configure failed, port I/O error
 EXIT_USAGE = 2  # bad arguments, or the port cannot be opened (missing, busy, not a tty)
+EXIT_INTERRUPTED = 130  # Ctrl-C ended a command that does not take it for "stop"
 
 DEFAULT_BAUD = 9600
 DEFAULT_TYPES = "vtx,can-gw"
@@ -262,6 +263,9 @@ def port_max_baud(a: argparse.Namespace) -> int:
 class Context:
     def __init__(self, args: argparse.Namespace):
         self.args = args
+        self.t0 = now()
+        self.bus: Optional[Master] = None  # the command's master, once made
+        self.reported = False  # report() printed its final JSON document
 
     def progress(self, msg: str):
         if not self.args.quiet:
@@ -288,10 +292,41 @@ class Context:
         )
         m = Master(port, a.types, baud, cfg, echo=not a.no_echo, progress=self.progress)
         m.set_time_limit(a.timeout)
+        self.bus = m
         return m
 
     def emit_json(self, obj: dict):
         print(json.dumps(json_safe(obj), allow_nan=False), flush=True)
+
+    def cut_short(self, e: DanError, message: str, exit_code: int) -> int:
+        """The end of a command that an exception ended (--timeout, Ctrl-C,
+        a port or bus error): message on stderr, exit_code, and with --json
+        the document a script waits for, unless the command printed its own:
+        command, result, error, detail (as report()'s), ms, port, baud and
+        peers (what the master knew), "event": "summary" for a command
+        whose --json is a stream of events."""
+        a, m = self.args, self.bus
+        if getattr(a, "json", False) and not self.reported:
+            self.emit_json(
+                {
+                    "command": a.command,
+                    **error_fields(e),
+                    "ms": round((now() - self.t0) * 1000, 1),
+                    "port": getattr(a, "port", None),
+                    "baud": m.baud if m else None,
+                    **({"event": "summary"} if self.json_events() else {}),
+                    "peers": [p.as_dict() for p in m.present()] if m else [],
+                }
+            )
+        self.error(message)
+        return exit_code
+
+    def json_events(self) -> bool:
+        """The command's --json is a stream of events that ends with a
+        summary: its module's JSON_EVENTS (True, or a function of the
+        arguments: `can dump` does, `can send` not)."""
+        ev = getattr(self.args, "json_events", False)
+        return bool(ev(self.args) if callable(ev) else ev)
 
 
 def json_safe(v):
@@ -393,6 +428,7 @@ def report(
     text; failure_text on stderr and EXIT_FAIL on failure."""
     a = ctx.args
     if a.json:
+        ctx.reported = True
         ctx.emit_json(
             {
                 "command": a.command,

@@ -20,6 +20,7 @@ from danprobe.port import now
 
 NAME = "esc"
 HELP = "CAN gateway: send ESC commands (fixed values or a ramp) and show live telemetry"
+JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Sends uavcan.equipment.esc.RawCommand values through the gateway (ESC_CMD) at --rate "
     "exchanges per second for --duration seconds; every exchange brings one ESC's newest "
@@ -222,18 +223,14 @@ def run(ctx) -> int:
 
 def _drive(ctx, m, gw, values_at, res):
     """Exchanges at --rate for --duration (arming first with --arm), then
-    zero throttle however the loop ended."""
+    zero throttle (and disarm) however the loop ended: an ARM whose answer
+    was lost may still have armed the gateway, so its failure is inside."""
     a = ctx.args
     stop, dog = long_running(m, ctx)
     period = 1.0 / a.rate
     n_values = len(values_at(0.0))
     with stop:
-        if a.arm:
-            gw.arm(gateway_msgs.ARM_FULLY_ARMED)
-            ctx.progress("armed")
         t0 = now()
-        due = last_line = t0
-        count_at_line = 0
 
         def exchange_event(t, values, ok, **more):
             ctx.emit_json(
@@ -241,6 +238,12 @@ def _drive(ctx, m, gw, values_at, res):
             )
 
         try:
+            if a.arm:
+                gw.arm(gateway_msgs.ARM_FULLY_ARMED)
+                ctx.progress("armed")
+            t0 = now()
+            due = last_line = t0
+            count_at_line = 0
             while not stop.stop:
                 t = now()
                 if t - t0 >= a.duration:

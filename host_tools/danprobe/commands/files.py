@@ -7,6 +7,7 @@ import os
 from danprobe import file_update
 from danprobe import gateway_file as F
 from danprobe.commands.common import (
+    EXIT_INTERRUPTED,
     UsageError,
     format_table,
     gateway_actions,
@@ -34,7 +35,6 @@ EXAMPLES = (
     "danprobe files list --port /dev/ttyUSB0 --baud 115200",
     "danprobe files rm --port /dev/ttyUSB0 --baud 115200 esc-2.0.bin",
 )
-EXIT_INTERRUPTED = 130
 
 
 def store_name(s: str) -> str:

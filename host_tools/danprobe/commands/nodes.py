@@ -26,6 +26,11 @@ DESCRIPTION = (
 )
 
 
+def JSON_EVENTS(a) -> bool:
+    """With --watch, --json is one document per refresh, then the summary."""
+    return a.watch
+
+
 def add_arguments(p):
     g = add_gateway_options(p, long_running=True, own="nodes")
     g.add_argument(

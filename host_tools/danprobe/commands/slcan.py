@@ -29,6 +29,7 @@ from danprobe.slcan_codec import (
 
 NAME = "slcan"
 HELP = "CAN gateway: an SLCAN (Lawicel) adapter on a pty, for pydronecan and the DroneCAN GUI"
+JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Emulates a Lawicel/SLCAN USB-CAN adapter on a new pseudo-terminal whose CAN bus is the "
     "one behind the gateway: frames the client sends (t/T/r/R) go out with CAN_SEND and are "

@@ -18,6 +18,7 @@ from danprobe.sniff import CaptureError, Sniffer, read_capture, sniff_capture
 
 NAME = "sniff"
 HELP = "decode the frames on a live line (listen only) or in a dan-vbus capture file"
+JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Prints every frame with its time, source (capture files know it), baud, gap since "
     "the previous frame, code name and decoded payload, plus decoder errors as they "
@@ -83,6 +84,7 @@ class _Printer:
     def summary(self) -> int:
         s = self.sniffer.summary()
         if self.ctx.args.json:
+            self.ctx.reported = True
             self.ctx.emit_json({"event": "summary", **s})
         else:
             names = ", ".join(f"{k} {v}" for k, v in s.pop("frames_by_name").items())

@@ -20,6 +20,7 @@ from danprobe.port import now
 
 NAME = "tunnel"
 HELP = "CAN gateway: bridge a DroneCAN serial tunnel to a local pseudo-terminal"
+JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Opens a gateway tunnel port (uavcan.tunnel.Targetted to --target NODE, as ArduPilot's "
     "serial-over-DroneCAN, or uavcan.tunnel.Broadcast with --protocol/--channel) and "
