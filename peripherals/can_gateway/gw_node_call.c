@@ -104,7 +104,8 @@ static void send_attempt(dan_gw_node_t *g, dan_gw_node_call_t *k, uint64_t now_u
     service_t s = service_of(k->op);
     dan_dc_transfer_t t;
     int tid = dan_dc_tid_next(&g->tids, s.dtid, DAN_DC_TRANSFER_REQUEST, k->node_id);
-    k->due_us = now_us + DAN_GW_NODE_CALL_TIMEOUT_US;
+    k->due_us = now_us + DAN_GW_NODE_CALL_TIMEOUT_US *
+                             (k->op == DAN_GW_CALL_RESTART ? DAN_GW_NODE_CALL_ATTEMPTS : 1u);
     if (tid < 0) {
         return; /* no transfer ID: the attempt times out like a lost one */
     }
@@ -359,7 +360,10 @@ void dan_gwn_calls_poll(dan_gw_node_t *g, uint64_t now_us)
         if (k->state != DAN_GW_CALL_PENDING || now_us < k->due_us) {
             continue;
         }
-        if (k->attempts < DAN_GW_NODE_CALL_ATTEMPTS) {
+        /* RESTART goes once, its attempts' time in one wait: a node may
+         * restart without answering, and a new transfer ID is a new
+         * request to it (it restarted up to three times; review finding) */
+        if (k->attempts < DAN_GW_NODE_CALL_ATTEMPTS && k->op != DAN_GW_CALL_RESTART) {
             send_attempt(g, k, now_us);
         } else {
             k->state = DAN_GW_CALL_TIMEOUT;

@@ -161,11 +161,13 @@ static void store(dan_gw_node_t *g)
 
 /* ---- allocation ---- */
 
-/* In use: ours, in the table, or seen on the bus. */
+/* In use: ours, in the table, or seen on the bus (a NodeStatus since
+ * start: the node table may have had no room for it, or given its slot to
+ * a newer node after it went silent; review finding). */
 static bool occupied(dan_gw_node_t *g, unsigned id)
 {
     return id == g->cfg.node_id || dan_gwn_dna_entry(g, (uint8_t)id) != NULL ||
-           dan_gwn_find_node(g, (uint8_t)id) != NULL;
+           (g->dna.seen[id / 8u] & (1u << (id % 8u))) != 0u;
 }
 
 /* The specification's findFreeNodeID: up from the preferred ID, then down;
@@ -212,16 +214,20 @@ static void answer(dan_gw_node_t *g, uint8_t node_id)
 }
 
 /* The ID the table holds for a unique ID is given again unless it became
- * the gateway's own (its node ID changed) or another device uses it now:
- * a node of the node table whose GetNodeInfo gave another unique ID
- * (found by the dna fuzz target: the same ID went to two devices). */
+ * the gateway's own (its node ID changed) or a node of the node table uses
+ * it that is not proven to be this device: its GetNodeInfo gave another
+ * unique ID (found by the dna fuzz target), or gave none yet or failed (a
+ * static node that came up at that ID: review finding, the ID went to two
+ * devices). */
 static bool entry_usable(dan_gw_node_t *g, const dan_gw_dna_entry_t *e)
 {
     const dan_gw_node_slot_t *n = dan_gwn_find_node(g, e->node_id);
     return e->node_id != g->cfg.node_id &&
-           (n == NULL || n->info.info_state != DAN_GW_INFO_VALID ||
-            memcmp(n->info.unique_id, e->unique_id, DAN_DC_UNIQUE_ID_SIZE) == 0);
+           (n == NULL || (n->info.info_state == DAN_GW_INFO_VALID &&
+                          memcmp(n->info.unique_id, e->unique_id, DAN_DC_UNIQUE_ID_SIZE) == 0));
 }
+
+static bool discovering(const dan_gw_node_t *g);
 
 /* All 16 bytes arrived: the same ID again for a known unique ID (while
  * usable), else a free one, stored. */
@@ -229,6 +235,12 @@ static void allocate(dan_gw_node_t *g, uint8_t preferred)
 {
     dan_gw_dna_entry_t *e = entry_of_uid(g, g->dna.query);
     uint8_t id;
+    if (discovering(g)) {
+        /* a node appeared during the handshake: no answer until its
+         * GetNodeInfo is in (the allocatee starts over after its timeout) */
+        g->dna.query_len = 0;
+        return;
+    }
     if (e == NULL || !entry_usable(g, e)) {
         id = free_id(g, preferred);
         if (id == 0u || (e == NULL && g->dna.n >= DAN_GW_NODE_DNA_MAX)) {
@@ -326,6 +338,13 @@ void dan_gw_node_set_dna(dan_gw_node_t *g, bool on)
 {
     g->cfg.dna = on;
     g->dna.query_len = 0;
+    if (!on) {
+        /* off, nothing of the server's is a health reason any more
+         * (PROTOCOL.md: "another allocator is the bus's allocator and no
+         * conflict"); they were latched (review finding) */
+        g->dna.full = false;
+        g->dna.foreign = 0;
+    }
 }
 
 /* DNA page: entries from index first while they fit. */

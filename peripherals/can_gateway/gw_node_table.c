@@ -120,6 +120,8 @@ void dan_gwn_on_node_status(dan_gw_node_t *g, const dan_dc_transfer_t *t, uint64
         dan_dc_node_status_decode(&s, t->payload, t->payload_len) != DAN_OK) {
         return;
     }
+    /* in use from now on, even if the table has no room for it */
+    g->dna.seen[t->source_node / 8u] |= (uint8_t)(1u << (t->source_node % 8u));
     n = dan_gwn_find_node(g, t->source_node);
     if (n == NULL) {
         n = slot_for_new(g, now_us);

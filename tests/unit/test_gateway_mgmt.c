@@ -217,9 +217,11 @@ static void test_dna_foreign_allocator(void **state)
     assert_int_equal(R->gw.health.verdict, DAN_GW_HEALTH_FAIL);
     assert_int_equal(R->gw.health.reason, DAN_GW_REASON_DNA_CONFLICT);
     assert_int_equal(R->gw.health.subject, 99);
-    /* with our server off, another allocator is no conflict */
-    R->g.cfg.dna = false;
-    R->g.dna.foreign = 0;
+    /* the FC turns our server off: another allocator is no conflict, at
+     * once (the reason stayed for a minute: review finding) */
+    config_set(DAN_GW_CFG_DNA, 0);
+    call_ok(dan_gw_health(&R->gw, R->bus.now));
+    assert_int_not_equal(R->gw.health.reason, DAN_GW_REASON_DNA_CONFLICT);
     inject(98, DAN_DC_ALLOCATION_ID, DAN_DC_ALLOCATION_SIGNATURE, DAN_DC_TRANSFER_BROADCAST, 0, buf,
            dan_dc_allocation_encode(&m, buf, sizeof buf));
     assert_int_equal(R->g.stats.dna_foreign, 1);
@@ -427,6 +429,77 @@ static void test_dna_table_full(void **state)
     assert_int_equal(allocate(uid, 0), 0);
     call_ok(dan_gw_health(&R->gw, R->bus.now));
     assert_int_equal(R->gw.health.reason, DAN_GW_REASON_DNA_FULL);
+    config_set(DAN_GW_CFG_DNA, 0); /* the server off: no longer a reason */
+    call_ok(dan_gw_health(&R->gw, R->bus.now));
+    assert_int_not_equal(R->gw.health.reason, DAN_GW_REASON_DNA_FULL);
+}
+
+/* The table holds UID_A -> 125; a static node comes up at 125 while UID_A's
+ * handshake runs (its GetNodeInfo not in yet, later failed): UID_A must
+ * not get 125 (it did: two devices on one ID; review finding). */
+static void test_dna_stored_id_taken_by_unproven_node(void **state)
+{
+    size_t from;
+    dan_dc_allocation_t m;
+    (void)state;
+    first_allocation();
+    advance(1000);  /* stored */
+    restart_node(); /* the table is loaded; no node seen yet */
+    assert_int_equal(R->g.dna.n, 1);
+    advance(1000);
+    from = R->ncap;
+    alloc_stage(UID_A, 0, 6, 0, true);
+    advance(100000);
+    node_status(125, 5, DAN_DC_HEALTH_OK); /* the static node */
+    drain();
+    alloc_stage(UID_A, 6, 6, 0, false);
+    advance(100000);
+    alloc_stage(UID_A, 12, 4, 0, false);
+    assert_true(answer(&from, &m));
+    assert_true(m.uid_len < 16 || m.node_id != 125);
+    for (int i = 0; i < 5; i++) { /* it stays; its GetNodeInfo attempts run out */
+        advance(1000000);
+        node_status(125, (uint32_t)(6 + i), DAN_DC_HEALTH_OK);
+    }
+    assert_int_equal(allocate(UID_A, 0), 124);
+}
+
+/* IDs seen in NodeStatus are in use even when the node table had no room
+ * for them (32 nodes alive): one was granted to an allocatee (review
+ * finding). */
+static void test_dna_skips_ids_beyond_the_node_table(void **state)
+{
+    unsigned id, t;
+    (void)state;
+    advance(1000);
+    for (t = 0; t < 6; t++) { /* 32 nodes, alive; their GetNodeInfo runs out */
+        for (id = 1; id <= DAN_GW_NODE_MAX_NODES; id++) {
+            node_status((uint8_t)id, 5 + t, DAN_DC_HEALTH_OK);
+        }
+        advance(1000000);
+    }
+    node_status(125, 5, DAN_DC_HEALTH_OK); /* no room: dropped from the table */
+    assert_int_equal(R->g.stats.nodes_dropped, 1);
+    assert_int_equal(allocate(UID_A, 0), 124);
+}
+
+/* RESTART goes once: a node may restart without answering, and each new
+ * transfer ID is a new request (it restarted up to three times). */
+static void test_restart_sent_once(void **state)
+{
+    size_t from = R->ncap, sent = 0;
+    (void)state;
+    call_ok(dan_gw_restart(&R->gw, 5, LISTEN_NODE, DAN_GW_RESTART_MAGIC, false, R->bus.now));
+    advance(2500000);
+    call_ok(dan_gw_call_result(&R->gw, 5, 0, 100, R->bus.now));
+    assert_int_equal(R->gw.m->resp[2], DAN_GW_CALL_PENDING); /* its 3 s wait */
+    advance(1000000);
+    while (find_cap(DAN_DC_RESTART_ID, DAN_DC_TRANSFER_REQUEST, &from) != NULL) {
+        sent++;
+    }
+    assert_int_equal(sent, 1);
+    call_ok(dan_gw_call_result(&R->gw, 5, 0, 100, R->bus.now));
+    assert_int_equal(R->gw.m->resp[2], DAN_GW_CALL_TIMEOUT);
 }
 
 /* ---- service calls ---- */
@@ -774,13 +847,14 @@ static void test_own_frames_and_times(void **state)
 
 int main(void)
 {
-    return UNIT_RUN("gateway_mgmt", setup, teardown, test_dna_ids, test_dna_skips_ids_in_use,
-                    test_dna_waits_for_discovery, test_dna_stage_timeout_and_garbage,
-                    test_dna_flood, test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard,
-                    test_dna_storage, test_dna_blob_reasons, test_dna_table_id_taken,
-                    test_dna_table_full, test_param_get_pipelined, test_param_set_retry_sent_once,
-                    test_call_timeout_and_busy, test_calls_to_many_nodes_leave_room_for_throttle,
-                    test_call_id_reuse_crc16_collision_is_new, test_restart_magic,
-                    test_health_verdicts, test_own_id_claimed, test_health_esc_telemetry,
-                    test_own_frames_and_times);
+    return UNIT_RUN(
+        "gateway_mgmt", setup, teardown, test_dna_ids, test_dna_skips_ids_in_use,
+        test_dna_waits_for_discovery, test_dna_stage_timeout_and_garbage, test_dna_flood,
+        test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard, test_dna_storage,
+        test_dna_blob_reasons, test_dna_table_id_taken, test_dna_table_full,
+        test_dna_stored_id_taken_by_unproven_node, test_dna_skips_ids_beyond_the_node_table,
+        test_restart_sent_once, test_param_get_pipelined, test_param_set_retry_sent_once,
+        test_call_timeout_and_busy, test_calls_to_many_nodes_leave_room_for_throttle,
+        test_call_id_reuse_crc16_collision_is_new, test_restart_magic, test_health_verdicts,
+        test_own_id_claimed, test_health_esc_telemetry, test_own_frames_and_times);
 }

@@ -289,6 +289,9 @@ typedef struct {
     uint8_t query[DAN_DC_UNIQUE_ID_SIZE]; /* the allocation in progress */
     uint8_t query_len;
     uint64_t query_us;
+    /* bit i of seen[i / 8]: node ID i sent NodeStatus since start, whether
+     * or not the node table has (or kept) a slot for it: never free */
+    uint8_t seen[128u / 8u];
 } dan_gw_node_dna_t;
 
 /* One service call (gw_node_call.c). */
