@@ -15,9 +15,11 @@ dan_gw_node_slot_t *dan_gwn_find_node(dan_gw_node_t *g, uint8_t id)
     return NULL;
 }
 
+/* Silent past DroneCAN's OFFLINE_TIMEOUT, or said so: a NodeStatus with
+ * mode OFFLINE means others need not wait for the timeout (the DSDL). */
 bool dan_gwn_offline(const dan_gw_node_slot_t *n, uint64_t now_us)
 {
-    return now_us - n->seen_us > DAN_GW_NODE_OFFLINE_US;
+    return now_us - n->seen_us > DAN_GW_NODE_OFFLINE_US || n->e.mode == DAN_DC_MODE_OFFLINE;
 }
 
 /* The NODES entry's last byte: the info state and the node's flags. */
@@ -57,8 +59,7 @@ static dan_gw_node_slot_t *slot_for_new(dan_gw_node_t *g, uint64_t now_us)
     }
     for (i = 0; i < DAN_GW_NODE_MAX_NODES; i++) {
         dan_gw_node_slot_t *c = &g->nodes[i];
-        if (now_us - c->seen_us > DAN_GW_NODE_OFFLINE_US &&
-            (best == NULL || c->seen_us < best->seen_us)) {
+        if (dan_gwn_offline(c, now_us) && (best == NULL || c->seen_us < best->seen_us)) {
             best = c;
         }
     }

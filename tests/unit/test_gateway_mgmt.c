@@ -483,6 +483,35 @@ static void test_dna_skips_ids_beyond_the_node_table(void **state)
     assert_int_equal(allocate(UID_A, 0), 124);
 }
 
+/* A NodeStatus with mode OFFLINE: the node is offline at once, not after
+ * 3 s of silence (the DSDL: others need not wait; review finding). */
+static void test_node_says_offline(void **state)
+{
+    dan_reader_t r;
+    dan_gw_nodes_hdr_t h;
+    dan_gw_node_entry_t e;
+    (void)state;
+    node_status(60, 5, DAN_DC_HEALTH_OK);
+    advance(100000);
+    node_status_from(60, 6, DAN_DC_HEALTH_OK, DAN_DC_MODE_OFFLINE);
+    advance(1000);
+    call_ok(dan_gw_nodes(&R->gw, 0, R->bus.now));
+    assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
+    do {
+        assert_int_equal(dan_gw_nodes_next(&r, &e), DAN_OK);
+    } while (e.node_id != 60);
+    assert_int_equal(e.mode, DAN_DC_MODE_OFFLINE);
+    assert_true((e.info_state & DAN_GW_NODE_OFFLINE) != 0u);
+    node_status(60, 7, DAN_DC_HEALTH_OK); /* back */
+    advance(1000);
+    call_ok(dan_gw_nodes(&R->gw, 0, R->bus.now));
+    assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
+    do {
+        assert_int_equal(dan_gw_nodes_next(&r, &e), DAN_OK);
+    } while (e.node_id != 60);
+    assert_true((e.info_state & DAN_GW_NODE_OFFLINE) == 0u);
+}
+
 /* RESTART goes once: a node may restart without answering, and each new
  * transfer ID is a new request (it restarted up to three times). */
 static void test_restart_sent_once(void **state)
@@ -853,8 +882,9 @@ int main(void)
         test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard, test_dna_storage,
         test_dna_blob_reasons, test_dna_table_id_taken, test_dna_table_full,
         test_dna_stored_id_taken_by_unproven_node, test_dna_skips_ids_beyond_the_node_table,
-        test_restart_sent_once, test_param_get_pipelined, test_param_set_retry_sent_once,
-        test_call_timeout_and_busy, test_calls_to_many_nodes_leave_room_for_throttle,
-        test_call_id_reuse_crc16_collision_is_new, test_restart_magic, test_health_verdicts,
-        test_own_id_claimed, test_health_esc_telemetry, test_own_frames_and_times);
+        test_restart_sent_once, test_node_says_offline, test_param_get_pipelined,
+        test_param_set_retry_sent_once, test_call_timeout_and_busy,
+        test_calls_to_many_nodes_leave_room_for_throttle, test_call_id_reuse_crc16_collision_is_new,
+        test_restart_magic, test_health_verdicts, test_own_id_claimed, test_health_esc_telemetry,
+        test_own_frames_and_times);
 }
