@@ -98,12 +98,37 @@ static int build_request(dan_gw_node_t *g, dan_gw_node_call_t *k, const dan_gw_c
     return DAN_OK;
 }
 
-/* One attempt: the request again with a new transfer ID. */
+static bool tid_of_call(const dan_gw_node_call_t *k, uint8_t tid);
+
+/* Another pending call to k's node and service answers to tid: a flow the
+ * transfer-ID table evicted restarts at an old counter, and a response
+ * would then complete the wrong call (review finding). */
+static bool tid_held(const dan_gw_node_t *g, const dan_gw_node_call_t *k, uint16_t dtid,
+                     uint8_t tid)
+{
+    size_t i;
+    for (i = 0; i < DAN_GW_NODE_CALLS; i++) {
+        const dan_gw_node_call_t *o = &g->calls[i];
+        if (o != k && o->state == DAN_GW_CALL_PENDING && o->node_id == k->node_id &&
+            service_of(o->op).dtid == dtid && tid_of_call(o, tid)) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* One attempt: the request again with a new transfer ID, one no other
+ * pending call to that node and service answers to (at most
+ * DAN_GW_NODE_CALLS * DAN_GW_NODE_CALL_ATTEMPTS of the 32 are). */
 static void send_attempt(dan_gw_node_t *g, dan_gw_node_call_t *k, uint64_t now_us)
 {
     service_t s = service_of(k->op);
     dan_dc_transfer_t t;
     int tid = dan_dc_tid_next(&g->tids, s.dtid, DAN_DC_TRANSFER_REQUEST, k->node_id);
+    unsigned tries = 0;
+    while (tid >= 0 && tid_held(g, k, s.dtid, (uint8_t)tid) && ++tries < 32u) {
+        tid = dan_dc_tid_next(&g->tids, s.dtid, DAN_DC_TRANSFER_REQUEST, k->node_id);
+    }
     k->due_us = now_us + DAN_GW_NODE_CALL_TIMEOUT_US *
                              (k->op == DAN_GW_CALL_RESTART ? DAN_GW_NODE_CALL_ATTEMPTS : 1u);
     if (tid < 0) {

@@ -569,6 +569,31 @@ static void read_param(uint16_t call_id, dan_gw_param_t *p)
     assert_int_equal(dan_gw_msg_param_decode(p, blob, total), DAN_OK);
 }
 
+/* A transfer-ID flow that the full table evicted restarts at another
+ * flow's counter: a new call must not take a transfer ID that a pending
+ * call to the same node and service still waits on (its answer would
+ * complete the wrong call; review finding). The counter is set back by
+ * hand, as an eviction can leave it. */
+static void test_call_tid_not_shared_with_pending(void **state)
+{
+    size_t from = R->ncap, i;
+    cap_t *a, *b;
+    (void)state;
+    call_ok(dan_gw_param_get_index(&R->gw, 200, LISTEN_NODE, 1, R->bus.now));
+    a = find_cap(DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_REQUEST, &from);
+    assert_non_null(a);
+    for (i = 0; i < DAN_DC_TX_TIDS; i++) { /* the flow's counter back to a's ID */
+        if ((R->g.tids.key[i] & 0xFFFFu) == DAN_DC_PARAM_GETSET_ID &&
+            ((R->g.tids.key[i] >> 18) & 0x7Fu) == LISTEN_NODE) {
+            R->g.tids.next[i] = a->tid;
+        }
+    }
+    call_ok(dan_gw_param_get_index(&R->gw, 201, LISTEN_NODE, 2, R->bus.now));
+    b = find_cap(DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_REQUEST, &from);
+    assert_non_null(b);
+    assert_int_not_equal(b->tid, a->tid);
+}
+
 static void test_param_get_pipelined(void **state)
 {
     dan_gw_param_t p;
@@ -882,8 +907,8 @@ int main(void)
         test_dna_off, test_dna_foreign_allocator, test_fc_frames_heard, test_dna_storage,
         test_dna_blob_reasons, test_dna_table_id_taken, test_dna_table_full,
         test_dna_stored_id_taken_by_unproven_node, test_dna_skips_ids_beyond_the_node_table,
-        test_restart_sent_once, test_node_says_offline, test_param_get_pipelined,
-        test_param_set_retry_sent_once, test_call_timeout_and_busy,
+        test_restart_sent_once, test_node_says_offline, test_call_tid_not_shared_with_pending,
+        test_param_get_pipelined, test_param_set_retry_sent_once, test_call_timeout_and_busy,
         test_calls_to_many_nodes_leave_room_for_throttle, test_call_id_reuse_crc16_collision_is_new,
         test_restart_magic, test_health_verdicts, test_own_id_claimed, test_health_esc_telemetry,
         test_own_frames_and_times);
