@@ -483,33 +483,36 @@ static void test_dna_skips_ids_beyond_the_node_table(void **state)
     assert_int_equal(allocate(UID_A, 0), 124);
 }
 
+/* node_id's entry of a NODES page (it must be on the first). */
+static dan_gw_node_entry_t node_entry(uint8_t node_id)
+{
+    dan_reader_t r;
+    dan_gw_nodes_hdr_t h;
+    dan_gw_node_entry_t e;
+    call_ok(dan_gw_nodes(&R->gw, 0, R->bus.now));
+    assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
+    do {
+        assert_int_equal(dan_gw_nodes_next(&r, &e), DAN_OK);
+    } while (e.node_id != node_id);
+    return e;
+}
+
 /* A NodeStatus with mode OFFLINE: the node is offline at once, not after
  * 3 s of silence (the DSDL: others need not wait; review finding). */
 static void test_node_says_offline(void **state)
 {
-    dan_reader_t r;
-    dan_gw_nodes_hdr_t h;
     dan_gw_node_entry_t e;
     (void)state;
     node_status(60, 5, DAN_DC_HEALTH_OK);
     advance(100000);
     node_status_from(60, 6, DAN_DC_HEALTH_OK, DAN_DC_MODE_OFFLINE);
     advance(1000);
-    call_ok(dan_gw_nodes(&R->gw, 0, R->bus.now));
-    assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
-    do {
-        assert_int_equal(dan_gw_nodes_next(&r, &e), DAN_OK);
-    } while (e.node_id != 60);
+    e = node_entry(60);
     assert_int_equal(e.mode, DAN_DC_MODE_OFFLINE);
     assert_true((e.info_state & DAN_GW_NODE_OFFLINE) != 0u);
     node_status(60, 7, DAN_DC_HEALTH_OK); /* back */
     advance(1000);
-    call_ok(dan_gw_nodes(&R->gw, 0, R->bus.now));
-    assert_int_equal(dan_gw_nodes_begin(&R->gw, &r, &h), DAN_OK);
-    do {
-        assert_int_equal(dan_gw_nodes_next(&r, &e), DAN_OK);
-    } while (e.node_id != 60);
-    assert_true((e.info_state & DAN_GW_NODE_OFFLINE) == 0u);
+    assert_true((node_entry(60).info_state & DAN_GW_NODE_OFFLINE) == 0u);
 }
 
 /* RESTART goes once: a node may restart without answering, and each new

@@ -20,7 +20,6 @@ from danprobe.port import now
 
 NAME = "esc"
 HELP = "CAN gateway: send ESC commands (fixed values or a ramp) and show live telemetry"
-JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Sends uavcan.equipment.esc.RawCommand values through the gateway (ESC_CMD) at --rate "
     "exchanges per second for --duration seconds; every exchange brings one ESC's newest "
@@ -40,6 +39,10 @@ EXAMPLES = (
     "danprobe esc --port /dev/ttyUSB0 --baud 115200 --values 0,0,0,0 --fast --telem-every 4 "
     "--rate 400",
 )
+
+
+# --json: events, then the summary (as can.py's and nodes.py's JSON_EVENTS)
+JSON_EVENTS = True
 
 
 def command_value(s: str) -> int:

@@ -29,7 +29,6 @@ from danprobe.slcan_codec import (
 
 NAME = "slcan"
 HELP = "CAN gateway: an SLCAN (Lawicel) adapter on a pty, for pydronecan and the DroneCAN GUI"
-JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Emulates a Lawicel/SLCAN USB-CAN adapter on a new pseudo-terminal whose CAN bus is the "
     "one behind the gateway: frames the client sends (t/T/r/R) go out with CAN_SEND and are "
@@ -49,6 +48,10 @@ DESCRIPTION = (
 IDLE_POLL_S = 0.005
 TX_QUEUE_MAX = 64  # frames from the client not taken by the gateway yet
 SENT_KEEP = 256  # our frames remembered until their copy (bit 29) comes back
+
+
+# --json: events, then the summary (as can.py's and nodes.py's JSON_EVENTS)
+JSON_EVENTS = True
 
 
 def add_arguments(p):

@@ -18,13 +18,16 @@ from danprobe.sniff import CaptureError, Sniffer, read_capture, sniff_capture
 
 NAME = "sniff"
 HELP = "decode the frames on a live line (listen only) or in a dan-vbus capture file"
-JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Prints every frame with its time, source (capture files know it), baud, gap since "
     "the previous frame, code name and decoded payload, plus decoder errors as they "
     "happen; the counters at the end. A live port is only read, never written. Stops "
     "after --count frames, --duration seconds, or Ctrl-C."
 )
+
+
+# --json: events, then the summary (as can.py's and nodes.py's JSON_EVENTS)
+JSON_EVENTS = True
 
 
 def add_arguments(p):

@@ -20,7 +20,6 @@ from danprobe.port import now
 
 NAME = "tunnel"
 HELP = "CAN gateway: bridge a DroneCAN serial tunnel to a local pseudo-terminal"
-JSON_EVENTS = True  # --json: events, then the summary
 DESCRIPTION = (
     "Opens a gateway tunnel port (uavcan.tunnel.Targetted to --target NODE, as ArduPilot's "
     "serial-over-DroneCAN, or uavcan.tunnel.Broadcast with --protocol/--channel) and "
@@ -43,6 +42,10 @@ EXAMPLES = (
 IDLE_POLL_S = 0.02  # nothing moved: look again this much later
 OUT_LIMIT = 8192  # bytes for the pty client before we stop reading the tunnel
 IN_LIMIT = 4096  # bytes from the pty client waiting for the gateway
+
+
+# --json: events, then the summary (as can.py's and nodes.py's JSON_EVENTS)
+JSON_EVENTS = True
 
 
 def add_arguments(p):
