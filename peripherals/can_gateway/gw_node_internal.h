@@ -29,7 +29,7 @@ int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uin
                       uint8_t prio, const uint8_t *payload, int len);
 /* Latest wins: removes our own unsent broadcasts of one data type from q
  * before a newer one is queued. */
-void dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid);
+size_t dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid);
 
 /* ---- ESC commands, telemetry, failsafe (gw_node_esc.c) ---- */
 void dan_gwn_esc_command(dan_gw_node_t *g, const int16_t *v, size_t n, uint64_t now_us);

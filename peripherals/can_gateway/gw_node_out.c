@@ -32,38 +32,53 @@ static dan_gw_node_servo_t *servo_slot(dan_gw_node_t *g, uint8_t id, bool take)
     return &s->servo[i];
 }
 
-/* Sends what each commanded actuator should get now (its last command, or
- * in the failsafe its failsafe value), 15 to an ArrayCommand; every older
- * ArrayCommand of ours still queued is dropped first (latest wins). */
-static void send_servos(dan_gw_node_t *g)
+/* One ArrayCommand: the commanded actuators group * 15 to group * 15 + 14
+ * (in actuator order), what each should get now (its last command, or in
+ * the failsafe its failsafe value). */
+static void send_servo_group(dan_gw_node_t *g, size_t group)
 {
-    dan_gw_node_servos_t *s = &g->servos;
+    const dan_gw_node_servos_t *s = &g->servos;
     dan_dc_array_command_t m;
     uint8_t buf[DAN_DC_ARRAY_COMMAND_MAX_SIZE];
-    size_t i;
-    dan_gwn_drop_own(g, &g->q_urgent, DAN_DC_ARRAY_COMMAND_ID);
+    size_t i, k = 0;
     m.count = 0;
-    for (i = 0; i < s->n; i++) {
+    for (i = 0; i < s->n && m.count < DAN_DC_ARRAY_COMMAND_MAX; i++) {
         const dan_gw_node_servo_t *v = &s->servo[i];
         const dan_gw_servo_t *c =
             s->failsafe && v->fs_mode == DAN_GW_SERVO_VALUE ? &v->fs : &v->last;
-        if (!v->commanded) {
+        if (!v->commanded || k++ < group * DAN_DC_ARRAY_COMMAND_MAX) {
             continue;
         }
         m.cmd[m.count].actuator_id = v->last.actuator_id;
         m.cmd[m.count].command_type = c->command_type;
         m.cmd[m.count].value_f16 = c->value_f16;
-        if (++m.count == DAN_DC_ARRAY_COMMAND_MAX) {
-            (void)dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_ARRAY_COMMAND_ID,
-                                    DAN_DC_ARRAY_COMMAND_SIGNATURE, DAN_DC_PRIORITY_HIGH, buf,
-                                    dan_dc_array_command_encode(&m, buf, sizeof buf));
-            m.count = 0;
-        }
+        m.count++;
     }
-    if (m.count > 0u) {
-        (void)dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_ARRAY_COMMAND_ID,
-                                DAN_DC_ARRAY_COMMAND_SIGNATURE, DAN_DC_PRIORITY_HIGH, buf,
-                                dan_dc_array_command_encode(&m, buf, sizeof buf));
+    (void)dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_ARRAY_COMMAND_ID,
+                            DAN_DC_ARRAY_COMMAND_SIGNATURE, DAN_DC_PRIORITY_HIGH, buf,
+                            dan_dc_array_command_encode(&m, buf, sizeof buf));
+}
+
+/* Sends every commanded actuator's value, 15 to an ArrayCommand; every
+ * older ArrayCommand of ours still queued is dropped first (latest wins).
+ * After such a drop the next message leads: requests faster than the bus
+ * takes all of them otherwise starve the last ones (32 actuators at
+ * 400 Hz: actuators 30 and 31 were never commanded; review finding). */
+static void send_servos(dan_gw_node_t *g)
+{
+    dan_gw_node_servos_t *s = &g->servos;
+    size_t i, ncmd = 0, groups;
+    bool dropped = dan_gwn_drop_own(g, &g->q_urgent, DAN_DC_ARRAY_COMMAND_ID) > 0u;
+    for (i = 0; i < s->n; i++) {
+        ncmd += s->servo[i].commanded ? 1u : 0u;
+    }
+    if (ncmd == 0u) {
+        return;
+    }
+    groups = (ncmd + DAN_DC_ARRAY_COMMAND_MAX - 1u) / DAN_DC_ARRAY_COMMAND_MAX;
+    s->first_group = (uint8_t)((s->first_group + (dropped ? 1u : 0u)) % groups);
+    for (i = 0; i < groups; i++) {
+        send_servo_group(g, (s->first_group + i) % groups);
     }
 }
 

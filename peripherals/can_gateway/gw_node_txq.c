@@ -65,7 +65,7 @@ size_t dan_gw_node_tx_pending(const dan_gw_node_t *g)
  * frames are already on the bus is not cut, though: its receivers would
  * drop it, and with commands coming faster than a multi-frame transfer
  * takes (20 ESCs: 6 frames) no command would ever arrive whole. */
-void dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid)
+size_t dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid)
 {
     size_t i, kept = 0, n = q->len;
     bool in_flight = q->mid; /* frames at head finish the transfer on the bus */
@@ -85,6 +85,7 @@ void dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid)
         }
     }
     q->len = (uint16_t)kept;
+    return n - kept;
 }
 
 /* Frames are built straight into the queue, one at a time: no frame array

@@ -98,6 +98,40 @@ static size_t servo_caps(size_t *from, dan_dc_actuator_cmd_t *out, size_t cap, s
     return n;
 }
 
+/* 32 actuators are three ArrayCommands (15 + 15 + 2, 20 frames). When SERVO
+ * requests come faster than the bus takes all three, each request drops
+ * the queued ones not yet on the bus: the last messages never went out and
+ * actuators 30 and 31 were never commanded (review finding). The message
+ * that leads changes after a drop, so each gets its turn. */
+static void test_servos_faster_than_the_bus(void **state)
+{
+    dan_gw_servo_t s[32];
+    dan_dc_array_command_t m;
+    bool seen[32];
+    size_t from = R->ncap, i, round;
+    cap_t *c;
+    (void)state;
+    memset(seen, 0, sizeof seen);
+    for (round = 0; round < 12; round++) {
+        for (i = 0; i < 32; i++) {
+            s[i] = dan_gw_servo_make((uint8_t)i, 0, (float)round / 16.0f);
+        }
+        assert_int_equal(dan_gw_servo(&R->gw, s, 32, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+        (void)send_frames(12); /* the bus takes a message and a bit per request */
+        R->bus.now += 2500u;
+    }
+    while ((c = find_cap(DAN_DC_ARRAY_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from)) != NULL) {
+        assert_int_equal(dan_dc_array_command_decode(&m, c->payload, c->len), DAN_OK);
+        for (i = 0; i < m.count; i++) {
+            seen[m.cmd[i].actuator_id] = true;
+        }
+    }
+    for (i = 0; i < 32; i++) {
+        assert_true(seen[i]);
+    }
+}
+
 static void test_servos_and_failsafe(void **state)
 {
     dan_gw_servo_t s[20];
@@ -398,7 +432,8 @@ static void test_malformed_outputs(void **state)
 int main(void)
 {
     return UNIT_RUN("gateway_out", setup, teardown, test_safety_state,
-                    test_arm_refuses_other_values, test_servos_and_failsafe, test_servo_table_full,
+                    test_arm_refuses_other_values, test_servos_and_failsafe,
+                    test_servos_faster_than_the_bus, test_servo_table_full,
                     test_servo_failsafe_slots_freed, test_lights_and_beep,
                     test_lights_wait_behind_throttle, test_temperature_in_telemetry,
                     test_tunnel_default_serial, test_tunnel_any_channel, test_malformed_outputs);

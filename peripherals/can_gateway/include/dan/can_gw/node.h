@@ -234,7 +234,8 @@ typedef struct {
 typedef struct {
     bool active; /* servo commands have been received */
     bool failsafe;
-    uint8_t n; /* actuators known */
+    uint8_t n;           /* actuators known */
+    uint8_t first_group; /* the ArrayCommand sent first (of 15 actuators each) */
     uint64_t last_cmd_us;
     dan_gw_node_servo_t servo[DAN_GW_NODE_SERVOS];
 } dan_gw_node_servos_t;
