@@ -16,8 +16,9 @@ import struct
 from dataclasses import dataclass, field
 from typing import Union
 
+from danprobe.codec import MAX_PAYLOAD
 from danprobe.gateway_file import file_name, get_name
-from danprobe.gateway_msgs import check_range
+from danprobe.gateway_msgs import SEAL_SIZE, check_range
 from danprobe.payloads import PayloadError, Reader, Record, Writer, attrs
 
 # ---- values (uavcan.protocol.param.Value on the DAN wire) ----
@@ -27,6 +28,9 @@ VALUE_EMPTY, VALUE_INTEGER, VALUE_REAL, VALUE_BOOLEAN, VALUE_STRING = 0, 1, 2, 3
 VALUE_TYPE_NAMES = ("empty", "integer", "real", "boolean", "string")
 VALUE_STRING_MAX = 128
 PARAM_NAME_MAX = 92
+# A NODE_CALL must fit one frame with its seal: PARAM_SET's name and string
+# value together (each within its own maximum) take at most 151 bytes.
+CALL_REQUEST_MAX = MAX_PAYLOAD - SEAL_SIZE
 PARAM_INDEX_MAX = 8191
 
 # ---- NODE_CALL ops and call states ----
@@ -255,7 +259,13 @@ class NodeCall:
             w.u8(1 if self.force else 0)
         elif self.op == CALL_FW_BEGIN:
             w.array(file_name(self.name))
-        return w.bytes()
+        out = w.bytes()
+        if len(out) > CALL_REQUEST_MAX:
+            raise ValueError(
+                f"the request takes {len(out)} bytes, at most {CALL_REQUEST_MAX} "
+                "(a shorter name or value)"
+            )
+        return out
 
     @classmethod
     def decode(cls, payload) -> "NodeCall":

@@ -138,6 +138,7 @@ STAT_NAMES = (
     "file_commits",
     "upload_errors",
     "fw_begins",
+    "file_dropped",
 )
 
 # node table info_state

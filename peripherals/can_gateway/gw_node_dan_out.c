@@ -29,7 +29,7 @@ DAN_GWN_HANDLER(dan_gwn_h_output)
         why = "bad lights command";
     } else {
         rc = dan_gw_msg_beep_decode(&m.beep, req, len);
-        why = "BEEP: 1..65504 Hz, <65504 s";
+        why = "BEEP: 1..65504 Hz, up to 65504 s";
     }
     if (rc != DAN_OK) {
         return dan_gwn_refuse(err, why);

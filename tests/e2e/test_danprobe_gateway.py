@@ -371,7 +371,7 @@ def test_codec_details_and_malformed_payloads():
     assert G.throttle_to_raw(100) == 8191 and G.throttle_to_raw(-100) == -8191
     assert G.throttle_to_raw(50) == 4096 and G.throttle_to_raw(0) == 0
     assert G.stats_dict(list(range(20)))["nodes"] == 17
-    assert G.stats_dict([0] * 36)["counter_35"] == 0  # later versions append counters
+    assert G.stats_dict([0] * 37)["counter_36"] == 0  # later versions append counters
     assert G.stats_dict(list(range(35)))["fw_begins"] == 34
     assert G.stats_dict(list(range(26)))["call_timeouts"] == 25
     assert G.stats_dict(list(range(28)))["servo_dropped"] == 27
@@ -485,6 +485,22 @@ def test_seal_vectors():
     assert G.crc16_ccitt_false(b"123456789") == 0x29B1
     assert not G.sealed_code(0x40) and not G.sealed_code(0x41) and G.sealed_code(0x4F)
     assert G.reply_check(0x40, b"") and not G.reply_check(0x42, b"\x00")
+
+
+def test_param_set_request_fits_one_frame():
+    """PARAM_SET's name and string value take at most 151 bytes together
+    (the request and its seal in 160): longer is a clear error before
+    anything is sent, not encode_frame's 'payload exceeds 160'."""
+    name = b"n" * M.PARAM_NAME_MAX
+
+    def call(n):
+        return M.NodeCall(
+            0, 5, M.CALL_PARAM_SET, name=name, value=M.Value(M.VALUE_STRING, b"s" * n)
+        )
+
+    assert len(call(151 - len(name)).encode()) == M.CALL_REQUEST_MAX
+    with pytest.raises(ValueError, match="at most 158"):
+        call(152 - len(name)).encode()
 
 
 def test_record_decode_error_names_the_field():
@@ -669,7 +685,7 @@ def test_esc_values_telemetry_arm_stats_nodes(stack):
 
     # stats, named as in the document
     doc = danprobe_json("stats", "--port", s.dan, "--baud", "115200", "-q")
-    assert list(doc["stats"])[: len(G.STAT_NAMES)] == list(G.STAT_NAMES)
+    assert list(doc["stats"]) == list(G.STAT_NAMES)  # every counter the gateway sends named
     assert doc["stats"]["esc_cmds"] >= exchanges + len(ex) and doc["stats"]["nodes"] == 4
     assert doc["stats"]["dan_crc_errors"] == 0 and doc["config"]["node_id"] == GW_NODE
     rc, out, err = danprobe("stats", "--port", s.dan, "--baud", "115200", "-q")

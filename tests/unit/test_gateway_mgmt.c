@@ -515,6 +515,47 @@ static void test_node_says_offline(void **state)
     assert_true((node_entry(60).info_state & DAN_GW_NODE_OFFLINE) == 0u);
 }
 
+/* Every counter above 2^28 (5 bytes each: 181 bytes) is more than a
+ * response holds: STATS answers with the counters that fit, in order,
+ * instead of an error frame on every call (review finding). */
+static void test_stats_with_huge_counters(void **state)
+{
+    (void)state;
+    memset(&R->g.stats, 0xFF, sizeof R->g.stats);
+    memset(&R->g.rx.stats, 0x3F, sizeof R->g.rx.stats);
+    memset(&R->p.stats, 0x7F, sizeof R->p.stats);
+    R->p.link.dec.stats.frames = 0x7FFFFFFFu;
+    R->p.link.dec.stats.crc_errors = 0x7FFFFFFFu;
+    call_ok(dan_gw_stats(&R->gw, R->bus.now));
+    assert_int_equal(R->gw.stats[DAN_GW_STAT_CAN_TX], 0xFFFFFFFFu);
+    assert_int_equal(R->gw.stats[DAN_GW_STAT_ESC_CMDS], 0xFFFFFFFFu);
+    assert_int_equal(R->gw.stats[DAN_GW_STAT_FILE_DROPPED], 0); /* left off the end */
+}
+
+/* PARAM_SET with a 92-byte name and a string value: 151 bytes of the two
+ * fit one request, 152 do not (DAN_ERR_OVERFLOW, nothing sent; the
+ * document said every message fits: review finding). */
+static void test_param_set_longest(void **state)
+{
+    static char name[DAN_GW_PARAM_NAME_MAX + 1];
+    static dan_gw_value_t v;
+    size_t from = R->ncap;
+    (void)state;
+    memset(name, 'n', DAN_GW_PARAM_NAME_MAX);
+    v.tag = DAN_GW_VALUE_STRING;
+    memset(v.string, 's', sizeof v.string);
+    v.string_len = 151u - DAN_GW_PARAM_NAME_MAX + 1u;
+    assert_int_equal(dan_gw_param_set(&R->gw, 300, LISTEN_NODE, name, &v, R->bus.now),
+                     DAN_ERR_OVERFLOW);
+    v.string_len = DAN_GW_VALUE_STRING_MAX;
+    assert_int_equal(dan_gw_param_set(&R->gw, 300, LISTEN_NODE, name, &v, R->bus.now),
+                     DAN_ERR_OVERFLOW);
+    assert_null(find_cap(DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_REQUEST, &from));
+    v.string_len = 151u - DAN_GW_PARAM_NAME_MAX;
+    call_ok(dan_gw_param_set(&R->gw, 300, LISTEN_NODE, name, &v, R->bus.now));
+    assert_non_null(find_cap(DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_REQUEST, &from));
+}
+
 /* RESTART goes once: a node may restart without answering, and each new
  * transfer ID is a new request (it restarted up to three times). */
 static void test_restart_sent_once(void **state)
@@ -911,7 +952,8 @@ int main(void)
         test_dna_blob_reasons, test_dna_table_id_taken, test_dna_table_full,
         test_dna_stored_id_taken_by_unproven_node, test_dna_skips_ids_beyond_the_node_table,
         test_restart_sent_once, test_node_says_offline, test_call_tid_not_shared_with_pending,
-        test_param_get_pipelined, test_param_set_retry_sent_once, test_call_timeout_and_busy,
+        test_stats_with_huge_counters, test_param_set_longest, test_param_get_pipelined,
+        test_param_set_retry_sent_once, test_call_timeout_and_busy,
         test_calls_to_many_nodes_leave_room_for_throttle, test_call_id_reuse_crc16_collision_is_new,
         test_restart_magic, test_health_verdicts, test_own_id_claimed, test_health_esc_telemetry,
         test_own_frames_and_times);

@@ -156,6 +156,10 @@ def _set(ctx, gw, res):
     except ValueError as e:
         raise UsageError(f"param set: {a.name}: {e}") from None
     call = NodeCall(0, a.node, gateway_mgmt.CALL_PARAM_SET, name=a.name.encode(), value=value)
+    try:
+        call.encode()
+    except ValueError as e:
+        raise UsageError(f"param set: {a.name}: {e}") from None
     p = gateway_calls.param_result(gw, call)
     if not p.exists:
         raise NotFound(f"node {a.node} has no parameter {a.name!r}")

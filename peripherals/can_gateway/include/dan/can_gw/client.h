@@ -191,6 +191,9 @@ int dan_gw_param_get_index(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint
 /* name: NUL-terminated, 1..92 bytes. */
 int dan_gw_param_get(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
                      uint64_t now_us);
+/* The request must fit one frame: a string value and the name take at
+ * most 151 bytes together (each within its maximum); longer is
+ * DAN_ERR_OVERFLOW, nothing sent. */
 int dan_gw_param_set(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, const char *name,
                      const dan_gw_value_t *value, uint64_t now_us);
 int dan_gw_param_save(dan_gw_t *gw, uint16_t call_id, uint8_t node_id, uint64_t now_us);

@@ -1,6 +1,8 @@
 /*
- * CAN-over-DAN gateway messages (codes 0x42..0x4D): the payload codec
- * shared by the gateway (peripheral side) and the FC's client (dan/gateway.h).
+ * CAN-over-DAN gateway messages (codes 0x42..0x4F and 0x52..0x5F, the
+ * rest in msgs_fast.h, msgs_mgmt.h, msgs_out.h, msgs_file.h): the payload codec
+ * shared by the gateway (peripheral side) and the FC's client
+ * (dan/can_gw/client.h).
  * docs/PROTOCOL.md section 7 is the byte-level definition; the vectors in
  * tests/vectors/gateway.txt pin it.
  *
@@ -39,7 +41,8 @@ extern "C" {
 #define DAN_GW_CODE_CAN_SEND   0x4Bu /* raw CAN frames to the bus */
 #define DAN_GW_CODE_CAN_RECV   0x4Cu /* filtered raw CAN frames from the bus */
 #define DAN_GW_CODE_CAN_FILTER 0x4Du /* raw receive filter */
-/* 0x4E, 0x4F reserved */
+/* 0x4E NODE_CALL, 0x4F CALL_RESULT: msgs_mgmt.h; 0x52..0x5F: the other
+ * msgs_*.h */
 
 /* ---- limits of the message set ---- */
 #define DAN_GW_ESC_MAX        DAN_DC_ESC_RAW_COMMAND_MAX_CMDS /* channels per ESC_CMD */
@@ -118,7 +121,8 @@ size_t dan_gw_msg_telem_size(const dan_gw_telem_t *t);
 
 /* ---- ARM (0x44) ----
  * Request: uint8 status, the ArmingStatus value (0 disarmed, 255 fully
- * armed; others are sent on as they are). Response: uint8 gw_flags. */
+ * armed; any other value is refused with an error frame). Response:
+ * uint8 gw_flags. */
 #define DAN_GW_ARM_DISARMED    0u   /* ArmingStatus.STATUS_DISARMED */
 #define DAN_GW_ARM_FULLY_ARMED 255u /* ArmingStatus.STATUS_FULLY_ARMED */
 
@@ -347,7 +351,8 @@ DAN_ITEM(dan_gw_msg_can_frame, dan_can_frame_t);
 size_t dan_gw_msg_can_frame_size(const dan_can_frame_t *f);
 
 /* CAN_SEND request: uint8 seq, uint8 count (<= 11), frames. A request with
- * the seq of the previous accepted one is a retry: not sent again.
+ * the seq and the content (CRC-32) of the previous accepted one is a retry:
+ * not sent again.
  * Response: uint8 seq, uint8 accepted, uvarint queue_free. */
 typedef struct {
     uint8_t seq;
@@ -413,7 +418,8 @@ static inline int32_t dan_gw_off_diff(uint32_t a, uint32_t b)
 /*
  * The seal. crc8 alone accepts about one in 256 frames corrupted by a
  * collision, and a gateway message moves throttle, arming and tunnel bytes:
- * every gateway message (codes 0x42-0x4F, requests and responses) ends with
+ * every gateway message (codes 0x42-0x4F and 0x52-0x5F, requests and
+ * responses) ends with
  * a u16 (little endian) check, CRC-16/CCITT-FALSE (poly 0x1021, init
  * 0xFFFF) over the code's uvarint bytes, one direction byte (0 request,
  * 1 response: a reply has its request's code and must never pass for one)
