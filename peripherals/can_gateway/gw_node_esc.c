@@ -10,13 +10,18 @@ static void send_raw_command(dan_gw_node_t *g, const int16_t *v, size_t n)
 {
     dan_dc_esc_raw_command_t m;
     uint8_t buf[DAN_DC_ESC_RAW_COMMAND_MAX_SIZE];
+    int len;
     memset(&m, 0, sizeof m);
     m.count = (uint8_t)n;
     memcpy(m.cmd, v, n * sizeof v[0]);
     dan_gwn_drop_own(g, &g->q_urgent, DAN_DC_ESC_RAW_COMMAND_ID); /* latest wins */
-    (void)dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_ESC_RAW_COMMAND_ID,
-                            DAN_DC_ESC_RAW_COMMAND_SIGNATURE, DAN_DC_PRIORITY_HIGH, buf,
-                            dan_dc_esc_raw_command_encode(&m, buf, sizeof buf));
+    len = dan_dc_esc_raw_command_encode(&m, buf, sizeof buf);
+    /* ahead of everything else queued (PROTOCOL.md: throttle first) */
+    if (dan_gwn_broadcast(g, &g->q_urgent, DAN_DC_ESC_RAW_COMMAND_ID,
+                          DAN_DC_ESC_RAW_COMMAND_SIGNATURE, DAN_DC_PRIORITY_HIGH, buf,
+                          len) == DAN_OK) {
+        dan_gwn_txq_to_front(&g->q_urgent, dan_dc_tx_frame_count((size_t)len));
+    }
 }
 
 void dan_gwn_esc_command(dan_gw_node_t *g, const int16_t *v, size_t n, uint64_t now_us)

@@ -30,6 +30,10 @@ int dan_gwn_broadcast(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid, uin
 /* Latest wins: removes our own unsent broadcasts of one data type from q
  * before a newer one is queued. */
 size_t dan_gwn_drop_own(dan_gw_node_t *g, dan_gw_node_txq_t *q, uint16_t dtid);
+/* Moves the last n frames of q (a transfer just queued) to its front, after
+ * the rest of a transfer already on the bus: throttle is not kept waiting
+ * behind servo commands queued since the last one (review finding). */
+void dan_gwn_txq_to_front(dan_gw_node_txq_t *q, size_t n);
 
 /* ---- ESC commands, telemetry, failsafe (gw_node_esc.c) ---- */
 void dan_gwn_esc_command(dan_gw_node_t *g, const int16_t *v, size_t n, uint64_t now_us);

@@ -264,6 +264,63 @@ static void test_lights_wait_behind_throttle(void **state)
     assert_true(R->g.q_bulk.len >= 9u);
 }
 
+/* Throttle goes first on CAN even when SERVO requests come in between:
+ * the new RawCommand was queued behind a fresh set of ArrayCommands (20
+ * frames for 32 actuators), and on a bus that takes fewer frames than
+ * that per cycle no RawCommand ever went out (review finding). */
+static void test_throttle_ahead_of_servos(void **state)
+{
+    static const int16_t v[4] = {100, 200, 300, 400};
+    dan_gw_servo_t s[32];
+    size_t from = R->ncap, i, round, raw = 0;
+    (void)state;
+    for (i = 0; i < 32; i++) {
+        s[i] = dan_gw_servo_make((uint8_t)i, 0, 0.5f);
+    }
+    for (round = 0; round < 10; round++) {
+        assert_int_equal(dan_gw_servo(&R->gw, s, 32, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+        assert_int_equal(dan_gw_esc_command(&R->gw, v, 4, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+        (void)send_frames(16); /* 1 Mbit/s: about 16 frames a 2.5 ms cycle */
+        R->bus.now += 2500u;
+    }
+    while (find_cap(DAN_DC_ESC_RAW_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from) != NULL) {
+        raw++;
+    }
+    assert_int_equal(raw, 10);
+}
+
+/* A raw frame the FC sent whose last byte has no end-of-transfer bit (it
+ * is no DroneCAN tail byte) made the next transfer of the bulk queue look
+ * in flight: latest-wins kept an older LightsCommand (review finding). */
+static void test_raw_frame_does_not_pin_lights(void **state)
+{
+    const dan_gw_light_t l1[1] = {{1, 0xF800}}, l2[1] = {{1, 0x001F}};
+    dan_can_frame_t f;
+    dan_dc_lights_command_t lm;
+    size_t from;
+    cap_t *c;
+    (void)state;
+    advance(1000);
+    memset(&f, 0, sizeof f);
+    f.id = 0x123;
+    f.dlc = 1; /* data 00 */
+    call_ok(dan_gw_can_send(&R->gw, &f, 1, R->bus.now));
+    drain(); /* it is on the bus */
+    assert_int_equal(dan_gw_node_tx_pending(&R->g), 0);
+    from = R->ncap;
+    assert_int_equal(dan_gw_lights(&R->gw, l1, 1, R->bus.now), DAN_OK);
+    assert_int_equal(finish_stalled(), DAN_OK);
+    assert_int_equal(dan_gw_lights(&R->gw, l2, 1, R->bus.now), DAN_OK);
+    assert_int_equal(finish_stalled(), DAN_OK);
+    drain();
+    c = expect_cap(DAN_DC_LIGHTS_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from);
+    assert_int_equal(dan_dc_lights_command_decode(&lm, c->payload, c->len), DAN_OK);
+    assert_int_equal(lm.light[0].rgb565, 0x001F); /* only the latest */
+    assert_null(find_cap(DAN_DC_LIGHTS_COMMAND_ID, DAN_DC_TRANSFER_BROADCAST, &from));
+}
+
 static void test_lights_and_beep(void **state)
 {
     const dan_gw_light_t l[3] = {{0, 0xF800}, {1, 0x07E0}, {19, 0x001F}};
@@ -431,10 +488,10 @@ static void test_malformed_outputs(void **state)
 
 int main(void)
 {
-    return UNIT_RUN("gateway_out", setup, teardown, test_safety_state,
-                    test_arm_refuses_other_values, test_servos_and_failsafe,
-                    test_servos_faster_than_the_bus, test_servo_table_full,
-                    test_servo_failsafe_slots_freed, test_lights_and_beep,
-                    test_lights_wait_behind_throttle, test_temperature_in_telemetry,
-                    test_tunnel_default_serial, test_tunnel_any_channel, test_malformed_outputs);
+    return UNIT_RUN(
+        "gateway_out", setup, teardown, test_safety_state, test_arm_refuses_other_values,
+        test_servos_and_failsafe, test_servos_faster_than_the_bus, test_throttle_ahead_of_servos,
+        test_raw_frame_does_not_pin_lights, test_servo_table_full, test_servo_failsafe_slots_freed,
+        test_lights_and_beep, test_lights_wait_behind_throttle, test_temperature_in_telemetry,
+        test_tunnel_default_serial, test_tunnel_any_channel, test_malformed_outputs);
 }
