@@ -336,6 +336,9 @@ void dan_gwn_dna_poll(dan_gw_node_t *g)
 
 void dan_gw_node_set_dna(dan_gw_node_t *g, bool on)
 {
+    if (g->cfg.dna == on) {
+        return; /* a CONFIG that repeats it leaves an allocation in progress alone */
+    }
     g->cfg.dna = on;
     g->dna.query_len = 0;
     if (!on) {

@@ -34,16 +34,26 @@ void dan_gwn_on_targetted(dan_gw_node_t *g, const dan_dc_transfer_t *t)
         mp->target_node != g->cfg.node_id) {
         return;
     }
+    dan_gw_node_tun_t *any = NULL;
     for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
         dan_gw_node_tun_t *p = &g->tun[i];
-        /* serial_id -1 is "the default device": the node answers with the
-         * port it resolved it to (AP_Periph does), so any serial_id of the
-         * target node is ours */
-        if (p->cfg.mode == DAN_GW_TUN_TARGETTED && p->cfg.target == t->source_node &&
-            (p->cfg.serial_id == mp->serial_id || p->cfg.serial_id == DAN_GW_TUN_DEFAULT_SERIAL)) {
+        if (p->cfg.mode != DAN_GW_TUN_TARGETTED || p->cfg.target != t->source_node) {
+            continue;
+        }
+        if (p->cfg.serial_id == mp->serial_id) {
             tun_in(g, p, mp->buffer, mp->buffer_len);
             return;
         }
+        /* serial_id -1 is "the default device": the node answers with the
+         * port it resolved it to (AP_Periph does), so any serial_id of the
+         * target node is its, unless a port asked for that one (review
+         * finding: the first port took it) */
+        if (p->cfg.serial_id == DAN_GW_TUN_DEFAULT_SERIAL && any == NULL) {
+            any = p;
+        }
+    }
+    if (any != NULL) {
+        tun_in(g, any, mp->buffer, mp->buffer_len);
     }
 }
 
@@ -78,6 +88,9 @@ bool dan_gwn_tunnel_open(dan_gw_node_t *g, const dan_gw_tun_open_t *o, uint64_t 
         return false;
     }
     p = &g->tun[o->port];
+    /* bytes received and not yet read are lost with the old session (a
+     * retried TUN_OPEN too): counted, never silently (review finding) */
+    g->stats.tun_dropped += p->rd_end - p->rd_base;
     memset(p, 0, offsetof(dan_gw_node_tun_t, tx)); /* buffers need no clearing */
     p->cfg = *o;
     p->last_tx_us = now_us - DAN_GW_NODE_KEEPALIVE_US; /* first keepalive at once */
@@ -223,13 +236,19 @@ void dan_gwn_tunnel_poll(dan_gw_node_t *g, uint64_t now_us)
 uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t)
 {
     size_t i;
+    /* Without room for a chunk nothing can go before a frame leaves, and
+     * the caller polls again then: "now" made its loop spin for as long as
+     * the queue stayed full (a firmware update's reads; review finding). */
+    if (dan_gwn_txq_free(&g->q_bulk) < TARGETTED_FRAMES_MAX) {
+        return t;
+    }
     for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
         const dan_gw_node_tun_t *p = &g->tun[i];
         if (p->cfg.mode == DAN_GW_TUN_CLOSED) {
             continue;
         }
         if (p->tx_len > 0u) {
-            t = now_us; /* waits for queue room: the caller's CAN output paces it */
+            t = now_us; /* room for a chunk: at once */
         } else if (p->cfg.mode == DAN_GW_TUN_TARGETTED &&
                    p->last_tx_us + DAN_GW_NODE_KEEPALIVE_US < t) {
             t = p->last_tx_us + DAN_GW_NODE_KEEPALIVE_US;

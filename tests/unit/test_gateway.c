@@ -340,6 +340,49 @@ static void test_tunnel_response_claims_checked(void **state)
     assert_int_equal(gw.tun[1].rd_lost, 2);
 }
 
+/* Tunnel bytes waiting while the bulk queue has no room for a chunk: the
+ * node's next deadline is not "now" (the daemon's loop spun with a zero
+ * timeout for as long as the queue stayed full; review finding). */
+static void test_tunnel_waiting_for_room_does_not_spin(void **state)
+{
+    static uint8_t data[128];
+    size_t i;
+    (void)state;
+    call_ok(tunnel_open_start(0, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 1, 0, 57600));
+    for (i = 0; i < 12; i++) { /* the CAN bus stalled: chunks fill the bulk queue */
+        assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, data, sizeof data, 0, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+    }
+    assert_true(R->g.tun[0].tx_len > 0u);
+    assert_true(DAN_GW_NODE_TXQ - R->g.q_bulk.len < 19u);
+    dan_gw_node_poll(&R->g, R->bus.now);
+    assert_true(dan_gw_node_next_us(&R->g, R->bus.now) > R->bus.now);
+    drain(); /* frames leave: room, and the chunks go on */
+    dan_gw_node_poll(&R->g, R->bus.now);
+    assert_true(R->g.q_bulk.len > 0u);
+}
+
+/* Two Targetted ports to node 20: one for serial 2, one for "the default
+ * device" (-1). Data from serial 2 belongs to the first, whichever was
+ * opened first (the -1 port took it; review finding). A port opened again
+ * (a retried TUN_OPEN) counts the bytes it had not handed over. */
+static void test_tunnel_exact_serial_wins_and_reopen_counts(void **state)
+{
+    static const uint8_t d[60] = {1, 2, 3};
+    (void)state;
+    call_ok(tunnel_open_start(0, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, -1, 0, 0));
+    call_ok(tunnel_open_start(1, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 2, 0, 0));
+    tunnel_targetted_from(20, 2, d, 10);
+    assert_int_equal(R->g.tun[1].rd_end, 10);
+    assert_int_equal(R->g.tun[0].rd_end, 0);
+    tunnel_targetted_from(20, 5, d, 7); /* another serial: the default port's */
+    assert_int_equal(R->g.tun[0].rd_end, 7);
+    tunnel_targetted_from(20, 2, d, 60);
+    call_ok(tunnel_open_start(1, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 2, 0, 0));
+    assert_int_equal(R->g.stats.tun_dropped, 70);
+    assert_int_equal(R->g.tun[1].rd_end, 0);
+}
+
 static void test_tunnel_broadcast_and_drops(void **state)
 {
     dan_dc_tunnel_broadcast_t m;
@@ -1014,6 +1057,7 @@ int main(void)
         test_can_recv_follows_gateway_restart, test_bus_off_reported, test_node_table_full,
         test_telemetry_round_robin, test_telemetry_paging, test_arming, test_failsafe,
         test_tunnel_targetted_retries, test_tunnel_response_claims_checked,
+        test_tunnel_waiting_for_room_does_not_spin, test_tunnel_exact_serial_wins_and_reopen_counts,
         test_tunnel_broadcast_and_drops, test_raw_frames_and_filters, test_raw_send_exact,
         test_node_table, test_own_node_status_and_info, test_malformed);
 }

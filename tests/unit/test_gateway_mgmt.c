@@ -556,6 +556,25 @@ static void test_param_set_longest(void **state)
     assert_non_null(find_cap(DAN_DC_PARAM_GETSET_ID, DAN_DC_TRANSFER_REQUEST, &from));
 }
 
+/* A CONFIG that repeats dna 1 while an allocation runs leaves it alone
+ * (it reset the handshake: the allocatee had to start over; review
+ * finding). */
+static void test_dna_config_repeat_keeps_handshake(void **state)
+{
+    size_t from;
+    dan_dc_allocation_t m;
+    (void)state;
+    advance(1000);
+    from = R->ncap;
+    alloc_stage(UID_A, 0, 6, 0, true);
+    config_set(DAN_GW_CFG_DNA, 1);
+    alloc_stage(UID_A, 6, 6, 0, false);
+    alloc_stage(UID_A, 12, 4, 0, false);
+    assert_true(answer(&from, &m));
+    assert_int_equal(m.uid_len, 16);
+    assert_int_equal(m.node_id, 125);
+}
+
 /* RESTART goes once: a node may restart without answering, and each new
  * transfer ID is a new request (it restarted up to three times). */
 static void test_restart_sent_once(void **state)
@@ -952,7 +971,8 @@ int main(void)
         test_dna_blob_reasons, test_dna_table_id_taken, test_dna_table_full,
         test_dna_stored_id_taken_by_unproven_node, test_dna_skips_ids_beyond_the_node_table,
         test_restart_sent_once, test_node_says_offline, test_call_tid_not_shared_with_pending,
-        test_stats_with_huge_counters, test_param_set_longest, test_param_get_pipelined,
+        test_stats_with_huge_counters, test_param_set_longest,
+        test_dna_config_repeat_keeps_handshake, test_param_get_pipelined,
         test_param_set_retry_sent_once, test_call_timeout_and_busy,
         test_calls_to_many_nodes_leave_room_for_throttle, test_call_id_reuse_crc16_collision_is_new,
         test_restart_magic, test_health_verdicts, test_own_id_claimed, test_health_esc_telemetry,

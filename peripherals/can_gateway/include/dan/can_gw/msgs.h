@@ -321,9 +321,10 @@ DAN_CODEC(dan_gw_msg_tun_open, dan_gw_tun_open_t);
  * request repeats bytes it has: they are skipped; a gap is refused) as far
  * as its buffer has space.
  * Response: uint8 port, uvarint wr_next (bytes accepted so far), uvarint
- * wr_space, uvarint rd_offset (offset of data[0]: the request's, or later
- * if bytes were dropped), uvarint rd_dropped (total bytes dropped for a
- * full buffer, CAN -> DAN), array data (<= min(rd_max, 128)). */
+ * wr_space, uvarint rd_offset (offset of data[0]: the request's; this
+ * gateway drops new bytes when full, never old ones, so never later; a
+ * client counts a later one as lost), uvarint rd_dropped (total bytes
+ * dropped for a full buffer, CAN -> DAN), array data (<= min(rd_max, 128)). */
 typedef struct {
     uint8_t port;
     uint32_t wr_offset; /* req: offset of data; rsp: wr_next */

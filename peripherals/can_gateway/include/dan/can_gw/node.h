@@ -401,7 +401,9 @@ void dan_gw_node_counters(const dan_gw_node_t *g, uint32_t v[DAN_GW_STAT_COUNT])
 void dan_gw_node_rx_can(dan_gw_node_t *g, const dan_can_frame_t *f, uint64_t now_us);
 /* Timers: NodeStatus, arming, failsafe, GetNodeInfo requests, tunnels. */
 void dan_gw_node_poll(dan_gw_node_t *g, uint64_t now_us);
-/* Earliest time a poll has something to do. */
+/* Earliest time a poll has something to do. Tunnel bytes waiting for room
+ * in the CAN queue ask for no time of their own: poll again after frames
+ * left (the loop above does). */
 uint64_t dan_gw_node_next_us(const dan_gw_node_t *g, uint64_t now_us);
 /* Next frame to send (urgent queue first); false if none. */
 bool dan_gw_node_tx_peek(const dan_gw_node_t *g, dan_can_frame_t *f);
