@@ -10,6 +10,16 @@
  * CRC in 7-byte frames): tunnel chunks wait for it, so the queue is the
  * flow control. */
 #define TARGETTED_FRAMES_MAX 19u
+/* ... and, while a node's file request waits, room for its answer besides
+ * (a Read: 2 + 256 bytes and the CRC, 38 frames): a tunnel fed faster than CAN takes
+ * it kept the queue at 19 free, and the answers waited until dropped
+ * (review finding). */
+#define FILE_ANSWER_FRAMES   ((DAN_DC_FILE_READ_RSP_MAX_SIZE + 2u + 6u) / 7u)
+
+static size_t room_needed(const dan_gw_node_t *g)
+{
+    return TARGETTED_FRAMES_MAX + (g->file_nwait > 0u ? FILE_ANSWER_FRAMES : 0u);
+}
 
 /* Appends received tunnel bytes; what does not fit is dropped (counted). */
 static void tun_in(dan_gw_node_t *g, dan_gw_node_tun_t *p, const uint8_t *d, size_t n)
@@ -226,9 +236,8 @@ void dan_gwn_tunnel_poll(dan_gw_node_t *g, uint64_t now_us)
     for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {
         dan_gw_node_tun_t *p = &g->tun[i];
         /* chunks while the bulk queue has room for a whole one */
-        while (p->cfg.mode != DAN_GW_TUN_CLOSED &&
-               dan_gwn_txq_free(&g->q_bulk) >= TARGETTED_FRAMES_MAX && tun_out(g, p, now_us) &&
-               p->tx_len > 0u) {
+        while (p->cfg.mode != DAN_GW_TUN_CLOSED && dan_gwn_txq_free(&g->q_bulk) >= room_needed(g) &&
+               tun_out(g, p, now_us) && p->tx_len > 0u) {
         }
     }
 }
@@ -239,7 +248,7 @@ uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_
     /* Without room for a chunk nothing can go before a frame leaves, and
      * the caller polls again then: "now" made its loop spin for as long as
      * the queue stayed full (a firmware update's reads; review finding). */
-    if (dan_gwn_txq_free(&g->q_bulk) < TARGETTED_FRAMES_MAX) {
+    if (dan_gwn_txq_free(&g->q_bulk) < room_needed(g)) {
         return t;
     }
     for (i = 0; i < DAN_GW_NODE_TUNNELS; i++) {

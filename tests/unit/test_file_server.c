@@ -431,11 +431,45 @@ static void test_info_after_update(void **state)
     assert_false(n->duplicate);
 }
 
+/* Tunnel bytes coming faster than CAN takes them keep the bulk queue
+ * topped up to 19 free frames; a file.Read answer needs 38 and never found
+ * room: it waited its second and was dropped (a node's firmware update
+ * stalled beside a busy tunnel; review finding). While a file request
+ * waits, the tunnel leaves room for one answer. */
+static void test_read_beside_a_busy_tunnel(void **state)
+{
+    static uint8_t data[128];
+    size_t from, i;
+    bool answered = false;
+    (void)state;
+    call_ok(tunnel_open_start(0, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 1, 0, 0));
+    for (i = 0; i < 8; i++) { /* the bus stalled: the tunnel fills the bulk queue */
+        assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, data, sizeof data, 0, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK);
+    }
+    from = R->ncap;
+    file_read_from(LISTEN_NODE, 0, "fw.bin");
+    for (i = 0; i < 30 && !answered; i++) {
+        assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 0, data, sizeof data, 0, R->bus.now), DAN_OK);
+        assert_int_equal(finish_stalled(), DAN_OK); /* DAN outruns CAN */
+        (void)send_frames(20);
+        R->bus.now += 5000u;
+        dan_gw_node_poll(&R->g, R->bus.now);
+        answered = find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from) != NULL;
+    }
+    drain();
+    answered = answered || find_cap(DAN_DC_FILE_READ_ID, DAN_DC_TRANSFER_RESPONSE, &from) != NULL;
+    assert_true(answered);
+    assert_true(i < 30);
+    assert_int_equal(R->g.stats.file_dropped, 0);
+}
+
 int main(void)
 {
-    int failed = UNIT_RUN("file_server", setup_files, teardown, test_read_chunks, test_read_errors,
-                          test_store_failure, test_read_nul_path, test_getinfo,
-                          test_reads_in_flight, test_no_store, test_info_after_update);
+    int failed =
+        UNIT_RUN("file_server", setup_files, teardown, test_read_chunks, test_read_errors,
+                 test_store_failure, test_read_nul_path, test_getinfo, test_reads_in_flight,
+                 test_no_store, test_info_after_update, test_read_beside_a_busy_tunnel);
     failed +=
         UNIT_RUN("file_server_dir", setup_dir, teardown_dir, test_read_chunks, test_read_errors,
                  test_getinfo_dir, test_reads_in_flight, test_dir_symlink_out);
