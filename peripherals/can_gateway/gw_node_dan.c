@@ -246,7 +246,7 @@ static DAN_GWN_HANDLER(h_tun_xfer)
     if (dan_gw_msg_tun_xfer_req_decode(&x, req, len) != DAN_OK) {
         return dan_gwn_refuse(err, "bad tunnel transfer");
     }
-    rc = dan_gwn_tunnel_xfer(g, &x, &r, out);
+    rc = dan_gwn_tunnel_xfer(g, &x, &r, out, resp->cap - resp->len);
     if (rc == DAN_ERR_NOTFOUND) {
         *err = "tunnel port not open";
         return rc;

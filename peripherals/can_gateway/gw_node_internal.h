@@ -91,9 +91,10 @@ void dan_gwn_on_tun_broadcast(dan_gw_node_t *g, const dan_dc_transfer_t *t);
 bool dan_gwn_tunnel_open(dan_gw_node_t *g, const dan_gw_tun_open_t *o, uint64_t now_us);
 /* TUN_XFER: takes x's data from the port's wr_next on, acknowledges
  * x->rd_offset, and fills r (data copied into out, DAN_GW_TUN_CHUNK_MAX
- * bytes). DAN_ERR_NOTFOUND: port not open; DAN_ERR_MALFORMED: a gap. */
+ * bytes; no more than a response of room bytes holds). DAN_ERR_NOTFOUND:
+ * port not open; DAN_ERR_MALFORMED: a gap. */
 int dan_gwn_tunnel_xfer(dan_gw_node_t *g, const dan_gw_tun_xfer_t *x, dan_gw_tun_xfer_t *r,
-                        uint8_t *out);
+                        uint8_t *out, size_t room);
 void dan_gwn_tunnel_poll(dan_gw_node_t *g, uint64_t now_us);
 uint64_t dan_gwn_tunnel_next_us(const dan_gw_node_t *g, uint64_t now_us, uint64_t t);
 

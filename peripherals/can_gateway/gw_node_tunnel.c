@@ -16,6 +16,10 @@
  * (review finding). */
 #define FILE_ANSWER_FRAMES   ((DAN_DC_FILE_READ_RSP_MAX_SIZE + 2u + 6u) / 7u)
 
+/* A TUN_XFER response without its data: u8 port, four uvarints of 32 bits
+ * (5 bytes each at most), the data's length (2 bytes for 128). */
+#define TUN_XFER_RSP_HDR_MAX (1u + 4u * 5u + 2u)
+
 static size_t room_needed(const dan_gw_node_t *g)
 {
     return TARGETTED_FRAMES_MAX + (g->file_nwait > 0u ? FILE_ANSWER_FRAMES : 0u);
@@ -108,7 +112,7 @@ bool dan_gwn_tunnel_open(dan_gw_node_t *g, const dan_gw_tun_open_t *o, uint64_t 
 }
 
 int dan_gwn_tunnel_xfer(dan_gw_node_t *g, const dan_gw_tun_xfer_t *x, dan_gw_tun_xfer_t *r,
-                        uint8_t *out)
+                        uint8_t *out, size_t room)
 {
     dan_gw_node_tun_t *p;
     int32_t skip, ack;
@@ -138,6 +142,13 @@ int dan_gwn_tunnel_xfer(dan_gw_node_t *g, const dan_gw_tun_xfer_t *x, dan_gw_tun
     }
     if (n > DAN_GW_TUN_CHUNK_MAX) {
         n = DAN_GW_TUN_CHUNK_MAX;
+    }
+    /* and what the response holds: a build with a smaller DAN_MAX_PAYLOAD
+     * answered "response too large" after it had applied the write, and
+     * every later transfer the same (review finding) */
+    room = room > TUN_XFER_RSP_HDR_MAX ? room - TUN_XFER_RSP_HDR_MAX : 0u;
+    if (n > room) {
+        n = room;
     }
     for (i = 0; i < n; i++) {
         out[i] = p->rx[(p->rd_base + i) % DAN_GW_NODE_TUN_RX_BUF];

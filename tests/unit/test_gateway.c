@@ -18,6 +18,7 @@
 #include "dan/can_gw/client.h"
 #include "dan/can_gw/node.h"
 #include "../../peripherals/can_gateway/gw_client_internal.h" /* dan_gwc_done_of (white box) */
+#include "../../peripherals/can_gateway/gw_node_internal.h"   /* dan_gwn_tunnel_xfer (white box) */
 #include "gw_rig.h"
 #include "simbus.h"
 #include "vectors.h"
@@ -381,6 +382,27 @@ static void test_tunnel_exact_serial_wins_and_reopen_counts(void **state)
     call_ok(tunnel_open_start(1, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 2, 0, 0));
     assert_int_equal(R->g.stats.tun_dropped, 70);
     assert_int_equal(R->g.tun[1].rd_end, 0);
+}
+
+/* The bytes read back are bounded by the response's room as well as by
+ * 128: a build with a smaller DAN_MAX_PAYLOAD answered "response too large"
+ * after applying the write, then every later TUN_XFER the same (review
+ * finding). White box: the handler's room, as such a build gives it. */
+static void test_tunnel_read_fits_the_response(void **state)
+{
+    static const uint8_t d[120] = {9};
+    dan_gw_tun_xfer_t x, r;
+    uint8_t out[DAN_GW_TUN_CHUNK_MAX], buf[100];
+    (void)state;
+    call_ok(tunnel_open_start(0, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 1, 0, 0));
+    tunnel_targetted_from(20, 1, d, sizeof d);
+    memset(&x, 0, sizeof x);
+    x.rd_max = 128;
+    assert_int_equal(dan_gwn_tunnel_xfer(&R->g, &x, &r, out, sizeof buf), DAN_OK);
+    assert_true(r.len > 0u && r.len < sizeof d);
+    assert_true(dan_gw_msg_tun_xfer_rsp_encode(&r, buf, sizeof buf) > 0);
+    assert_int_equal(dan_gwn_tunnel_xfer(&R->g, &x, &r, out, DAN_MAX_PAYLOAD), DAN_OK);
+    assert_int_equal(r.len, sizeof d); /* the default build: all of it */
 }
 
 static void test_tunnel_broadcast_and_drops(void **state)
@@ -1058,6 +1080,7 @@ int main(void)
         test_telemetry_round_robin, test_telemetry_paging, test_arming, test_failsafe,
         test_tunnel_targetted_retries, test_tunnel_response_claims_checked,
         test_tunnel_waiting_for_room_does_not_spin, test_tunnel_exact_serial_wins_and_reopen_counts,
-        test_tunnel_broadcast_and_drops, test_raw_frames_and_filters, test_raw_send_exact,
-        test_node_table, test_own_node_status_and_info, test_malformed);
+        test_tunnel_read_fits_the_response, test_tunnel_broadcast_and_drops,
+        test_raw_frames_and_filters, test_raw_send_exact, test_node_table,
+        test_own_node_status_and_info, test_malformed);
 }
