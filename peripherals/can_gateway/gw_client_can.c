@@ -47,7 +47,13 @@ int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t l
                        now_us);
     if (rc == DAN_OK) {
         gw->port = port;
-        gw->xfer_len = (uint8_t)x.len; /* <= DAN_GW_TUN_CHUNK_MAX (128) */
+        /* the most offered since the last answer: a call that failed
+         * (its answers lost) may have left more at the gateway than a
+         * smaller offer now, and that is fine (review finding: the tunnel
+         * locked up) */
+        if (x.len > gw->xfer_len) {
+            gw->xfer_len = (uint8_t)x.len; /* <= DAN_GW_TUN_CHUNK_MAX (128) */
+        }
         gw->tun[port].accepted = 0;
     }
     return rc;
@@ -189,9 +195,10 @@ int dan_gwc_done_xfer(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
     if (dan_gw_msg_tun_xfer_rsp_decode(&x, p, len) != DAN_OK || x.port != gw->port) {
         return DAN_ERR_MALFORMED;
     }
-    /* The gateway cannot accept more than we offered (a caller advances
-     * its buffer by accepted) nor send older data than we acknowledged;
-     * either refuses the whole response, before any state changes. */
+    /* The gateway cannot accept more than we offered since its last answer
+     * (a caller advances its buffer by accepted) nor send older data than
+     * we acknowledged; either refuses the whole response, before any state
+     * changes. */
     adv = dan_gw_off_diff(x.wr_offset, t->wr_offset);
     skip = dan_gw_off_diff(x.rd_offset, t->rd_offset);
     if (adv < 0 || adv > (int32_t)gw->xfer_len || skip < 0) {
@@ -203,6 +210,7 @@ int dan_gwc_done_xfer(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t len)
     t->rd_dropped = x.rd_dropped;
     t->rd_lost += (uint32_t)skip;
     t->rd_offset = x.rd_offset + (uint32_t)x.len;
+    gw->xfer_len = 0;
     return DAN_OK;
 }
 

@@ -341,6 +341,39 @@ static void test_tunnel_response_claims_checked(void **state)
     assert_int_equal(gw.tun[1].rd_lost, 2);
 }
 
+/* A TUN_XFER of 100 bytes whose answers were all lost (the gateway kept
+ * them), then smaller offers: the gateway's answer says 100 accepted, more
+ * than the current offer. That is the same stream, not a lie: the tunnel
+ * must go on (it locked up for good after the check above; review
+ * finding). */
+static void test_tunnel_after_a_lost_xfer(void **state)
+{
+    static uint8_t out[300];
+    size_t i, sent = 0;
+    (void)state;
+    for (i = 0; i < sizeof out; i++) {
+        out[i] = (uint8_t)(i * 5u + 1u);
+    }
+    call_ok(tunnel_open_start(1, DAN_GW_TUN_TARGETTED, DAN_DC_TUNNEL_UNDEFINED, 20, 2, 0, 0));
+    assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 1, out, 100, 64, R->bus.now), DAN_OK);
+    assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK); /* the gateway took 100 */
+    R->m.result = DAN_ERR_TIMEOUT; /* ... and every answer was lost (white box) */
+    assert_int_equal(dan_gw_complete(&R->gw, R->bus.now), DAN_ERR_TIMEOUT);
+    assert_int_equal(R->gw.tun[1].wr_offset, 0);
+    assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 1, out, 50, 64, R->bus.now), DAN_OK);
+    assert_int_equal(finish(), DAN_OK);
+    assert_int_equal(R->gw.tun[1].accepted, 100);
+    sent += R->gw.tun[1].accepted;
+    while (sent < sizeof out) {
+        size_t n = sizeof out - sent > 50 ? 50 : sizeof out - sent;
+        assert_int_equal(dan_gw_tunnel_xfer(&R->gw, 1, out + sent, n, 64, R->bus.now), DAN_OK);
+        assert_int_equal(finish(), DAN_OK);
+        sent += R->gw.tun[1].accepted;
+    }
+    assert_int_equal(sent, sizeof out);
+    assert_int_equal(R->g.tun[1].wr_next, sizeof out);
+}
+
 /* Tunnel bytes waiting while the bulk queue has no room for a chunk: the
  * node's next deadline is not "now" (the daemon's loop spun with a zero
  * timeout for as long as the queue stayed full; review finding). */
@@ -1079,8 +1112,8 @@ int main(void)
         test_can_recv_follows_gateway_restart, test_bus_off_reported, test_node_table_full,
         test_telemetry_round_robin, test_telemetry_paging, test_arming, test_failsafe,
         test_tunnel_targetted_retries, test_tunnel_response_claims_checked,
-        test_tunnel_waiting_for_room_does_not_spin, test_tunnel_exact_serial_wins_and_reopen_counts,
-        test_tunnel_read_fits_the_response, test_tunnel_broadcast_and_drops,
-        test_raw_frames_and_filters, test_raw_send_exact, test_node_table,
-        test_own_node_status_and_info, test_malformed);
+        test_tunnel_after_a_lost_xfer, test_tunnel_waiting_for_room_does_not_spin,
+        test_tunnel_exact_serial_wins_and_reopen_counts, test_tunnel_read_fits_the_response,
+        test_tunnel_broadcast_and_drops, test_raw_frames_and_filters, test_raw_send_exact,
+        test_node_table, test_own_node_status_and_info, test_malformed);
 }

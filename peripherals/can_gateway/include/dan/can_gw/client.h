@@ -62,7 +62,7 @@ typedef int (*dan_gw_done_fn)(struct dan_gw_s *gw, uint32_t code, const uint8_t 
 
 typedef struct dan_gw_s {   /* ordered by use, small fields first, no padding */
     uint8_t port;           /* tunnel port of the call in flight */
-    uint8_t xfer_len;       /* data bytes the TUN_XFER in flight offers */
+    uint8_t xfer_len;       /* most TUN_XFER data offered since the last answer */
     uint8_t can_seq;        /* CAN_SEND sequence number */
     uint8_t gw_flags;       /* DAN_GW_FLAG_*, from the last response */
     uint8_t esc_seen;       /* ESCs the gateway knows (ESC_CMD rsp) */
@@ -150,10 +150,13 @@ int dan_gw_node_info_get(const dan_gw_t *gw, dan_gw_node_info_t *info);
 int dan_gw_tunnel_open(dan_gw_t *gw, const dan_gw_tun_open_t *cfg, uint64_t now_us);
 /* Writes up to DAN_GW_TUN_CHUNK_MAX bytes (len may be 0: a pure read) and
  * reads up to rd_max bytes. After completion gw->tun[port].accepted says how
- * many of data were taken (send the rest again later; never more than
- * offered: a response claiming more, or older read data than
- * acknowledged, is DAN_ERR_MALFORMED and changes nothing) and
- * dan_gw_tunnel_data() gives the bytes read (new ones only). */
+ * many of data were taken (send the rest again later). After a call that
+ * failed it may exceed len: the gateway kept bytes of that call (the same
+ * stream, offered again), never more than the most offered since its last
+ * answer; a response claiming more, or older read data than acknowledged,
+ * is DAN_ERR_MALFORMED and changes nothing. dan_gw_tunnel_data() gives the
+ * bytes read (new ones only; up to DAN_GW_TUN_CHUNK_MAX from a gateway that
+ * ignores rd_max: copy at most your room). */
 int dan_gw_tunnel_xfer(dan_gw_t *gw, uint8_t port, const uint8_t *data, size_t len, size_t rd_max,
                        uint64_t now_us);
 int dan_gw_tunnel_data(const dan_gw_t *gw, const uint8_t **data, size_t *len);
