@@ -816,12 +816,22 @@ static int ep_open(struct vbus *vb, int i)
     return 0;
 }
 
+/* A link may be replaced if it is stale: it points at nothing. One that
+ * points at a pty that exists belongs to a live bus (a pty's node goes
+ * away with its master): a second dan-vbus replaced a running bus's links
+ * and removed them on exit (review finding). */
 static int link_check(const char *link)
 {
-    struct stat st;
+    struct stat st, target;
     if (lstat(link, &st) == 0) {
         if (!S_ISLNK(st.st_mode)) {
             tool_error("refusing to replace %s: it exists and is not a symbolic link", link);
+            return -1;
+        }
+        if (stat(link, &target) == 0 && S_ISCHR(target.st_mode)) {
+            tool_error("refusing to replace %s: it points at a live pty (another bus?); "
+                       "remove it if not",
+                       link);
             return -1;
         }
     } else if (errno != ENOENT) {

@@ -41,8 +41,10 @@ typedef struct {
     dan_port_t port;
 } dan_posix_port_t;
 
-/* Opens path raw at baud. On failure returns a negative DAN_ERR_* and a
- * one-line reason in err (e.g. "/dev/ttyUSB0: No such file or directory"). */
+/* Opens path raw at baud, exclusively (flock, as pyserial's exclusive
+ * open: another holder is DAN_ERR_BUSY). On failure returns a negative
+ * DAN_ERR_* and a one-line reason in err (e.g. "/dev/ttyUSB0: No such file
+ * or directory"). */
 int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud, dan_posix_mode_t mode,
                    char *err, size_t errlen);
 
@@ -52,14 +54,15 @@ int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud, dan_pos
 int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low, char *err,
                       size_t errlen);
 
-/* Restores the tty's settings, releases the pin, closes. Safe to call twice. */
+/* Drops bytes not sent yet, drives the direction pin inactive and releases
+ * it, restores the tty's settings, closes. Safe to call twice. */
 void dan_posix_close(dan_posix_port_t *p);
 
 /* The port table for the engines (valid while p is). */
 const dan_port_t *dan_posix_port(dan_posix_port_t *p);
 
 /* Non-blocking read: bytes read, 0 if none, negative on error (the device
- * went away: DAN_ERR_IO). */
+ * went away, a hang-up included: DAN_ERR_IO). */
 int dan_posix_read(dan_posix_port_t *p, uint8_t *buf, size_t cap);
 
 /* Sets any baud on an open fd (termios2 BOTHER on Linux). */

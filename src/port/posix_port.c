@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/ioctl.h>
 #include <time.h>
 #include <unistd.h>
@@ -155,13 +156,25 @@ int dan_posix_open(dan_posix_port_t *p, const char *path, uint32_t baud, dan_pos
         p->fd = -1;
         return DAN_ERR_ARG;
     }
+    /* One program a port, as pyserial's exclusive open (danprobe) takes
+     * it: two masters on one wire collide (review finding). */
+    if (flock(p->fd, LOCK_EX | LOCK_NB) != 0) {
+        snprintf(err, errlen, "%s: port busy (another program holds it)", path);
+        close(p->fd);
+        p->fd = -1;
+        return DAN_ERR_BUSY;
+    }
     p->orig = t;
     p->have_orig = true;
     cfmakeraw(&t);
     t.c_cflag |= CLOCAL | CREAD;
     t.c_cflag &= ~(tcflag_t)(CSTOPB | PARENB | CRTSCTS);
     t.c_iflag &= ~(tcflag_t)(IXON | IXOFF | IXANY);
-    t.c_cc[VMIN] = 0;
+    /* VMIN 1 with O_NONBLOCK: no data is EAGAIN, and 0 only a hang-up (a
+     * USB adapter unplugged, the pty's other side gone); with VMIN 0 both
+     * read 0 and a vanished port went unnoticed, its poll loop spinning
+     * (review finding) */
+    t.c_cc[VMIN] = 1;
     t.c_cc[VTIME] = 0;
     if (tcsetattr(p->fd, TCSANOW, &t) != 0 || set_and_check(p, baud) == DAN_ERR_IO) {
         snprintf(err, errlen, "%s: cannot set %u baud 8N1 raw (%s)", path, baud, strerror(errno));
@@ -232,8 +245,16 @@ int dan_posix_de_gpio(dan_posix_port_t *p, const char *spec, bool active_low, ch
 
 void dan_posix_close(dan_posix_port_t *p)
 {
+    if (p->fd >= 0) {
+        /* bytes not sent yet would go out at the restored baud: garbage */
+        (void)tcflush(p->fd, TCOFLUSH);
+    }
 #ifdef DAN_HAVE_GPIOD
     if (p->gpio_line != NULL) {
+        /* the transceiver off before the line is released: the kernel
+         * keeps the last value, and a close in mid-frame (Ctrl-C) left it
+         * driving the shared bus (review finding) */
+        (void)gpiod_line_set_value((struct gpiod_line *)p->gpio_line, p->gpio_active_low ? 1 : 0);
         gpiod_line_release((struct gpiod_line *)p->gpio_line);
         p->gpio_line = NULL;
     }
@@ -263,7 +284,7 @@ int dan_posix_read(dan_posix_port_t *p, uint8_t *buf, size_t cap)
         return (int)n;
     }
     if (n == 0) {
-        return 0;
+        return cap > 0u ? DAN_ERR_IO : 0; /* end of file: the device went away */
     }
     if (errno == EAGAIN || errno == EINTR) {
         return 0;

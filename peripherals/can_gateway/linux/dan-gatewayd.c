@@ -703,8 +703,8 @@ static int uart_rx(gwd_t *d, short revents, uint64_t now)
     while ((n = dan_posix_read(&d->uart, buf, sizeof buf)) > 0) {
         dan_periph_rx(&d->periph, buf, (size_t)n, now);
     }
-    /* With VMIN=0 a hung-up tty (USB unplug, pty closed) reads 0 bytes
-     * forever: POLLHUP/POLLERR with nothing read is a loss. */
+    /* A hung-up tty (USB unplug, pty closed) reads as DAN_ERR_IO; POLLERR
+     * or POLLNVAL with nothing read is a loss too. */
     if (n == 0 && (revents & (POLLHUP | POLLERR | POLLNVAL)) != 0) {
         n = -1;
     }
