@@ -143,15 +143,25 @@ static void print_peers(ctx_t *c, int r, double ms)
     }
 }
 
+static int hex_digit(char ch)
+{
+    return ch >= '0' && ch <= '9'   ? ch - '0'
+           : ch >= 'a' && ch <= 'f' ? ch - 'a' + 10
+           : ch >= 'A' && ch <= 'F' ? ch - 'A' + 10
+                                    : -1;
+}
+
+/* Whole hex bytes only: "-1", "0g", "+f" were taken as ff, 00, 0f
+ * (sscanf's %2x; review finding). */
 static int parse_hex(const char *s, uint8_t *out, size_t cap, size_t *len)
 {
     size_t n = 0;
     while (s[0] != '\0') {
-        unsigned v;
-        if (s[1] == '\0' || sscanf(s, "%2x", &v) != 1 || n >= cap) {
+        int hi = hex_digit(s[0]), lo = s[1] != '\0' ? hex_digit(s[1]) : -1;
+        if (hi < 0 || lo < 0 || n >= cap) {
             return -1;
         }
-        out[n++] = (uint8_t)v;
+        out[n++] = (uint8_t)(hi << 4 | lo);
         s += 2;
     }
     *len = n;
@@ -284,11 +294,31 @@ static int parse_options(int argc, char **argv, opts_t *o)
     return -1;
 }
 
-static bool known_step(const char *s)
+/* request:CODE[:HEX] or repeat:N:CODE[:HEX], split and checked. */
+typedef struct {
+    bool rep;
+    uint32_t code, count;
+    uint8_t payload[DAN_MAX_PAYLOAD];
+    size_t plen;
+} txn_args_t;
+
+static int parse_txn(const char *s, txn_args_t *t);
+
+/* The step is one of the syntax, whole: "configurefoo" ran an automatic
+ * configure and "request:0x60:zz" failed only when reached, exit 1
+ * (review finding). */
+static bool valid_step(const char *s)
 {
-    return strcmp(s, "discover") == 0 || strncmp(s, "configure", 9) == 0 ||
-           strncmp(s, "request:", 8) == 0 || strncmp(s, "repeat:", 7) == 0 ||
-           strcmp(s, "stats") == 0;
+    static txn_args_t t;
+    uint32_t baud;
+    if (strcmp(s, "discover") == 0 || strcmp(s, "stats") == 0 || strcmp(s, "configure") == 0) {
+        return true;
+    }
+    if (strncmp(s, "configure:", 10) == 0) {
+        return tool_parse_u32(s + 10, 1, UINT32_MAX, &baud) == 0;
+    }
+    return (strncmp(s, "request:", 8) == 0 || strncmp(s, "repeat:", 7) == 0) &&
+           parse_txn(s, &t) == 0;
 }
 
 /* Checks the whole command line before the port is touched: -1 to go on,
@@ -319,8 +349,8 @@ static int check_args(int argc, char **argv, opts_t *o, uint32_t *types, size_t 
         types[k] = t[k]->first;
     }
     for (i = o->first_step; i < argc; i++) {
-        if (!known_step(argv[i])) {
-            tool_error("unknown step '%s' (see --help)", argv[i]);
+        if (!valid_step(argv[i])) {
+            tool_error("bad step '%s' (see --help)", argv[i]);
             return 2;
         }
     }
@@ -396,14 +426,6 @@ static int step_configure(ctx_t *c, const char *s, uint64_t t0)
     return r == DAN_OK ? 0 : 1;
 }
 
-/* request:CODE[:HEX] or repeat:N:CODE[:HEX], split and checked. */
-typedef struct {
-    bool rep;
-    uint32_t code, count;
-    uint8_t payload[DAN_MAX_PAYLOAD];
-    size_t plen;
-} txn_args_t;
-
 static int parse_txn(const char *s, txn_args_t *t)
 {
     char tmp[1024], *parts[5], *save = NULL;
@@ -415,15 +437,17 @@ static int parse_txn(const char *s, txn_args_t *t)
     for (parts[np] = strtok_r(tmp, ":", &save); parts[np] != NULL && np < 4;
          parts[++np] = strtok_r(NULL, ":", &save)) {
     }
+    /* no field more than the syntax has (a trailing ":junk" was ignored) */
     if (t->rep) {
-        return (np < 3 || tool_parse_u32(parts[1], 0, UINT32_MAX, &t->count) != 0 ||
+        return (np < 3 || np > 4 || parts[np] != NULL ||
+                tool_parse_u32(parts[1], 1, UINT32_MAX, &t->count) != 0 ||
                 tool_parse_u32(parts[2], 0, UINT32_MAX, &t->code) != 0 ||
                 (np == 4 && parse_hex(parts[3], t->payload, sizeof t->payload, &t->plen) != 0))
                    ? -1
                    : 0;
     }
-    return (np < 2 || tool_parse_u32(parts[1], 0, UINT32_MAX, &t->code) != 0 ||
-            (np >= 3 && parse_hex(parts[2], t->payload, sizeof t->payload, &t->plen) != 0))
+    return (np < 2 || np > 3 || tool_parse_u32(parts[1], 0, UINT32_MAX, &t->code) != 0 ||
+            (np == 3 && parse_hex(parts[2], t->payload, sizeof t->payload, &t->plen) != 0))
                ? -1
                : 0;
 }
@@ -452,11 +476,12 @@ static int step_txn(ctx_t *c, const char *s, uint64_t t0)
         tool_error("bad step '%s'", s);
         return 2;
     }
-    for (k = 0; k < t.count && r == DAN_OK && !tool_stop; k++) {
+    for (k = 0; k < t.count && r == DAN_OK && !tool_stop;) {
         r = dan_master_request(&c->m, t.code, t.payload, t.plen, dan_posix_now_us());
         if (r == DAN_OK) {
             r = run_op(c);
         }
+        k += r == DAN_OK ? 1u : 0u; /* done: those that succeeded */
     }
     if (t.rep) {
         print_repeat(c, &t, r, k, t0);
@@ -505,7 +530,7 @@ int main(int argc, char **argv)
     for (i = o.first_step; i < argc && !tool_stop; i++) {
         r = run_step(&c, argv[i]);
         if (r == 2) {
-            failed = 1;
+            failed = 2; /* malformed (the header's exit code), though checked above */
             break;
         }
         fflush(stdout);
