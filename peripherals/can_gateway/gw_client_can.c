@@ -83,9 +83,12 @@ int dan_gw_can_send(dan_gw_t *gw, const dan_can_frame_t *frames, size_t n, uint6
     rc = dan_gwc_start(gw, DAN_GW_CODE_CAN_SEND, dan_gwc_done_can_send, buf, dan_writer_finish(&w),
                        sizeof buf, now_us);
     if (rc == DAN_OK) {
-        /* a new number per call, not per attempt: the master's retries repeat it */
-        gw->can_seq = s.seq;
+        gw->can_accepted = 0;
     }
+    /* The number moves on when the gateway answered (dan_gwc_done_can_send):
+     * the same frames sent again after a call that failed carry the same
+     * number and content, and a gateway that took them then does not send
+     * them twice (review finding: a new number put them on the bus twice). */
     return rc;
 }
 
@@ -155,7 +158,11 @@ int dan_gwc_done_can_send(dan_gw_t *gw, uint32_t code, const uint8_t *p, size_t 
     dan_gw_can_send_t s;
     int rc = dan_gw_msg_can_send_rsp_decode(&s, p, len);
     (void)code;
+    if (rc == DAN_OK && s.seq != (uint8_t)(gw->can_seq + 1u)) {
+        rc = DAN_ERR_MALFORMED; /* not the answer to ours */
+    }
     if (rc == DAN_OK) {
+        gw->can_seq = s.seq;
         gw->can_accepted = s.count;
         gw->can_queue_free = s.queue_free;
     }

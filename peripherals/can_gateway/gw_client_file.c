@@ -79,20 +79,20 @@ int dan_gw_file_result(const dan_gw_t *gw, uint8_t *result, uint32_t *value)
     uint32_t code = gw->m->resp_code;
     int rc;
     if (code == DAN_GW_CODE_FILE_OPEN || code == DAN_GW_CODE_FILE_WRITE) {
-        dan_gw_file_have_t h = {0u, 0u};
+        dan_gw_file_have_t h = {DAN_GW_NONE, 0u};
         rc = dan_gwc_resp_reader(gw, code, &r);
         rc = rc != DAN_OK ? rc : dan_gw_msg_file_have_decode(&h, r.data, r.len);
         *result = h.result;
         *value = h.have;
     } else if (code == DAN_GW_CODE_FILE_COMMIT) {
-        dan_gw_file_commit_t c = {0u, 0u};
+        dan_gw_file_commit_t c = {DAN_GW_NONE, 0u};
         rc = dan_gwc_resp_reader(gw, code, &r);
         rc = rc != DAN_OK ? rc : dan_gw_msg_file_commit_rsp_decode(&c, r.data, r.len);
         *result = c.result;
         *value = c.crc32;
     } else {
         rc = dan_gwc_resp_reader(gw, DAN_GW_CODE_FILE_REMOVE, &r);
-        *result = rc == DAN_OK ? dan_get_u8(&r) : 0u;
+        *result = rc == DAN_OK ? dan_get_u8(&r) : (uint8_t)DAN_GW_NONE;
         *value = 0;
         rc = rc != DAN_OK ? rc : dan_reader_finish(&r);
     }

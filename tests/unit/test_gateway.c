@@ -950,26 +950,54 @@ static void test_full_pages_leave_room_for_the_seal(void **state)
     }
 }
 
+/* An 11-bit frame of one data byte. */
+static dan_can_frame_t std_frame(uint32_t id, uint8_t d0)
+{
+    dan_can_frame_t f;
+    memset(&f, 0, sizeof f);
+    f.id = id;
+    f.dlc = 1;
+    f.data[0] = d0;
+    return f;
+}
+
 /* An FC that rebooted reuses CAN_SEND sequence numbers: the same seq with
  * other frames is new, not a retry (found by review). */
 static void test_can_send_seq_reuse_after_reboot(void **state)
 {
-    dan_can_frame_t a, b;
+    dan_can_frame_t a = std_frame(0x123, 1), b = std_frame(0x123, 2);
     size_t nf;
     (void)state;
     advance(1000);
-    memset(&a, 0, sizeof a);
-    a.id = 0x123;
-    a.dlc = 1;
-    a.data[0] = 1;
-    b = a;
-    b.data[0] = 2;
     call_ok(dan_gw_can_send(&R->gw, &a, 1, R->bus.now));
     nf = R->nframes;
     dan_gw_init(&R->gw, &R->m); /* the FC reboots: its seq starts over */
     call_ok(dan_gw_can_send(&R->gw, &b, 1, R->bus.now));
     assert_int_equal(R->gw.can_accepted, 1);
     assert_true(R->nframes > nf); /* b went out */
+}
+
+/* CAN_SEND whose answers were all lost (the gateway sent the frame), then
+ * the same frame again: the same sequence number and content, a retry to
+ * the gateway, and the frame is on the bus once (a new number per call
+ * sent it twice; review finding). */
+static void test_can_send_again_after_lost_answer(void **state)
+{
+    dan_can_frame_t a = std_frame(0x321, 7);
+    size_t nf;
+    (void)state;
+    advance(1000);
+    nf = R->nframes;
+    assert_int_equal(dan_gw_can_send(&R->gw, &a, 1, R->bus.now), DAN_OK);
+    assert_int_equal(sim_run_master(&R->bus, &R->m, 3000000), DAN_OK);
+    R->m.result = DAN_ERR_TIMEOUT; /* every answer lost (white box) */
+    assert_int_equal(dan_gw_complete(&R->gw, R->bus.now), DAN_ERR_TIMEOUT);
+    drain();
+    assert_int_equal(R->nframes, nf + 1u);
+    call_ok(dan_gw_can_send(&R->gw, &a, 1, R->bus.now));
+    assert_int_equal(R->gw.can_accepted, 1);
+    drain();
+    assert_int_equal(R->nframes, nf + 1u); /* not twice */
 }
 
 /* ARM during the failsafe: the master is alive and chose it, so ARMED is
@@ -1108,10 +1136,10 @@ int main(void)
         "tests", setup, teardown, test_discover_and_identity, test_esc_command_raw_command,
         test_bad_seal_dropped, test_stalled_can_latest_throttle_wins,
         test_throttle_in_flight_not_cut, test_full_pages_leave_room_for_the_seal,
-        test_can_send_seq_reuse_after_reboot, test_arm_during_failsafe,
-        test_can_recv_follows_gateway_restart, test_bus_off_reported, test_node_table_full,
-        test_telemetry_round_robin, test_telemetry_paging, test_arming, test_failsafe,
-        test_tunnel_targetted_retries, test_tunnel_response_claims_checked,
+        test_can_send_seq_reuse_after_reboot, test_can_send_again_after_lost_answer,
+        test_arm_during_failsafe, test_can_recv_follows_gateway_restart, test_bus_off_reported,
+        test_node_table_full, test_telemetry_round_robin, test_telemetry_paging, test_arming,
+        test_failsafe, test_tunnel_targetted_retries, test_tunnel_response_claims_checked,
         test_tunnel_after_a_lost_xfer, test_tunnel_waiting_for_room_does_not_spin,
         test_tunnel_exact_serial_wins_and_reopen_counts, test_tunnel_read_fits_the_response,
         test_tunnel_broadcast_and_drops, test_raw_frames_and_filters, test_raw_send_exact,

@@ -63,7 +63,7 @@ typedef int (*dan_gw_done_fn)(struct dan_gw_s *gw, uint32_t code, const uint8_t 
 typedef struct dan_gw_s {   /* ordered by use, small fields first, no padding */
     uint8_t port;           /* tunnel port of the call in flight */
     uint8_t xfer_len;       /* most TUN_XFER data offered since the last answer */
-    uint8_t can_seq;        /* CAN_SEND sequence number */
+    uint8_t can_seq;        /* CAN_SEND sequence number of the last call answered */
     uint8_t gw_flags;       /* DAN_GW_FLAG_*, from the last response */
     uint8_t esc_seen;       /* ESCs the gateway knows (ESC_CMD rsp) */
     uint8_t telem_next;     /* ESC_TELEM: next page (DAN_GW_NONE: end) */
@@ -261,7 +261,9 @@ int dan_gw_file_commit(dan_gw_t *gw, uint32_t crc32, uint64_t now_us);
 int dan_gw_file_remove(dan_gw_t *gw, const char *name, uint64_t now_us);
 /* After FILE_OPEN, FILE_WRITE, FILE_COMMIT or FILE_REMOVE completed: the
  * result byte (DAN_GW_FILE_*) and value: have (OPEN, WRITE), the gateway's
- * CRC-32 of the bytes it holds (COMMIT), 0 (REMOVE). */
+ * CRC-32 of the bytes it holds (COMMIT), 0 (REMOVE). When the call did
+ * not complete with an answer (rc not DAN_OK) *result is DAN_GW_NONE, never
+ * DAN_GW_FILE_OK (a timed-out COMMIT read as OK; review finding). */
 int dan_gw_file_result(const dan_gw_t *gw, uint8_t *result, uint32_t *value);
 /* A page of committed files from index first (0 for the first page); then
  * dan_gw_file_list_begin() (hdr.next: the next first, DAN_GW_NONE at the
